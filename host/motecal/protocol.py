@@ -1,0 +1,452 @@
+"""TinyOS serial framing and the motecal messages.
+
+The message layouts below are the host's reading of ``tinyos/NineDofMsg.h``;
+``tests/test_protocol_header.py`` parses that header and fails if a field
+name, order, size or AM type here differs from it.
+
+Framing is TinyOS's (tos/lib/serial): ``0x7E``, escaped bytes, ``0x7E``;
+inside a frame ``0x7E``/``0x7D`` travel as ``0x7D, byte ^ 0x20``.  The frame
+body is protocol byte, [sequence byte], dispatch byte, 7-byte AM header,
+payload, then CRC-16-CCITT (XMODEM, ``binascii.crc_hqx(.., 0)``) over
+everything before it, low byte first.
+"""
+from __future__ import annotations
+
+import binascii
+import re
+import struct
+from dataclasses import dataclass, field
+from typing import Iterable, NamedTuple
+
+import numpy as np
+
+# --------------------------------------------------------------------------
+# Serial framing constants (tos/lib/serial/Serial.h)
+# --------------------------------------------------------------------------
+HDLC_FLAG = 0x7E
+HDLC_ESC = 0x7D
+PROTO_ACK = 0x43            # 'C': ack frame, PC <- mote
+PROTO_PACKET_ACK = 0x44     # 'D': packet with sequence byte, ack requested
+PROTO_PACKET_NOACK = 0x45   # 'E': packet, no ack (what motes send)
+DISPATCH_AM = 0x00
+AM_HEADER = struct.Struct(">HHBBB")   # dest, src, length, group, type
+AM_BROADCAST = 0xFFFF
+DEFAULT_GROUP = 0x22
+MAX_FRAME = 255                        # unescaped bytes between flags
+
+# --------------------------------------------------------------------------
+# Message definitions (mirrors tinyos/NineDofMsg.h; checked by a test)
+# --------------------------------------------------------------------------
+AM_NINEDOF_SAMPLES_MSG = 0x60
+AM_NINEDOF_CAL_FRAG_MSG = 0x61
+AM_NINEDOF_CAL_FRAG_ACK_MSG = 0x62
+AM_NINEDOF_CAL_COMMIT_MSG = 0x63
+AM_NINEDOF_CAL_COMMIT_ACK_MSG = 0x64
+AM_NINEDOF_CAL_QUERY_MSG = 0x65
+AM_NINEDOF_CAL_REPORT_MSG = 0x66
+AM_NINEDOF_MOTE_STATUS_MSG = 0x67
+AM_NINEDOF_BS_STATUS_MSG = 0x68
+AM_NINEDOF_SAMPLES = AM_NINEDOF_SAMPLES_MSG
+
+NINEDOF_BATCH = 5           # default records per sample message (build-time)
+NINEDOF_RATE_HZ = 125
+NINEDOF_RECORD_SIZE = 18
+NINEDOF_FRAG_DATA = 20
+NINEDOF_STATUS_PERIOD_MS = 2000
+
+FLAG_CORRECTED = 0x01
+FLAG_VERSION_SHIFT = 4
+FLAG_VERSION_MASK = 0xF0
+
+SENSOR_ACCEL, SENSOR_GYRO, SENSOR_MAG = 0, 1, 2
+SENSORS = ("accel", "gyro", "mag")
+
+CAL_APPLY = 1
+CAL_RESET = 2
+
+CAL_REASONS = {
+    0: ("NINEDOF_CAL_OK", "accepted"),
+    1: ("NINEDOF_CAL_E_MOTE", "addressed to another mote"),
+    2: ("NINEDOF_CAL_E_FRAG", "fragment offset/length outside the set"),
+    3: ("NINEDOF_CAL_E_INCOMPLETE", "commit before every byte of the set arrived"),
+    4: ("NINEDOF_CAL_E_CRC", "CRC over the staged set does not match"),
+    5: ("NINEDOF_CAL_E_VERSION", "version 0, or not the version being staged"),
+    6: ("NINEDOF_CAL_E_RANGE", "parameters outside plausibility limits"),
+    7: ("NINEDOF_CAL_E_FORMAT", "shift, reserved bytes or length invalid"),
+    8: ("NINEDOF_CAL_E_STORAGE", "the mote could not persist the set"),
+    9: ("NINEDOF_CAL_E_ACTION", "unknown commit action"),
+}
+CAL_OK = 0
+
+
+def cal_reason(code: int) -> str:
+    """Human text for an ack status code."""
+    name, text = CAL_REASONS.get(code, (f"code {code}", "unknown reason"))
+    return f"{text} ({name})"
+
+
+@dataclass(frozen=True)
+class Field:
+    """One field of an nx_struct: name, C base type, array length (1 = scalar)."""
+    name: str
+    ctype: str
+    count: int = 1
+
+    @property
+    def fmt(self) -> str:
+        return {"nx_uint8_t": "B", "nx_int8_t": "b", "nx_uint16_t": "H",
+                "nx_int16_t": "h", "nx_uint32_t": "I", "nx_int32_t": "i"}[self.ctype]
+
+    @property
+    def size(self) -> int:
+        return struct.calcsize(">" + self.fmt) * self.count
+
+
+@dataclass(frozen=True)
+class MessageSpec:
+    """Layout of one fixed-size nx_struct message."""
+    name: str                  # struct name in the header, e.g. ninedof_cal_frag_msg
+    am_type: int | None
+    fields: tuple[Field, ...]
+    _struct: struct.Struct = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        fmt = ">" + "".join(f"{f.count}{f.fmt}" if f.count > 1 and f.fmt != "B"
+                            else (f"{f.count}s" if f.count > 1 else f.fmt)
+                            for f in self.fields)
+        object.__setattr__(self, "_struct", struct.Struct(fmt))
+
+    @property
+    def size(self) -> int:
+        return self._struct.size
+
+    def pack(self, **values) -> bytes:
+        args = []
+        for f in self.fields:
+            v = values.get(f.name, 0 if f.count == 1 else None)
+            if f.count == 1:
+                args.append(int(v))
+            elif f.fmt == "B":      # byte arrays travel as bytes
+                v = bytes(v or b"")
+                args.append(v.ljust(f.count, b"\0"))
+            else:
+                v = list(v) if v is not None else [0] * f.count
+                if len(v) != f.count:
+                    raise ValueError(f"{self.name}.{f.name} needs {f.count} values")
+                args.extend(int(x) for x in v)
+        return self._struct.pack(*args)
+
+    def unpack(self, payload: bytes) -> dict:
+        if len(payload) != self.size:
+            raise ValueError(f"{self.name}: {len(payload)} bytes, expected {self.size}")
+        vals = list(self._struct.unpack(payload))
+        out = {}
+        for f in self.fields:
+            if f.count == 1 or f.fmt == "B":
+                out[f.name] = vals.pop(0)
+            else:
+                out[f.name] = tuple(vals[:f.count])
+                del vals[:f.count]
+        return out
+
+
+def _f(name, ctype, count=1):
+    return Field(name, ctype, count)
+
+
+U8, I16, U16, I32 = "nx_uint8_t", "nx_int16_t", "nx_uint16_t", "nx_int32_t"
+
+RECORD = MessageSpec("ninedof_record", None, tuple(
+    _f(n, I16) for n in ("ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz")))
+RECORD_FIELDS = tuple(f.name for f in RECORD.fields)
+
+# The sample message is variable-length: header then `count` records.
+SAMPLES_HEADER = MessageSpec("ninedof_samples_msg", AM_NINEDOF_SAMPLES_MSG, (
+    _f("seq", U16), _f("flags", U8), _f("count", U8)))
+# The trailing array, as the header declares it: ninedof_record_t rec[NINEDOF_BATCH]
+SAMPLES_ARRAY = ("rec", "ninedof_record_t", "NINEDOF_BATCH")
+
+CAL_SENSOR = MessageSpec("ninedof_cal_sensor", None, (
+    _f("a", I16, 9), _f("c", I32, 3), _f("shift", U8), _f("reserved", U8)))
+
+CALSET_HEADER = MessageSpec("ninedof_calset", None, (
+    _f("mote", U16), _f("version", U16), _f("sensors", U8), _f("reserved", U8)))
+CALSET_ARRAY = ("s", "ninedof_cal_sensor_t", "NINEDOF_SENSORS")
+CALSET_SIZE = CALSET_HEADER.size + 3 * CAL_SENSOR.size      # 102
+
+CAL_FRAG = MessageSpec("ninedof_cal_frag_msg", AM_NINEDOF_CAL_FRAG_MSG, (
+    _f("mote", U16), _f("version", U16), _f("offset", U8), _f("len", U8),
+    _f("data", U8, NINEDOF_FRAG_DATA)))
+CAL_FRAG_ACK = MessageSpec("ninedof_cal_frag_ack_msg", AM_NINEDOF_CAL_FRAG_ACK_MSG, (
+    _f("mote", U16), _f("version", U16), _f("offset", U8), _f("status", U8)))
+CAL_COMMIT = MessageSpec("ninedof_cal_commit_msg", AM_NINEDOF_CAL_COMMIT_MSG, (
+    _f("mote", U16), _f("version", U16), _f("length", U8), _f("action", U8),
+    _f("crc", U16)))
+CAL_COMMIT_ACK = MessageSpec("ninedof_cal_commit_ack_msg", AM_NINEDOF_CAL_COMMIT_ACK_MSG, (
+    _f("mote", U16), _f("version", U16), _f("crc", U16), _f("status", U8),
+    _f("sensors", U8)))
+CAL_QUERY = MessageSpec("ninedof_cal_query_msg", AM_NINEDOF_CAL_QUERY_MSG, (
+    _f("mote", U16), _f("offset", U8)))
+CAL_REPORT = MessageSpec("ninedof_cal_report_msg", AM_NINEDOF_CAL_REPORT_MSG, (
+    _f("mote", U16), _f("version", U16), _f("crc", U16), _f("offset", U8),
+    _f("len", U8), _f("data", U8, NINEDOF_FRAG_DATA)))
+MOTE_STATUS = MessageSpec("ninedof_mote_status_msg", AM_NINEDOF_MOTE_STATUS_MSG, (
+    _f("seq", U16), _f("version", U16), _f("sensors", U8), _f("reserved", U8),
+    _f("dropped", U16), _f("send_fail", U16), _f("i2c_errors", U16), _f("late", U16)))
+BS_STATUS = MessageSpec("ninedof_bs_status_msg", AM_NINEDOF_BS_STATUS_MSG, (
+    _f("radio_rx", U16), _f("radio_drops", U16), _f("serial_rx", U16),
+    _f("serial_drops", U16), _f("radio_fail", U16), _f("serial_fail", U16)))
+
+FIXED_MESSAGES = {m.am_type: m for m in (
+    CAL_FRAG, CAL_FRAG_ACK, CAL_COMMIT, CAL_COMMIT_ACK, CAL_QUERY, CAL_REPORT,
+    MOTE_STATUS, BS_STATUS)}
+ALL_SPECS = (RECORD, SAMPLES_HEADER, CAL_SENSOR, CALSET_HEADER) + tuple(FIXED_MESSAGES.values())
+
+RECORD_DTYPE = np.dtype(">i2")
+
+
+# --------------------------------------------------------------------------
+# Frames
+# --------------------------------------------------------------------------
+class AMPacket(NamedTuple):
+    """An active message as it leaves or enters the serial line."""
+    dest: int
+    src: int
+    group: int
+    am_type: int
+    payload: bytes
+
+
+class Frame(NamedTuple):
+    """A decoded serial frame (CRC already checked)."""
+    protocol: int            # PROTO_*
+    seq: int | None          # sequence byte of 0x44 frames and 0x43 acks
+    dispatch: int | None     # None for ack frames
+    body: bytes              # bytes after dispatch (AM header + payload); b"" for acks
+
+    def am(self) -> AMPacket | None:
+        """The AM packet inside, or None if this is no well-formed AM frame."""
+        return parse_am(self.body) if self.dispatch == DISPATCH_AM else None
+
+
+def crc16(data: bytes) -> int:
+    """CRC-16-CCITT as TinyOS serial uses it (XMODEM: init 0, no reflection)."""
+    return binascii.crc_hqx(data, 0)
+
+
+_ESCAPE_RE = re.compile(rb"[\x7d\x7e]")
+_UNESCAPE_RE = re.compile(rb"\x7d(.)", re.S)
+
+
+def escape(data: bytes) -> bytes:
+    return _ESCAPE_RE.sub(lambda m: bytes((HDLC_ESC, m.group()[0] ^ 0x20)), data)
+
+
+def unescape(data: bytes) -> bytes:
+    return _UNESCAPE_RE.sub(lambda m: bytes((m.group(1)[0] ^ 0x20,)), data)
+
+
+def encode_frame(body: bytes) -> bytes:
+    """Frame an unescaped body (protocol byte .. payload): add CRC, escape, flags."""
+    crc = crc16(body)
+    return b"\x7e" + escape(body + bytes((crc & 0xFF, crc >> 8))) + b"\x7e"
+
+
+def encode_am(am: AMPacket, *, ack_seq: int | None = None) -> bytes:
+    """A whole serial frame carrying an AM packet.
+
+    Motes send 0x45 frames (no sequence byte); the PC sends 0x44 frames with
+    ``ack_seq`` and expects a 0x43 ack carrying the same sequence byte.
+    """
+    if len(am.payload) > 255:
+        raise ValueError("AM payload longer than 255 bytes")
+    hdr = AM_HEADER.pack(am.dest & 0xFFFF, am.src & 0xFFFF, len(am.payload),
+                         am.group & 0xFF, am.am_type & 0xFF)
+    if ack_seq is None:
+        head = bytes((PROTO_PACKET_NOACK, DISPATCH_AM))
+    else:
+        head = bytes((PROTO_PACKET_ACK, ack_seq & 0xFF, DISPATCH_AM))
+    return encode_frame(head + hdr + am.payload)
+
+
+def encode_ack(seq: int) -> bytes:
+    """The 0x43 frame acknowledging a 0x44 frame with sequence byte ``seq``."""
+    return encode_frame(bytes((PROTO_ACK, seq & 0xFF)))
+
+
+def parse_am(body: bytes) -> AMPacket | None:
+    """AM header + payload; None if the length byte does not match."""
+    if len(body) < AM_HEADER.size:
+        return None
+    dest, src, length, group, am_type = AM_HEADER.unpack_from(body)
+    payload = body[AM_HEADER.size:]
+    if len(payload) != length:
+        return None
+    return AMPacket(dest, src, group, am_type, bytes(payload))
+
+
+def parse_frame_body(raw: bytes) -> Frame | None:
+    """Check CRC and structure of one unescaped frame body (with its CRC)."""
+    n = len(raw)
+    if n < 4 or n > MAX_FRAME:
+        return None
+    if crc16(raw[:-2]) != (raw[-2] | (raw[-1] << 8)):
+        return None
+    proto = raw[0]
+    if proto == PROTO_PACKET_NOACK:
+        if n < 4 + AM_HEADER.size - 1:
+            return None
+        frame = Frame(proto, None, raw[1], bytes(raw[2:-2]))
+    elif proto == PROTO_PACKET_ACK:
+        if n < 5:
+            return None
+        frame = Frame(proto, raw[1], raw[2], bytes(raw[3:-2]))
+    elif proto == PROTO_ACK:
+        if n != 4:
+            return None
+        return Frame(proto, raw[1], None, b"")
+    else:
+        return None
+    if frame.dispatch == DISPATCH_AM and parse_am(frame.body) is None:
+        return None
+    return frame
+
+
+@dataclass
+class DecoderStats:
+    frames: int = 0          # good frames returned
+    crc_errors: int = 0      # delimited frames whose CRC failed
+    bad_frames: int = 0      # CRC ok but malformed (length mismatch, unknown protocol)
+    garbage_bytes: int = 0   # bytes outside any frame or in oversize runs
+
+    def as_dict(self) -> dict:
+        return dict(frames=self.frames, crc_errors=self.crc_errors,
+                    bad_frames=self.bad_frames, garbage_bytes=self.garbage_bytes)
+
+
+class FrameDecoder:
+    """Streaming deframer: feed bytes in any chunking, get checked frames out.
+
+    Resynchronises on the next flag after garbage, rejects every frame whose
+    CRC or AM length is wrong, and never raises on any input.  A run between
+    two flags that fails is counted, not returned.
+    """
+
+    def __init__(self):
+        self._buf = bytearray()
+        self._synced = False       # True once a flag has been seen
+        self.stats = DecoderStats()
+
+    def feed(self, data: bytes) -> list[Frame]:
+        out: list[Frame] = []
+        if not data:
+            return out
+        buf = self._buf
+        buf += data
+        parts = bytes(buf).split(b"\x7e")
+        # The last part is incomplete (no closing flag yet)
+        tail = parts.pop()
+        if not self._synced:
+            # bytes before the first flag are garbage
+            if parts:
+                self.stats.garbage_bytes += len(parts[0])
+                parts = parts[1:]
+                self._synced = True
+            else:
+                # still no flag: keep nothing but a bounded amount of garbage
+                self.stats.garbage_bytes += len(tail)
+                tail = b""
+        for p in parts:
+            if not p:
+                continue               # back-to-back flags
+            if len(p) > 2 * MAX_FRAME + 2:
+                self.stats.garbage_bytes += len(p)
+                continue
+            raw = unescape(p) if b"\x7d" in p else p
+            frame = parse_frame_body(raw)
+            if frame is None:
+                if len(raw) >= 4 and crc16(raw[:-2]) != (raw[-2] | (raw[-1] << 8)):
+                    self.stats.crc_errors += 1
+                else:
+                    self.stats.bad_frames += 1
+                continue
+            out.append(frame)
+        self.stats.frames += len(out)
+        if len(tail) > 2 * MAX_FRAME + 2:
+            # far too long to be a frame: drop it and wait for the next flag
+            self.stats.garbage_bytes += len(tail)
+            tail = b""
+            self._synced = False
+        self._buf = bytearray(tail)
+        return out
+
+
+def decode_stream(data: bytes) -> list[Frame]:
+    """All good frames in a complete byte stream."""
+    return FrameDecoder().feed(data + b"\x7e")
+
+
+# --------------------------------------------------------------------------
+# Sample messages
+# --------------------------------------------------------------------------
+def samples_payload_size(count: int) -> int:
+    return SAMPLES_HEADER.size + NINEDOF_RECORD_SIZE * count
+
+
+def pack_samples(seq: int, flags: int, records) -> bytes:
+    """Payload of a sample message; ``records`` is an (n, 9) integer array."""
+    rec = np.asarray(records)
+    if rec.ndim != 2 or rec.shape[1] != 9 or not 1 <= rec.shape[0] <= 255:
+        raise ValueError("records must be an (n, 9) array with 1 <= n <= 255")
+    return (SAMPLES_HEADER.pack(seq=seq & 0xFFFF, flags=flags, count=rec.shape[0])
+            + rec.astype(RECORD_DTYPE).tobytes())
+
+
+class Samples(NamedTuple):
+    seq: int
+    flags: int
+    records: np.ndarray      # (count, 9) int16
+
+    @property
+    def corrected(self) -> bool:
+        return bool(self.flags & FLAG_CORRECTED)
+
+    @property
+    def version_low(self) -> int:
+        return (self.flags & FLAG_VERSION_MASK) >> FLAG_VERSION_SHIFT
+
+
+def unpack_samples(payload: bytes) -> Samples | None:
+    """Decode a sample payload; None if count and length disagree."""
+    if len(payload) < SAMPLES_HEADER.size:
+        return None
+    seq, flags, count = struct.unpack_from(">HBB", payload)
+    if count < 1 or len(payload) != samples_payload_size(count):
+        return None
+    rec = np.frombuffer(payload, RECORD_DTYPE, count * 9, SAMPLES_HEADER.size)
+    return Samples(seq, flags, rec.reshape(count, 9).astype(np.int16))
+
+
+def decode_message(am: AMPacket):
+    """Decode an AM packet's payload by type: Samples, a dict, or None."""
+    if am.am_type == AM_NINEDOF_SAMPLES_MSG:
+        return unpack_samples(am.payload)
+    spec = FIXED_MESSAGES.get(am.am_type)
+    if spec is None or len(am.payload) != spec.size:
+        return None
+    return spec.unpack(am.payload)
+
+
+def message_frame(spec: MessageSpec, *, dest: int, src: int = 0,
+                  group: int = DEFAULT_GROUP, ack_seq: int | None = None,
+                  **values) -> bytes:
+    """Serial frame for one fixed-size message."""
+    return encode_am(AMPacket(dest, src, group, spec.am_type, spec.pack(**values)),
+                     ack_seq=ack_seq)
+
+
+def iter_am(frames: Iterable[Frame]):
+    for fr in frames:
+        am = fr.am()
+        if am is not None:
+            yield am

@@ -1,0 +1,23 @@
+"""Shared test set-up."""
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+SHARED = REPO.parent / "shared"
+MEASURED = Path(os.environ.get("MOTECAL_MEASURED", SHARED / "data" / "measured"))
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "slow: takes more than a few seconds")
+
+
+@pytest.fixture
+def measured():
+    if not MEASURED.is_dir():
+        pytest.fail(f"measured data not found at {MEASURED}")
+    return MEASURED

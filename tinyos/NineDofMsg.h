@@ -1,0 +1,197 @@
+/*
+ * NineDofMsg.h -- the one definition of every message motecal exchanges.
+ *
+ * Included by the nesC firmware (tinyos/, basestation/), by the plain C
+ * logic files (through nx_plain.h, which gives nx types to gcc/avr-gcc), and
+ * parsed by the host: host/motecal/protocol.py declares the same layouts and
+ * tests/test_protocol_header.py fails if the two ever differ.  TinyOS's MIG
+ * can generate Java/Python classes from it (mig python -target=iris
+ * NineDofMsg.h ninedof_samples_msg).
+ *
+ * All multi-byte fields are network types: big-endian on the wire.
+ */
+#ifndef NINEDOF_MSG_H
+#define NINEDOF_MSG_H
+
+#ifndef NESC
+#include "nx_plain.h"   /* plain C build (tests, simulator library) */
+#endif
+
+/* ---------------------------------------------------------------------- */
+/* Active message types                                                    */
+/* ---------------------------------------------------------------------- */
+enum {
+  AM_NINEDOF_SAMPLES_MSG = 0x60,      /* mote -> PC: batch of 9-axis records */
+  AM_NINEDOF_CAL_FRAG_MSG = 0x61,     /* PC -> mote: fragment of a calibration set */
+  AM_NINEDOF_CAL_FRAG_ACK_MSG = 0x62, /* mote -> PC: fragment received / rejected */
+  AM_NINEDOF_CAL_COMMIT_MSG = 0x63,   /* PC -> mote: apply (or reset) with CRC */
+  AM_NINEDOF_CAL_COMMIT_ACK_MSG = 0x64, /* mote -> PC: result, CRC, version in force */
+  AM_NINEDOF_CAL_QUERY_MSG = 0x65,    /* PC -> mote: read back part of the set in force */
+  AM_NINEDOF_CAL_REPORT_MSG = 0x66,   /* mote -> PC: that part */
+  AM_NINEDOF_MOTE_STATUS_MSG = 0x67,  /* mote -> PC: counters, every NINEDOF_STATUS_PERIOD */
+  AM_NINEDOF_BS_STATUS_MSG = 0x68,    /* BaseStation -> PC: its counters */
+};
+
+/* The issue text calls the sample message type AM_NINEDOF_SAMPLES. */
+enum { AM_NINEDOF_SAMPLES = AM_NINEDOF_SAMPLES_MSG };
+
+/* ---------------------------------------------------------------------- */
+/* Sizes                                                                   */
+/* ---------------------------------------------------------------------- */
+#ifndef NINEDOF_BATCH
+/* Records per sample message.  5 lets 6 motes at 125 Hz share one
+ * 250000 baud serial line and one 802.15.4 channel (see `make bench`,
+ * link budget).  Needs TOSH_DATA_LENGTH >= 4 + 18 * NINEDOF_BATCH. */
+#define NINEDOF_BATCH 5
+#endif
+
+enum {
+  NINEDOF_RATE_HZ = 125,
+  NINEDOF_RECORD_SIZE = 18,           /* 9 x int16 */
+  NINEDOF_FRAG_DATA = 20,             /* calibration bytes per fragment/report */
+  NINEDOF_STATUS_PERIOD_MS = 2000,
+};
+
+/* Sample message flags */
+enum {
+  NINEDOF_FLAG_CORRECTED = 0x01,      /* records are corrected on the mote */
+  NINEDOF_FLAG_VERSION_SHIFT = 4,     /* bits 4-7: low 4 bits of the calibration version */
+  NINEDOF_FLAG_VERSION_MASK = 0xF0,
+};
+
+/* ---------------------------------------------------------------------- */
+/* Samples (mote -> PC)                                                    */
+/* ---------------------------------------------------------------------- */
+typedef nx_struct ninedof_record {
+  nx_int16_t ax, ay, az;   /* ADXL345 counts, full resolution 256 LSB/g */
+  nx_int16_t gx, gy, gz;   /* ITG3200 counts, 14.375 LSB/(deg/s) */
+  nx_int16_t mx, my, mz;   /* HMC5883L counts, 1090 LSB/gauss, -4096 = overflow */
+} ninedof_record_t;
+
+typedef nx_struct ninedof_samples_msg {
+  nx_uint16_t seq;         /* sequence number of rec[0]; wraps at 65536 */
+  nx_uint8_t flags;        /* NINEDOF_FLAG_* */
+  nx_uint8_t count;        /* valid records, 1..NINEDOF_BATCH; length = 4 + 18*count */
+  ninedof_record_t rec[NINEDOF_BATCH];
+} ninedof_samples_msg_t;
+
+/* ---------------------------------------------------------------------- */
+/* Calibration set: what is uploaded, CRC-checked, stored and applied.     */
+/* For each sensor: out = sat16((A_q * raw + c_q + 2^(shift-1)) >> shift), */
+/* in the sensor's nominal counts.  A_q = round(A * 2^shift) row-major,    */
+/* c_q = round(c_counts * 2^shift).  See tinyos/ninedof_cal.h.             */
+/* ---------------------------------------------------------------------- */
+enum {
+  NINEDOF_SENSOR_ACCEL = 0,
+  NINEDOF_SENSOR_GYRO = 1,
+  NINEDOF_SENSOR_MAG = 2,
+  NINEDOF_SENSORS = 3,
+};
+
+typedef nx_struct ninedof_cal_sensor {
+  nx_int16_t a[9];         /* 3x3 matrix, row-major, Q(shift) */
+  nx_int32_t c[3];         /* offset in counts, Q(shift) */
+  nx_uint8_t shift;        /* fractional bits, 8..14 */
+  nx_uint8_t reserved;     /* 0 */
+} ninedof_cal_sensor_t;
+
+typedef nx_struct ninedof_calset {
+  nx_uint16_t mote;        /* target mote id (TOS_NODE_ID) */
+  nx_uint16_t version;     /* 1..65535; low 4 bits go into every sample's flags */
+  nx_uint8_t sensors;      /* bit NINEDOF_SENSOR_x set: that sensor is corrected */
+  nx_uint8_t reserved;     /* 0 */
+  ninedof_cal_sensor_t s[NINEDOF_SENSORS];
+} ninedof_calset_t;
+
+/* Reason codes in acks; the host prints their meaning (protocol.py). */
+enum {
+  NINEDOF_CAL_OK = 0,
+  NINEDOF_CAL_E_MOTE = 1,       /* set or message addressed to another mote */
+  NINEDOF_CAL_E_FRAG = 2,       /* fragment offset/length outside the set */
+  NINEDOF_CAL_E_INCOMPLETE = 3, /* commit before every byte arrived */
+  NINEDOF_CAL_E_CRC = 4,        /* CRC over the staged set does not match */
+  NINEDOF_CAL_E_VERSION = 5,    /* version 0, or not the version being staged */
+  NINEDOF_CAL_E_RANGE = 6,      /* plausibility limits (matrix, offsets, overflow) */
+  NINEDOF_CAL_E_FORMAT = 7,     /* shift, reserved bytes or length invalid */
+  NINEDOF_CAL_E_STORAGE = 8,    /* could not persist the set */
+  NINEDOF_CAL_E_ACTION = 9,     /* unknown commit action */
+};
+
+/* Commit actions */
+enum {
+  NINEDOF_CAL_APPLY = 1,        /* validate the staged set and put it in force */
+  NINEDOF_CAL_RESET = 2,        /* back to raw output; version becomes `version` */
+};
+
+/* ---------------------------------------------------------------------- */
+/* Calibration upload (PC -> mote, through the BaseStation and the radio)  */
+/* ---------------------------------------------------------------------- */
+typedef nx_struct ninedof_cal_frag_msg {
+  nx_uint16_t mote;        /* target mote (also the AM destination) */
+  nx_uint16_t version;     /* version of the set being staged */
+  nx_uint8_t offset;       /* byte offset into ninedof_calset_t */
+  nx_uint8_t len;          /* valid bytes in data, 1..NINEDOF_FRAG_DATA */
+  nx_uint8_t data[NINEDOF_FRAG_DATA];
+} ninedof_cal_frag_msg_t;
+
+typedef nx_struct ninedof_cal_frag_ack_msg {
+  nx_uint16_t mote;        /* the acknowledging mote */
+  nx_uint16_t version;     /* version being staged */
+  nx_uint8_t offset;       /* echo of the fragment */
+  nx_uint8_t status;       /* NINEDOF_CAL_OK or NINEDOF_CAL_E_* */
+} ninedof_cal_frag_ack_msg_t;
+
+typedef nx_struct ninedof_cal_commit_msg {
+  nx_uint16_t mote;
+  nx_uint16_t version;     /* the staged set's version (APPLY) or the new version (RESET) */
+  nx_uint8_t length;       /* sizeof(ninedof_calset_t) */
+  nx_uint8_t action;       /* NINEDOF_CAL_APPLY or NINEDOF_CAL_RESET */
+  nx_uint16_t crc;         /* CRC-16-CCITT (XMODEM) over the whole set */
+} ninedof_cal_commit_msg_t;
+
+typedef nx_struct ninedof_cal_commit_ack_msg {
+  nx_uint16_t mote;
+  nx_uint16_t version;     /* version in force after the commit */
+  nx_uint16_t crc;         /* CRC the mote computed over the staged set */
+  nx_uint8_t status;       /* NINEDOF_CAL_OK or NINEDOF_CAL_E_* */
+  nx_uint8_t sensors;      /* sensors corrected now */
+} ninedof_cal_commit_ack_msg_t;
+
+typedef nx_struct ninedof_cal_query_msg {
+  nx_uint16_t mote;
+  nx_uint8_t offset;       /* first byte wanted of the set in force */
+} ninedof_cal_query_msg_t;
+
+typedef nx_struct ninedof_cal_report_msg {
+  nx_uint16_t mote;
+  nx_uint16_t version;     /* version in force */
+  nx_uint16_t crc;         /* CRC of the whole set in force */
+  nx_uint8_t offset;
+  nx_uint8_t len;          /* 0 when offset is past the end */
+  nx_uint8_t data[NINEDOF_FRAG_DATA];
+} ninedof_cal_report_msg_t;
+
+/* ---------------------------------------------------------------------- */
+/* Status counters                                                         */
+/* ---------------------------------------------------------------------- */
+typedef nx_struct ninedof_mote_status_msg {
+  nx_uint16_t seq;           /* next sample sequence number */
+  nx_uint16_t version;       /* calibration version in force */
+  nx_uint8_t sensors;        /* sensors corrected */
+  nx_uint8_t reserved;
+  nx_uint16_t dropped;       /* samples lost: send queue full */
+  nx_uint16_t send_fail;     /* radio sends that failed (no ack / busy) */
+  nx_uint16_t i2c_errors;    /* sensor reads that failed */
+  nx_uint16_t late;          /* periods whose read had not finished in time */
+} ninedof_mote_status_msg_t;
+
+typedef nx_struct ninedof_bs_status_msg {
+  nx_uint16_t radio_rx;      /* packets received from the radio */
+  nx_uint16_t radio_drops;   /* radio->serial queue full */
+  nx_uint16_t serial_rx;     /* packets received from the serial line */
+  nx_uint16_t serial_drops;  /* serial->radio queue full */
+  nx_uint16_t radio_fail;    /* radio sends that failed */
+  nx_uint16_t serial_fail;   /* serial sends that failed */
+} ninedof_bs_status_msg_t;
+
+#endif /* NINEDOF_MSG_H */

@@ -1,0 +1,117 @@
+"""The in-memory form of a recorded session, shared by store, importer, calib,
+diagnose and report: plain numpy arrays plus the metadata needed to read them.
+
+Conventions
+-----------
+* ``raw`` is ``(n, 9)`` float64 in sensor counts, columns ``ax ay az gx gy gz
+  mx my mz``; NaN where a sensor has no value in that row (imported data whose
+  sensors run on separate clocks, magnetometer-only sweeps).
+* ``label`` is int32: 1..80 (or more) = index of a static orientation,
+  ``LABEL_ROT`` (-1) = rotation capture, ``LABEL_NONE`` (0) = unlabelled.
+  In CSV and in the database the same labels are written ``"1".."80"``,
+  ``"rot"`` and ``""`` (see ``label_to_text`` / ``label_from_text``).
+* ``t`` is seconds from the session start (NaN where unknown).
+* ``scales`` gives LSB per unit for each sensor: accel in LSB/g, gyro in
+  LSB/(deg/s), mag in LSB/gauss.  Defaults are the 9DOF board's nominal
+  datasheet values.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+COLUMNS = ("ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz")
+SENSOR_SLICES = {"accel": slice(0, 3), "gyro": slice(3, 6), "mag": slice(6, 9)}
+UNITS = {"accel": "g", "gyro": "deg/s", "mag": "gauss"}
+
+# Nominal scales of the 9DOF board (datasheets)
+ADXL345_LSB_PER_G = 256.0          # full resolution, 3.9 mg/LSB
+ITG3200_LSB_PER_DPS = 14.375       # FS_SEL=3, +-2000 deg/s
+HMC5883L_LSB_PER_GAUSS = 1090.0    # default gain (CRB GN=001)
+HMC5883L_OVERFLOW = -4096          # data output register value on overflow
+NOMINAL_SCALES = {"accel": ADXL345_LSB_PER_G, "gyro": ITG3200_LSB_PER_DPS,
+                  "mag": HMC5883L_LSB_PER_GAUSS}
+NOMINAL_CHIPS = {"accel": "ADXL345", "gyro": "ITG3200", "mag": "HMC5883L"}
+
+LABEL_NONE = 0
+LABEL_ROT = -1
+
+
+def label_to_text(label: int) -> str:
+    if label == LABEL_ROT:
+        return "rot"
+    if label == LABEL_NONE:
+        return ""
+    return str(int(label))
+
+
+def label_from_text(text: str) -> int:
+    """Inverse of label_to_text; raises ValueError on anything else."""
+    text = (text or "").strip()
+    if text == "":
+        return LABEL_NONE
+    if text == "rot":
+        return LABEL_ROT
+    v = int(text)
+    if v < 1:
+        raise ValueError(f"pose label must be >= 1, 'rot' or empty, not {text!r}")
+    return v
+
+
+@dataclass
+class SessionData:
+    """Samples of one session (possibly several motes)."""
+    name: str
+    raw: np.ndarray                      # (n, 9) float64 counts, NaN = missing
+    mote: np.ndarray                     # (n,) int32
+    seq: np.ndarray                      # (n,) int64, unwrapped sequence numbers (or row index)
+    t: np.ndarray                        # (n,) float64 seconds
+    label: np.ndarray                    # (n,) int32
+    flags: np.ndarray                    # (n,) uint8 sample-message flags (0 for imports)
+    kind: str = "static80"               # static80 | rotation | idle | free | imported
+    scales: dict = field(default_factory=lambda: dict(NOMINAL_SCALES))
+    chips: dict = field(default_factory=lambda: dict(NOMINAL_CHIPS))
+    meta: dict = field(default_factory=dict)   # source, rate_hz, notes, ...
+
+    def __post_init__(self):
+        n = len(self.raw)
+        self.raw = np.asarray(self.raw, dtype=np.float64).reshape(n, 9)
+        for name, dt in (("mote", np.int32), ("seq", np.int64), ("t", np.float64),
+                         ("label", np.int32), ("flags", np.uint8)):
+            arr = np.asarray(getattr(self, name), dtype=dt)
+            if arr.shape != (n,):
+                raise ValueError(f"{name} must have shape ({n},), not {arr.shape}")
+            setattr(self, name, arr)
+
+    def __len__(self) -> int:
+        return len(self.raw)
+
+    @property
+    def motes(self) -> list[int]:
+        return sorted(int(m) for m in np.unique(self.mote))
+
+    def sensor(self, name: str) -> np.ndarray:
+        """(n, 3) counts of one sensor: 'accel', 'gyro' or 'mag'."""
+        return self.raw[:, SENSOR_SLICES[name]]
+
+    def physical(self, name: str) -> np.ndarray:
+        """(n, 3) in g, deg/s or gauss using the session's nominal scales."""
+        return self.sensor(name) / self.scales[name]
+
+    def has(self, name: str) -> np.ndarray:
+        """Rows where that sensor has all three values."""
+        return ~np.isnan(self.sensor(name)).any(axis=1)
+
+    def select(self, mask) -> "SessionData":
+        mask = np.asarray(mask)
+        return SessionData(self.name, self.raw[mask], self.mote[mask], self.seq[mask],
+                           self.t[mask], self.label[mask], self.flags[mask], self.kind,
+                           dict(self.scales), dict(self.chips), dict(self.meta))
+
+    def for_mote(self, mote: int) -> "SessionData":
+        return self.select(self.mote == mote)
+
+    def poses(self) -> list[int]:
+        """Static pose labels present, sorted."""
+        return sorted(int(v) for v in np.unique(self.label) if v >= 1)

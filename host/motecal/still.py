@@ -1,0 +1,137 @@
+"""Stillness detection: is the board at rest?
+
+One definition used live by the logger's guided flow (``StillDetector``) and
+offline by the importer and diagnosis (``segment_still``).
+
+A window of ``window_s`` seconds is *still* when, for every sensor present,
+the standard deviation of each axis over the window is below its threshold:
+
+* accelerometer: ``accel_g`` (default 0.02 g; ADXL345 noise is ~0.004 g rms),
+* gyroscope: ``gyro_dps`` (default 1.5 deg/s; ITG3200 noise ~0.4 deg/s rms),
+* magnetometer: ``mag_gauss`` (default 0.012 gauss; HMC5883L noise ~2 LSB =
+  0.002 gauss) -- catches turns about the vertical, which the accelerometer
+  cannot see.
+
+Thresholds work on standard deviations, not means, so an unknown gyroscope
+bias (up to ~15 deg/s on an uncalibrated ITG3200) does not matter.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .session import NOMINAL_SCALES
+
+
+@dataclass(frozen=True)
+class StillThresholds:
+    window_s: float = 0.4
+    accel_g: float = 0.02
+    gyro_dps: float = 1.5
+    mag_gauss: float = 0.012
+    min_still_s: float = 1.0     # shortest segment segment_still() labels
+
+
+def _moving_std(x: np.ndarray, w: int) -> np.ndarray:
+    """Std over the trailing window of w rows for each row >= w-1 (NaN before)."""
+    n = len(x)
+    out = np.full(x.shape, np.nan)
+    if n < w:
+        return out
+    c1 = np.cumsum(np.vstack([np.zeros((1, x.shape[1])), x]), axis=0)
+    c2 = np.cumsum(np.vstack([np.zeros((1, x.shape[1])), x * x]), axis=0)
+    s1 = c1[w:] - c1[:-w]
+    s2 = c2[w:] - c2[:-w]
+    var = np.maximum(s2 / w - (s1 / w) ** 2, 0.0)
+    out[w - 1:] = np.sqrt(var)
+    return out
+
+
+def still_mask(raw: np.ndarray, rate_hz: float, scales: dict | None = None,
+               th: StillThresholds = StillThresholds()) -> np.ndarray:
+    """Per-row bool: the window ending at (and centred near) this row is still.
+
+    ``raw`` is (n, 9) counts with NaN for missing sensors; a sensor that is
+    entirely missing is ignored.  Rows are assumed evenly spaced at rate_hz.
+    """
+    scales = scales or NOMINAL_SCALES
+    w = max(3, int(round(th.window_s * rate_hz)))
+    n = len(raw)
+    ok = np.ones(n, bool)
+    for name, sl, lim in (("accel", slice(0, 3), th.accel_g),
+                          ("gyro", slice(3, 6), th.gyro_dps),
+                          ("mag", slice(6, 9), th.mag_gauss)):
+        x = raw[:, sl] / scales[name]
+        if np.isnan(x).all():
+            continue
+        x = np.where(np.isnan(x), np.nanmean(x, axis=0), x)
+        sd = _moving_std(x, w)
+        # centre the trailing window on the middle of the window
+        half = w // 2
+        sd = np.vstack([sd[half:], np.full((half, 3), np.nan)])
+        ok &= np.nan_to_num(sd, nan=np.inf).max(axis=1) < lim
+    return ok
+
+
+def segment_still(raw: np.ndarray, rate_hz: float, scales: dict | None = None,
+                  th: StillThresholds = StillThresholds()) -> np.ndarray:
+    """Label still segments 1, 2, 3, ... in time order; moving rows get 0.
+
+    Segments shorter than ``th.min_still_s`` are dropped.
+    """
+    mask = still_mask(raw, rate_hz, scales, th)
+    labels = np.zeros(len(raw), np.int32)
+    if not mask.any():
+        return labels
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    k = 0
+    min_len = int(round(th.min_still_s * rate_hz))
+    for start, stop in zip(edges[::2], edges[1::2]):
+        if stop - start >= min_len:
+            k += 1
+            labels[start:stop] = k
+    return labels
+
+
+class StillDetector:
+    """Streaming form for live data of one mote: push rows, ask ``still``.
+
+    Keeps the last window of rows; ``push`` returns True while the latest
+    window is still.
+    """
+
+    def __init__(self, rate_hz: float, scales: dict | None = None,
+                 th: StillThresholds = StillThresholds()):
+        self.th = th
+        self.scales = scales or NOMINAL_SCALES
+        self.w = max(3, int(round(th.window_s * rate_hz)))
+        self._buf = np.full((self.w, 9), np.nan)
+        self._n = 0
+
+    def reset(self):
+        self._n = 0
+        self._buf[:] = np.nan
+
+    def push(self, rows: np.ndarray) -> bool:
+        rows = np.asarray(rows, float).reshape(-1, 9)
+        if len(rows) >= self.w:
+            self._buf[:] = rows[-self.w:]
+        else:
+            self._buf = np.vstack([self._buf[len(rows):], rows])
+        self._n += len(rows)
+        return self.still
+
+    @property
+    def still(self) -> bool:
+        if self._n < self.w:
+            return False
+        for name, sl, lim in (("accel", slice(0, 3), self.th.accel_g),
+                              ("gyro", slice(3, 6), self.th.gyro_dps),
+                              ("mag", slice(6, 9), self.th.mag_gauss)):
+            x = self._buf[:, sl] / self.scales[name]
+            if np.isnan(x).all():
+                continue
+            if np.isnan(x).any() or (x.std(axis=0) >= lim).any():
+                return False
+        return True

@@ -1,0 +1,742 @@
+"""The motecal database: sessions, samples, link statistics and calibrations.
+
+``open_store(target)`` opens a sqlite file (the default) or, with a
+``postgresql://`` URL, a PostgreSQL server.  Both hold the same schema,
+versioned in the ``schema_version`` table and migrated forward on open.
+
+Samples are one row each: session, mote, unwrapped sequence number, host time
+``t`` (seconds since the session started, NULL if unknown), label (text as in
+CSV: ``"1".."80"``, ``"rot"`` or ``""``), message flags and the nine raw
+int16 counts (NULL where a sensor has no value).  ``(session, mote, seq)`` is
+the primary key, so a sample can never be stored twice.
+
+Crash safety (sqlite): write-ahead log, ``synchronous=NORMAL``; a live session
+is written through a ``SessionWriter`` that commits a transaction of whole
+batches every ``commit_every`` seconds, so killing the process at any moment
+leaves a consistent database that lacks at most the uncommitted batch.
+"""
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import itertools
+import json
+import math
+import os
+import sqlite3
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import UserError
+from .session import (COLUMNS, NOMINAL_CHIPS, NOMINAL_SCALES, SessionData,
+                      label_from_text, label_to_text)
+
+SCHEMA_VERSION = 2
+
+SAMPLE_COLUMNS = ("session", "mote", "seq", "t", "label", "flags") + COLUMNS
+
+# Per-mote link counters (link_stats) and per-line counters (line_stats):
+# name -> meaning.  The logger fills them; README's schema section lists them.
+LINK_COUNTERS = {
+    "frames": "sample messages received from this mote",
+    "samples": "records stored",
+    "lost": "records missing by sequence number (gaps not filled later)",
+    "duplicates": "records received again (dropped)",
+    "reordered": "records that arrived late and filled a gap",
+    "restarts": "sequence number jumped back: mote restarted",
+    "first_seq": "first unwrapped sequence number",
+    "last_seq": "last unwrapped sequence number",
+    "status_msgs": "mote status messages received",
+    "mote_dropped": "mote counter: samples lost, send queue full",
+    "mote_send_fail": "mote counter: radio sends that failed",
+    "mote_i2c_errors": "mote counter: sensor reads that failed",
+    "mote_late": "mote counter: periods whose read was late",
+    "cal_version": "calibration version in force on the mote",
+    "cal_sensors": "sensors corrected on the mote (bit mask)",
+}
+LINE_COUNTERS = {
+    "frames": "good serial frames",
+    "crc_errors": "frames with a bad CRC (corrupt or truncated)",
+    "bad_frames": "frames with a good CRC but a wrong length or protocol byte",
+    "garbage_bytes": "bytes outside any frame",
+    "unknown_msgs": "frames of an unknown AM type or dispatch byte",
+    "bad_msgs": "known AM type with a wrong payload length",
+    "acks": "ack frames (0x43)",
+    "disconnects": "times the port went away",
+    "gap_s": "seconds without a port",
+    "bs_status_msgs": "BaseStation status messages",
+    "bs_radio_rx": "BaseStation counter: packets from the radio",
+    "bs_radio_drops": "BaseStation counter: radio->serial queue full",
+    "bs_serial_rx": "BaseStation counter: packets from the serial line",
+    "bs_serial_drops": "BaseStation counter: serial->radio queue full",
+    "bs_radio_fail": "BaseStation counter: radio sends failed",
+    "bs_serial_fail": "BaseStation counter: serial sends failed",
+}
+
+INT16_MIN, INT16_MAX = -32768, 32767
+
+
+# --------------------------------------------------------------------------
+# Schema and migrations.  Each migration is a list of statements; {int16},
+# {real}, {id_pk}, {wr} are filled in per backend.  Never edit a released
+# migration: add the next one and bump SCHEMA_VERSION.
+# --------------------------------------------------------------------------
+def _counter_cols(names, real=("gap_s",)):
+    return ", ".join(f"{n} {{real}} NOT NULL DEFAULT 0" if n in real
+                     else f"{n} BIGINT NOT NULL DEFAULT 0" for n in names)
+
+
+MIGRATIONS = {
+    1: [
+        "CREATE TABLE schema_version (version INTEGER NOT NULL)",
+        """CREATE TABLE sessions (
+             id {id_pk},
+             name TEXT NOT NULL UNIQUE,
+             kind TEXT NOT NULL,
+             started {real} NOT NULL,
+             ended {real},
+             source TEXT,
+             rate_hz {real},
+             notes TEXT,
+             scales TEXT NOT NULL,
+             chips TEXT NOT NULL,
+             meta TEXT NOT NULL)""",
+        """CREATE TABLE samples (
+             session BIGINT NOT NULL,
+             mote INTEGER NOT NULL,
+             seq BIGINT NOT NULL,
+             t {real},
+             label TEXT NOT NULL DEFAULT '',
+             flags SMALLINT NOT NULL DEFAULT 0,
+             ax {int16}, ay {int16}, az {int16},
+             gx {int16}, gy {int16}, gz {int16},
+             mx {int16}, my {int16}, mz {int16},
+             PRIMARY KEY (session, mote, seq)){wr}""",
+        """CREATE TABLE calibrations (
+             id {id_pk},
+             session BIGINT NOT NULL,
+             mote INTEGER NOT NULL,
+             created {real} NOT NULL,
+             cal TEXT NOT NULL)""",
+        "CREATE INDEX calibrations_session ON calibrations (session, mote, id)",
+    ],
+    2: [
+        f"""CREATE TABLE link_stats (
+             session BIGINT NOT NULL,
+             mote INTEGER NOT NULL,
+             {_counter_cols(LINK_COUNTERS)},
+             updated {{real}},
+             PRIMARY KEY (session, mote))""",
+        f"""CREATE TABLE line_stats (
+             session BIGINT PRIMARY KEY,
+             {_counter_cols(LINE_COUNTERS)},
+             updated {{real}})""",
+        """CREATE TABLE events (
+             session BIGINT NOT NULL,
+             t {real} NOT NULL,
+             kind TEXT NOT NULL,
+             mote INTEGER,
+             detail TEXT NOT NULL DEFAULT '')""",
+        "CREATE INDEX events_session ON events (session, t)",
+    ],
+}
+
+
+# --------------------------------------------------------------------------
+# Backends
+# --------------------------------------------------------------------------
+class _SqliteBackend:
+    name = "sqlite"
+    types = {"int16": "INTEGER", "real": "REAL", "id_pk": "INTEGER PRIMARY KEY",
+             "wr": " WITHOUT ROWID"}
+    errors = (sqlite3.Error,)
+
+    def __init__(self, path: str, create: bool):
+        self.path = path
+        self.display = path
+        if os.path.isdir(path):
+            raise UserError(f"{path} is a directory, not a database file")
+        exists = os.path.exists(path)
+        if not exists and not create:
+            raise UserError(f"no database {path}")
+        if not exists:
+            parent = os.path.dirname(os.path.abspath(path))
+            if not os.path.isdir(parent):
+                raise UserError(f"cannot create database {path}: folder {parent} does not exist")
+            if not os.access(parent, os.W_OK):
+                raise UserError(f"cannot create database {path}: folder {parent} is not writable")
+        elif create and not os.access(path, os.W_OK):
+            raise UserError(f"database {path} is not writable")
+        self.readonly = exists and not os.access(path, os.W_OK)
+        try:
+            if self.readonly:
+                uri = "file:" + os.path.abspath(path) + "?mode=ro"
+                self.conn = sqlite3.connect(uri, uri=True, isolation_level=None,
+                                            check_same_thread=False)
+            else:
+                self.conn = sqlite3.connect(path, isolation_level=None, timeout=10.0,
+                                            check_same_thread=False)
+            self.conn.execute("PRAGMA busy_timeout = 10000")
+            self.tables()                         # fails on a non-sqlite file
+            if not self.readonly:
+                self.conn.execute("PRAGMA journal_mode = WAL")
+                self.conn.execute("PRAGMA synchronous = NORMAL")
+        except sqlite3.DatabaseError as e:
+            with contextlib.suppress(Exception):
+                self.conn.close()
+            if "not a database" in str(e) or "malformed" in str(e):
+                raise UserError(f"{path} is not a motecal database ({e})") from None
+            raise UserError(f"cannot open database {path}: {e}") from None
+
+    def sql(self, text: str) -> str:
+        return text
+
+    def tables(self) -> set[str]:
+        return {r[0] for r in self.conn.execute(
+            "SELECT name FROM sqlite_master WHERE type = 'table'")}
+
+    def begin(self):
+        self.conn.execute("BEGIN IMMEDIATE")
+
+    def commit(self):
+        self.conn.execute("COMMIT")
+
+    def rollback(self):
+        if self.conn.in_transaction:
+            self.conn.execute("ROLLBACK")
+
+    def cursor(self):
+        return self.conn.cursor()
+
+    def close(self):
+        self.conn.close()
+
+
+def _backend_for(target: str, create: bool):
+    if target.startswith(("postgresql://", "postgres://")):
+        from .store_pg import PostgresBackend     # optional dependency
+        return PostgresBackend(target, create)
+    if target.startswith("sqlite:///"):
+        target = target[len("sqlite:///") - 1:] if target.startswith("sqlite:////") \
+            else target[len("sqlite:///"):]
+    elif "://" in target:
+        raise UserError(f"unsupported database URL {target} (use a sqlite file path "
+                        "or postgresql://...)")
+    return _SqliteBackend(target, create)
+
+
+# --------------------------------------------------------------------------
+# Helpers
+# --------------------------------------------------------------------------
+def _iso(ts: float | None) -> str | None:
+    if ts is None:
+        return None
+    return _dt.datetime.fromtimestamp(ts, _dt.timezone.utc).isoformat(timespec="milliseconds") \
+        .replace("+00:00", "Z")
+
+
+def _from_iso(value) -> float | None:
+    if value is None or value == "":
+        return None
+    if isinstance(value, (int, float)):
+        return float(value)
+    try:
+        d = _dt.datetime.fromisoformat(str(value).replace("Z", "+00:00"))
+    except ValueError:
+        raise UserError(f"bad time {value!r} in session metadata (want ISO 8601)") from None
+    if d.tzinfo is None:
+        d = d.replace(tzinfo=_dt.timezone.utc)
+    return d.timestamp()
+
+
+def _json_default(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.generic):
+        return o.item()
+    raise TypeError(f"{type(o).__name__} is not JSON serialisable")
+
+
+def _dumps(obj) -> str:
+    return json.dumps(obj, default=_json_default, sort_keys=True)
+
+
+def _label_texts(label: np.ndarray) -> list[str]:
+    """int labels -> their text form (session.label_to_text), vectorised."""
+    uniq, inv = np.unique(np.asarray(label), return_inverse=True)
+    texts = np.array([label_to_text(int(u)) for u in uniq], dtype=object)
+    return texts[inv].tolist()
+
+
+def _labels_from_texts(texts: list[str]) -> np.ndarray:
+    uniq, inv = np.unique(np.asarray(texts, dtype=object).astype(str), return_inverse=True)
+    vals = np.array([label_from_text(u) for u in uniq], dtype=np.int32)
+    return vals[inv] if len(texts) else np.zeros(0, np.int32)
+
+
+_META_COLUMNS = ("source", "rate_hz", "notes")
+
+
+@dataclass
+class SessionInfo:
+    id: int
+    name: str
+    kind: str
+    started: float
+    ended: float | None
+
+
+# --------------------------------------------------------------------------
+# The store
+# --------------------------------------------------------------------------
+class Store:
+    """An open motecal database.  Use ``open_store``; close it (or use ``with``)."""
+
+    def __init__(self, backend):
+        self._b = backend
+        self.target = backend.display
+        self._check_schema()
+
+    # -- context manager ---------------------------------------------------
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def close(self):
+        if self._b is not None:
+            self._b.close()
+            self._b = None
+
+    # -- schema ------------------------------------------------------------
+    def _check_schema(self):
+        b = self._b
+        try:
+            tables = b.tables()
+        except b.errors as e:
+            raise UserError(f"{self.target} is not a motecal database ({e})") from None
+        if "schema_version" not in tables:
+            if tables:
+                raise UserError(f"{self.target} is not a motecal database "
+                                f"(tables: {', '.join(sorted(tables)[:5])})")
+            if getattr(b, "readonly", False):
+                raise UserError(f"{self.target} is not a motecal database (empty, read-only)")
+            self._migrate(0)
+            return
+        rows = self._query("SELECT version FROM schema_version")
+        if len(rows) != 1:
+            raise UserError(f"{self.target} is not a motecal database (bad schema_version)")
+        version = int(rows[0][0])
+        if version > SCHEMA_VERSION:
+            raise UserError(f"{self.target} has schema version {version}, newer than this "
+                            f"motecal understands ({SCHEMA_VERSION}); upgrade motecal")
+        if version < SCHEMA_VERSION:
+            if getattr(b, "readonly", False):
+                raise UserError(f"{self.target} has an old schema ({version}) and is read-only")
+            self._migrate(version)
+
+    def _migrate(self, current: int):
+        b = self._b
+        with self._tx() as cur:
+            for v in range(current + 1, SCHEMA_VERSION + 1):
+                for stmt in MIGRATIONS[v]:
+                    cur.execute(stmt.format(**b.types))
+            if current == 0:
+                cur.execute(b.sql("INSERT INTO schema_version (version) VALUES (?)"),
+                            (SCHEMA_VERSION,))
+            else:
+                cur.execute(b.sql("UPDATE schema_version SET version = ?"), (SCHEMA_VERSION,))
+
+    @property
+    def schema_version(self) -> int:
+        return int(self._query("SELECT version FROM schema_version")[0][0])
+
+    # -- low level -----------------------------------------------------------
+    @contextlib.contextmanager
+    def _tx(self):
+        """One transaction: everything inside is committed together or not at all."""
+        b = self._b
+        b.begin()
+        cur = b.cursor()
+        try:
+            yield cur
+            b.commit()
+        except BaseException:
+            with contextlib.suppress(Exception):
+                b.rollback()
+            raise
+
+    def _query(self, sql: str, params=()) -> list[tuple]:
+        cur = self._b.cursor()
+        cur.execute(self._b.sql(sql), params)
+        return cur.fetchall()
+
+    def _info(self, name: str) -> SessionInfo | None:
+        rows = self._query("SELECT id, name, kind, started, ended FROM sessions WHERE name = ?",
+                           (name,))
+        return SessionInfo(*rows[0]) if rows else None
+
+    def _require(self, name: str) -> SessionInfo:
+        info = self._info(name)
+        if info is None:
+            names = [r[0] for r in self._query("SELECT name FROM sessions ORDER BY id")]
+            known = ", ".join(names[:20]) + (" ..." if len(names) > 20 else "")
+            raise UserError(f"unknown session {name!r} in {self.target}"
+                            + (f" (known: {known})" if names else " (it holds no sessions)"))
+        return info
+
+    # -- sessions --------------------------------------------------------------
+    def sessions(self) -> list[dict]:
+        """Every session: name, kind, started/ended (ISO), source, notes, rate_hz,
+        samples, motes, poses (distinct static labels), in creation order."""
+        counts: dict[int, dict] = {}
+        for sid, mote, n, npose in self._query(
+                "SELECT session, mote, COUNT(*), "
+                "COUNT(DISTINCT CASE WHEN label NOT IN ('', 'rot') THEN label END) "
+                "FROM samples GROUP BY session, mote"):
+            c = counts.setdefault(sid, {"samples": 0, "motes": [], "poses": 0})
+            c["samples"] += int(n)
+            c["motes"].append(int(mote))
+            c["poses"] = max(c["poses"], int(npose))
+        out = []
+        for sid, name, kind, started, ended, source, rate, notes in self._query(
+                "SELECT id, name, kind, started, ended, source, rate_hz, notes "
+                "FROM sessions ORDER BY id"):
+            c = counts.get(sid, {"samples": 0, "motes": [], "poses": 0})
+            out.append(dict(name=name, kind=kind, started=_iso(started), ended=_iso(ended),
+                            source=source, rate_hz=rate, notes=notes, **c))
+        return out
+
+    def session_exists(self, name: str) -> bool:
+        return self._info(name) is not None
+
+    def _meta_row(self, name, kind, scales, chips, meta):
+        meta = dict(meta or {})
+        started = _from_iso(meta.pop("started", None)) or time.time()
+        ended = _from_iso(meta.pop("ended", None))
+        cols = {k: meta.pop(k, None) for k in _META_COLUMNS}
+        if cols["rate_hz"] is not None:
+            cols["rate_hz"] = float(cols["rate_hz"])
+        return (name, kind, started, ended, cols["source"], cols["rate_hz"], cols["notes"],
+                _dumps(dict(scales or NOMINAL_SCALES)), _dumps(dict(chips or NOMINAL_CHIPS)),
+                _dumps(meta))
+
+    def _insert_session(self, cur, row) -> int:
+        cur.execute(self._b.sql(
+            "INSERT INTO sessions (name, kind, started, ended, source, rate_hz, notes, "
+            "scales, chips, meta) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?) RETURNING id"), row)
+        return int(cur.fetchone()[0])
+
+    def _delete_session(self, cur, sid: int):
+        for table in ("samples", "calibrations", "link_stats", "line_stats", "events"):
+            cur.execute(self._b.sql(f"DELETE FROM {table} WHERE session = ?"), (sid,))
+        cur.execute(self._b.sql("DELETE FROM sessions WHERE id = ?"), (sid,))
+
+    def save_session(self, data: SessionData, *, replace: bool = False) -> None:
+        """Store a whole session (an import) in one transaction: all or nothing.
+
+        ``raw`` must hold integer counts within int16 (NaN = missing); (mote,
+        seq) must be unique.  An existing session of that name is a UserError
+        unless ``replace``, which deletes it (and its calibrations) first.
+        """
+        raw = np.asarray(data.raw, float)
+        finite = np.isfinite(raw)
+        if np.isinf(raw).any():
+            raise UserError(f"session {data.name!r}: infinite sample values")
+        vals = raw[finite]
+        if vals.size and (np.any(vals != np.round(vals)) or vals.min() < INT16_MIN
+                          or vals.max() > INT16_MAX):
+            raise UserError(f"session {data.name!r}: samples must be integer counts "
+                            f"within {INT16_MIN}..{INT16_MAX}")
+        order = np.lexsort((data.seq, data.mote))
+        m, s = data.mote[order], data.seq[order]
+        dup = (m[1:] == m[:-1]) & (s[1:] == s[:-1])
+        if dup.any():
+            i = int(np.flatnonzero(dup)[0])
+            raise UserError(f"session {data.name!r}: mote {int(m[i])} has sequence number "
+                            f"{int(s[i])} twice")
+        t = np.where(np.isfinite(data.t), data.t, np.nan)
+        row = self._meta_row(data.name, data.kind, data.scales, data.chips, data.meta)
+        with self._tx() as cur:
+            info = self._info(data.name)
+            if info is not None:
+                if not replace:
+                    raise UserError(f"session {data.name!r} already exists in {self.target}")
+                self._delete_session(cur, info.id)
+            sid = self._insert_session(cur, row)
+            n = len(data)
+            step = 100_000
+            labels = _label_texts(data.label)
+            int_rows = np.where(finite, raw, 0).astype(np.int64)
+            for a in range(0, n, step):
+                sl = slice(a, a + step)
+                cols = [np.where(finite[sl, j], int_rows[sl, j], None).tolist() for j in range(9)]
+                tt = t[sl]
+                tcol = np.where(np.isnan(tt), None, tt).tolist()
+                self._b_insert(cur, zip(itertools.repeat(sid), data.mote[sl].tolist(),
+                                        data.seq[sl].tolist(), tcol, labels[sl],
+                                        data.flags[sl].tolist(), *cols))
+
+    def _b_insert(self, cur, rows):
+        """Insert full sample rows (session, mote, seq, t, label, flags, 9 values)."""
+        ins = getattr(self._b, "insert_samples", None)
+        if ins is not None:
+            ins(cur, rows)
+            return
+        cur.executemany(
+            "INSERT INTO samples (session, mote, seq, t, label, flags, ax, ay, az, gx, gy, gz, "
+            "mx, my, mz) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", rows)
+
+    def load_session(self, name: str, mote: int | None = None) -> SessionData:
+        """A session's samples ordered by mote and sequence number, with its metadata."""
+        info = self._require(name)
+        (kind, started, ended, source, rate, notes, scales, chips, meta), = self._query(
+            "SELECT kind, started, ended, source, rate_hz, notes, scales, chips, meta "
+            "FROM sessions WHERE id = ?", (info.id,))
+        sql = ("SELECT mote, seq, t, flags, ax, ay, az, gx, gy, gz, mx, my, mz, label "
+               "FROM samples WHERE session = ?")
+        params: tuple = (info.id,)
+        if mote is not None:
+            sql += " AND mote = ?"
+            params += (int(mote),)
+        rows = self._query(sql + " ORDER BY mote, seq", params)
+        if mote is not None and not rows:
+            motes = [r[0] for r in self._query(
+                "SELECT DISTINCT mote FROM samples WHERE session = ? ORDER BY mote", (info.id,))]
+            raise UserError(f"session {name!r} has no samples of mote {mote}"
+                            + (f" (motes: {', '.join(map(str, motes))})" if motes else ""))
+        if rows:
+            num = np.array([r[:13] for r in rows], dtype=float)
+            labels = _labels_from_texts([r[13] for r in rows])
+        else:
+            num = np.zeros((0, 13))
+            labels = np.zeros(0, np.int32)
+        meta = json.loads(meta)
+        meta.update({k: v for k, v in (("source", source), ("rate_hz", rate), ("notes", notes))
+                     if v is not None})
+        meta["started"] = _iso(started)
+        if ended is not None:
+            meta["ended"] = _iso(ended)
+        return SessionData(name=name, raw=num[:, 4:13], mote=num[:, 0].astype(np.int32),
+                           seq=num[:, 1].astype(np.int64), t=num[:, 2], label=labels,
+                           flags=num[:, 3].astype(np.uint8), kind=kind,
+                           scales=json.loads(scales), chips=json.loads(chips), meta=meta)
+
+    # -- calibrations ----------------------------------------------------------
+    def save_calibration(self, session: str, mote: int, cal: dict) -> int:
+        """Store a calibration (JSON-able dict) of one mote of a session; returns its id."""
+        info = self._require(session)
+        try:
+            text = _dumps(cal)
+        except (TypeError, ValueError) as e:
+            raise UserError(f"calibration for {session!r} mote {mote} is not JSON: {e}") from None
+        with self._tx() as cur:
+            cur.execute(self._b.sql(
+                "INSERT INTO calibrations (session, mote, created, cal) VALUES (?, ?, ?, ?) "
+                "RETURNING id"), (info.id, int(mote), time.time(), text))
+            return int(cur.fetchone()[0])
+
+    def load_calibration(self, session: str, mote: int | None = None) -> dict:
+        """The latest calibration of a session (of one mote, or of any mote)."""
+        info = self._require(session)
+        sql = "SELECT cal FROM calibrations WHERE session = ?"
+        params: tuple = (info.id,)
+        if mote is not None:
+            sql += " AND mote = ?"
+            params += (int(mote),)
+        rows = self._query(sql + " ORDER BY id DESC LIMIT 1", params)
+        if not rows:
+            raise UserError(f"no calibration stored for session {session!r}"
+                            + (f" mote {mote}" if mote is not None else ""))
+        return json.loads(rows[0][0])
+
+    # -- link statistics and events ------------------------------------------------
+    def link_stats(self, session: str) -> dict:
+        """``{"line": {...}, "motes": {mote: {...}}}`` counters of a session."""
+        info = self._require(session)
+        names = list(LINK_COUNTERS)
+        motes = {int(r[0]): dict(zip(names, (int(v) for v in r[1:]))) for r in self._query(
+            f"SELECT mote, {', '.join(names)} FROM link_stats WHERE session = ? ORDER BY mote",
+            (info.id,))}
+        lnames = list(LINE_COUNTERS)
+        rows = self._query(f"SELECT {', '.join(lnames)} FROM line_stats WHERE session = ?",
+                           (info.id,))
+        line = {n: (float(v) if n == "gap_s" else int(v))
+                for n, v in zip(lnames, rows[0])} if rows else {}
+        return {"line": line, "motes": motes}
+
+    def events(self, session: str) -> list[dict]:
+        info = self._require(session)
+        return [dict(t=t, kind=k, mote=m, detail=d) for t, k, m, d in self._query(
+            "SELECT t, kind, mote, detail FROM events WHERE session = ? ORDER BY t",
+            (info.id,))]
+
+    # -- live sessions ---------------------------------------------------------------
+    def open_session(self, name: str, *, kind: str, meta: dict | None = None,
+                     scales: dict | None = None, chips: dict | None = None,
+                     append: bool = False, commit_every: float = 0.25) -> "SessionWriter":
+        """Start (or, with ``append``, continue) a live session; returns its writer."""
+        info = self._info(name)
+        if info is not None and not append:
+            raise UserError(f"session {name!r} already exists in {self.target} "
+                            "(choose another name, or --append to add to it)")
+        if info is None:
+            with self._tx() as cur:
+                sid = self._insert_session(cur, self._meta_row(name, kind, scales, chips, meta))
+            info = self._info(name)
+        else:
+            with self._tx() as cur:
+                cur.execute(self._b.sql("UPDATE sessions SET ended = NULL WHERE id = ?"),
+                            (info.id,))
+            sid = info.id
+        return SessionWriter(self, sid, name, info.started, commit_every)
+
+    def last_seqs(self, session: str) -> dict[int, int]:
+        """Highest stored sequence number per mote (to continue an appended session)."""
+        info = self._require(session)
+        return {int(m): int(s) for m, s in self._query(
+            "SELECT mote, MAX(seq) FROM samples WHERE session = ? GROUP BY mote", (info.id,))}
+
+
+class SessionWriter:
+    """Batched writer of one live session; the logger's side of the store.
+
+    ``add_samples`` and ``set_label`` only queue; ``commit`` writes everything
+    queued in one transaction (samples first, then labels, counters, events),
+    and ``maybe_commit`` does so once ``commit_every`` seconds have passed.
+    """
+
+    _INSERT = ("INSERT INTO samples (session, mote, seq, t, flags, ax, ay, az, gx, gy, gz, "
+               "mx, my, mz) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) "
+               "ON CONFLICT DO NOTHING")
+
+    def __init__(self, store: Store, sid: int, name: str, started: float, commit_every: float):
+        self.store = store
+        self.id = sid
+        self.name = name
+        self.started = started          # unix seconds; t is relative to it
+        self.commit_every = commit_every
+        self._rows: list[tuple] = []    # (mote, seq, t, flags, raw) arrays
+        self._labels: list[tuple] = []
+        self._events: list[tuple] = []
+        self._link: dict[int, dict] = {}
+        self._line: dict | None = None
+        self._last_commit = time.monotonic()
+        self.committed_samples = 0
+        self.commits = 0
+
+    def now(self) -> float:
+        """Seconds since the session started (the ``t`` column's clock)."""
+        return time.time() - self.started
+
+    @property
+    def pending(self) -> int:
+        return sum(len(r[1]) for r in self._rows)
+
+    def add_samples(self, mote, seq, t, flags, raw) -> None:
+        """Queue records: arrays of mote, unwrapped seq, t, flags and (n, 9) int counts."""
+        if len(seq):
+            self._rows.append((np.asarray(mote), np.asarray(seq), np.asarray(t, float),
+                               np.asarray(flags), np.asarray(raw)))
+
+    def set_label(self, mote: int, seq_lo: int, seq_hi: int, label: int) -> None:
+        """Label the stored records of one mote with seq_lo <= seq <= seq_hi."""
+        self._labels.append((label_to_text(label), self.id, int(mote), int(seq_lo), int(seq_hi)))
+
+    def add_event(self, kind: str, detail: str = "", mote: int | None = None,
+                  t: float | None = None) -> None:
+        self._events.append((self.id, self.now() if t is None else t, kind, mote, detail))
+
+    def set_link_stats(self, mote: int, counters: dict) -> None:
+        unknown = set(counters) - set(LINK_COUNTERS)
+        if unknown:
+            raise ValueError(f"unknown link counters {sorted(unknown)}")
+        self._link[int(mote)] = dict(counters)
+
+    def set_line_stats(self, counters: dict) -> None:
+        unknown = set(counters) - set(LINE_COUNTERS)
+        if unknown:
+            raise ValueError(f"unknown line counters {sorted(unknown)}")
+        self._line = dict(counters)
+
+    def maybe_commit(self) -> bool:
+        if time.monotonic() - self._last_commit >= self.commit_every:
+            self.commit()
+            return True
+        return False
+
+    def commit(self) -> None:
+        st = self.store
+        b = st._b
+        rows, labels, events = self._rows, self._labels, self._events
+        link, line = self._link, self._line
+        n = 0
+        with st._tx() as cur:
+            if rows:
+                mote = np.concatenate([r[0] for r in rows])
+                seq = np.concatenate([r[1] for r in rows])
+                t = np.concatenate([r[2] for r in rows])
+                flags = np.concatenate([r[3] for r in rows])
+                raw = np.concatenate([r[4] for r in rows]).astype(np.int64)
+                n = len(seq)
+                data = zip(itertools.repeat(self.id), mote.tolist(), seq.tolist(), t.tolist(),
+                           flags.tolist(), *raw.T.tolist())
+                ins = getattr(b, "insert_live_samples", None)
+                if ins is not None:
+                    ins(cur, data)
+                else:
+                    cur.executemany(b.sql(self._INSERT), data)
+            if labels:
+                cur.executemany(b.sql("UPDATE samples SET label = ? WHERE session = ? AND "
+                                      "mote = ? AND seq BETWEEN ? AND ?"), labels)
+            if events:
+                cur.executemany(b.sql("INSERT INTO events (session, t, kind, mote, detail) "
+                                      "VALUES (?, ?, ?, ?, ?)"), events)
+            now = time.time()
+            for mote_id, c in link.items():
+                names = list(c)
+                cur.execute(b.sql(
+                    f"INSERT INTO link_stats (session, mote, {', '.join(names)}, updated) "
+                    f"VALUES (?, ?, {', '.join('?' * len(names))}, ?) "
+                    f"ON CONFLICT (session, mote) DO UPDATE SET "
+                    + ", ".join(f"{k} = excluded.{k}" for k in names + ["updated"])),
+                    (self.id, mote_id, *c.values(), now))
+            if line is not None:
+                names = list(line)
+                cur.execute(b.sql(
+                    f"INSERT INTO line_stats (session, {', '.join(names)}, updated) "
+                    f"VALUES (?, {', '.join('?' * len(names))}, ?) "
+                    f"ON CONFLICT (session) DO UPDATE SET "
+                    + ", ".join(f"{k} = excluded.{k}" for k in names + ["updated"])),
+                    (self.id, *line.values(), now))
+        self._rows, self._labels, self._events = [], [], []
+        self._link, self._line = {}, None
+        self.committed_samples += n
+        self.commits += 1
+        self._last_commit = time.monotonic()
+
+    def end(self) -> None:
+        """Commit what is queued and mark the session ended."""
+        self.commit()
+        st = self.store
+        with st._tx() as cur:
+            cur.execute(st._b.sql("UPDATE sessions SET ended = ? WHERE id = ?"),
+                        (time.time(), self.id))
+
+
+def open_store(target: str, *, create: bool = False) -> Store:
+    """Open a motecal database: a sqlite file path (or ``sqlite:///path``) or a
+    ``postgresql://`` URL.  ``create`` makes a new sqlite file if there is none.
+    Problems (missing, unwritable, not a motecal database, newer schema) raise
+    UserError with one line."""
+    if not target:
+        raise UserError("no database given (--db FILE)")
+    backend = _backend_for(str(target), create)
+    try:
+        return Store(backend)
+    except BaseException:
+        backend.close()
+        raise

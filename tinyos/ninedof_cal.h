@@ -18,6 +18,7 @@
 #ifndef NINEDOF_CAL_H
 #define NINEDOF_CAL_H
 
+#include <stddef.h>
 #include <stdint.h>
 #include "NineDofMsg.h"
 
@@ -138,5 +139,23 @@ uint8_t ninedof_calrx_restore(ninedof_calrx_t *rx,
                               const uint8_t slot0[NINEDOF_IMAGE_SIZE],
                               const uint8_t slot1[NINEDOF_IMAGE_SIZE],
                               uint8_t *next_slot, uint16_t *next_generation);
+
+/* ------------------------------------------------------------------------
+ * Sizes and accessors for foreign-function callers (host/motecal/mote_c.py
+ * through ctypes), defined in ninedof_ffi.c, which the firmware does not
+ * build.
+ * ---------------------------------------------------------------------- */
+size_t ninedof_calrx_size(void);      /* sizeof(ninedof_calrx_t) */
+size_t ninedof_cal_size(void);        /* sizeof(ninedof_cal_t) */
+size_t ninedof_calset_size(void);     /* sizeof(ninedof_calset_t) */
+size_t ninedof_image_size(void);      /* NINEDOF_IMAGE_SIZE */
+/* Fields of the receiver state, without knowing its layout */
+uint16_t ninedof_calrx_version(const ninedof_calrx_t *rx);  /* version in force */
+uint8_t ninedof_calrx_sensors(const ninedof_calrx_t *rx);   /* sensors corrected */
+uint16_t ninedof_calrx_crc(const ninedof_calrx_t *rx);      /* CRC of the set in force */
+uint8_t ninedof_calrx_dirty(const ninedof_calrx_t *rx);
+void ninedof_calrx_set_dirty(ninedof_calrx_t *rx, uint8_t dirty);
+/* Wire bytes of the set in force (sizeof(ninedof_calset_t)) */
+void ninedof_calrx_active(const ninedof_calrx_t *rx, uint8_t *out);
 
 #endif /* NINEDOF_CAL_H */

@@ -1,0 +1,305 @@
+"""The mote's own C code (``tinyos/*.c``) on the host, through ctypes.
+
+The plain C files under ``tinyos/`` are what the firmware compiles; here they
+are built with the host compiler (``cc -shared -fPIC -O2``) into a cache
+directory keyed by a hash of the sources (rebuilt when any ``.c``/``.h``
+changes) and loaded with ctypes.  The simulated mote calls ``CalReceiver``
+for every calibration message and every batch of records, so it answers and
+corrects exactly as the firmware does, bit for bit.
+
+Environment: ``CC`` picks the compiler (default ``cc``, then ``gcc``/``clang``),
+``MOTECAL_CACHE`` the cache directory (default ``~/.cache/motecal``),
+``MOTECAL_TINYOS`` the source directory (default ``<repo>/tinyos``).
+"""
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shlex
+import shutil
+import subprocess
+import tempfile
+import threading
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from . import protocol as P
+from .errors import UserError
+
+SRC_DIR = Path(os.environ.get("MOTECAL_TINYOS",
+                              Path(__file__).resolve().parent.parent.parent / "tinyos"))
+CFLAGS = ("-std=c99", "-O2", "-shared", "-fPIC", "-Wall", "-Wextra")
+E_FORMAT = next(c for c, (n, _) in P.CAL_REASONS.items() if n == "NINEDOF_CAL_E_FORMAT")
+REPLY_MAX = 32          # >= the largest reply (ninedof_cal_report_msg, 28 bytes)
+
+_lock = threading.Lock()
+_lib = None
+
+
+class CompilerMissing(UserError):
+    """No C compiler to build the mote's C code for the host."""
+
+
+def _sources(src_dir: Path) -> list[Path]:
+    return sorted(p for p in src_dir.iterdir()
+                  if p.suffix in (".c", ".h") and p.is_file())
+
+
+def _compiler() -> list[str]:
+    cc = os.environ.get("CC")
+    if cc:
+        cmd = shlex.split(cc)
+        if shutil.which(cmd[0]):
+            return cmd
+        raise CompilerMissing(f"C compiler {cc!r} (from $CC) not found: the simulated "
+                              "mote runs the firmware's C code and needs one")
+    for name in ("cc", "gcc", "clang"):
+        if shutil.which(name):
+            return [name]
+    raise CompilerMissing("no C compiler (cc, gcc or clang) found: the simulated mote "
+                          "runs the firmware's C code; install one, e.g. "
+                          "`apt-get install gcc`")
+
+
+def cache_dir() -> Path:
+    return Path(os.environ.get("MOTECAL_CACHE", Path.home() / ".cache" / "motecal"))
+
+
+def build(src_dir: Path = SRC_DIR) -> Path:
+    """Compile the shared library if the cache has none for these sources."""
+    srcs = _sources(src_dir)
+    cfiles = [p for p in srcs if p.suffix == ".c"]
+    if not cfiles:
+        raise UserError(f"no mote C sources in {src_dir}")
+    cc = _compiler()
+    h = hashlib.sha256()
+    h.update(" ".join(cc + list(CFLAGS)).encode())
+    for p in srcs:
+        h.update(p.name.encode() + b"\0" + p.read_bytes() + b"\0")
+    out_dir = cache_dir() / "mote_c"
+    lib = out_dir / f"libninedof-{h.hexdigest()[:16]}.so"
+    if lib.exists():
+        return lib
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=".so", dir=out_dir)
+    os.close(fd)
+    cmd = cc + list(CFLAGS) + ["-I", str(src_dir)] + [str(p) for p in cfiles] + ["-o", tmp]
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    if res.returncode != 0:
+        os.unlink(tmp)
+        raise UserError(f"building the mote C code failed ({' '.join(cmd)}):\n"
+                        + res.stderr.strip())
+    os.replace(tmp, lib)          # atomic: parallel builders race harmlessly
+    return lib
+
+
+def _declare(lib):
+    c = ctypes
+    u8p, i16p = c.POINTER(c.c_uint8), c.POINTER(c.c_int16)
+    sig = {
+        "ninedof_crc16": (c.c_uint16, [c.c_uint16, c.c_char_p, c.c_uint16]),
+        "ninedof_cal_decode": (c.c_uint8, [c.c_char_p, c.c_void_p]),
+        "ninedof_cal_validate": (c.c_uint8, [c.c_void_p, c.c_uint16]),
+        "ninedof_correct_block": (None, [c.c_void_p, i16p, i16p, c.c_uint16]),
+        "ninedof_calrx_init": (None, [c.c_void_p, c.c_uint16]),
+        "ninedof_calrx_handle": (c.c_uint8, [c.c_void_p, c.c_uint8, c.c_char_p, c.c_uint8,
+                                             u8p, u8p]),
+        "ninedof_calrx_flags": (c.c_uint8, [c.c_void_p]),
+        "ninedof_calrx_correct_block": (None, [c.c_void_p, i16p, i16p, c.c_uint16]),
+        "ninedof_calrx_image": (None, [c.c_void_p, c.c_uint16, u8p]),
+        "ninedof_image_check": (c.c_uint8, [c.c_char_p, c.c_uint16,
+                                            c.POINTER(c.c_uint16)]),
+        "ninedof_calrx_restore": (c.c_uint8, [c.c_void_p, c.c_char_p, c.c_char_p, u8p,
+                                              c.POINTER(c.c_uint16)]),
+        "ninedof_calrx_size": (c.c_size_t, []),
+        "ninedof_cal_size": (c.c_size_t, []),
+        "ninedof_calset_size": (c.c_size_t, []),
+        "ninedof_image_size": (c.c_size_t, []),
+        "ninedof_calrx_version": (c.c_uint16, [c.c_void_p]),
+        "ninedof_calrx_sensors": (c.c_uint8, [c.c_void_p]),
+        "ninedof_calrx_crc": (c.c_uint16, [c.c_void_p]),
+        "ninedof_calrx_dirty": (c.c_uint8, [c.c_void_p]),
+        "ninedof_calrx_set_dirty": (None, [c.c_void_p, c.c_uint8]),
+        "ninedof_calrx_active": (None, [c.c_void_p, u8p]),
+    }
+    for name, (res, args) in sig.items():
+        f = getattr(lib, name)
+        f.restype, f.argtypes = res, args
+    return lib
+
+
+def library():
+    """The loaded library (built on first use)."""
+    global _lib
+    with _lock:
+        if _lib is None:
+            lib = _declare(ctypes.CDLL(str(build())))
+            if lib.ninedof_calset_size() != P.CALSET_SIZE:
+                raise RuntimeError("C and protocol.py disagree on the calibration set size")
+            _lib = lib
+        return _lib
+
+
+def _i16p(a):
+    return a.ctypes.data_as(ctypes.POINTER(ctypes.c_int16))
+
+
+def _records(raw) -> np.ndarray:
+    a = np.asarray(raw)
+    if a.ndim != 2 or a.shape[1] != 9:
+        raise ValueError("records must be an (n, 9) array")
+    if a.dtype != np.int16:
+        if np.any(a < -32768) or np.any(a > 32767):
+            raise ValueError("records must be int16 counts")
+        a = a.astype(np.int16)
+    return np.ascontiguousarray(a)
+
+
+def _correct_with(fn, obj, raw) -> np.ndarray:
+    src = _records(raw)
+    out = np.empty_like(src)
+    # the C block length is 16 bits
+    for i in range(0, len(src), 0xFFFF):
+        s, o = src[i:i + 0xFFFF], out[i:i + 0xFFFF]
+        fn(obj, _i16p(s), _i16p(o), len(s))
+    return out
+
+
+# --------------------------------------------------------------------------
+# Module functions on calibration-set bytes
+# --------------------------------------------------------------------------
+def crc16(data: bytes, crc: int = 0) -> int:
+    """The mote's CRC-16 (equals ``binascii.crc_hqx(data, crc)``)."""
+    data = bytes(data)
+    return library().ninedof_crc16(crc, data, len(data))
+
+
+def _decode(calset: bytes):
+    lib = library()
+    calset = bytes(calset)
+    if len(calset) != P.CALSET_SIZE:
+        return E_FORMAT, None
+    buf = ctypes.create_string_buffer(lib.ninedof_cal_size())
+    return lib.ninedof_cal_decode(calset, buf), buf
+
+
+def validate(calset: bytes, mote_id: int) -> int:
+    """Reason code the mote gives this set (0 = NINEDOF_CAL_OK)."""
+    code, buf = _decode(calset)
+    if code != 0:
+        return code
+    return library().ninedof_cal_validate(buf, mote_id)
+
+
+def correct(calset: bytes, raw) -> np.ndarray:
+    """Correct ``(n, 9)`` int16 records with a set, as the mote would.
+
+    The set is decoded (a badly formatted one raises ValueError) but not
+    validated; an in-range set gives exactly the firmware's output.
+    """
+    code, buf = _decode(calset)
+    if code != 0:
+        raise ValueError(f"calibration set rejected: {P.cal_reason(code)}")
+    return _correct_with(library().ninedof_correct_block, buf, raw)
+
+
+def image_check(image: bytes, mote_id: int) -> int | None:
+    """Generation of a valid EEPROM image for this mote, None if invalid."""
+    lib = library()
+    image = bytes(image)
+    if len(image) != lib.ninedof_image_size():
+        return None
+    gen = ctypes.c_uint16()
+    return gen.value if lib.ninedof_image_check(image, mote_id, ctypes.byref(gen)) else None
+
+
+# --------------------------------------------------------------------------
+# The mote side of the upload protocol
+# --------------------------------------------------------------------------
+class Restored(NamedTuple):
+    slot: int | None          # slot put in force, None when neither was valid
+    next_slot: int            # where the next image goes
+    next_generation: int      # with this generation number
+
+
+class CalReceiver:
+    """One mote's calibration state, run by the firmware's C code.
+
+    ``handle(am_type, payload)`` -> ``(reply_am_type, reply_payload)`` or None;
+    ``correct(raw)`` corrects records with the set in force; ``flags()`` is the
+    sample-message flags byte.  After an accepted commit ``dirty`` is True: the
+    caller persists ``image(generation)`` and calls ``mark_persisted()``.
+    """
+
+    def __init__(self, mote_id: int):
+        self._lib = library()
+        self.mote_id = int(mote_id) & 0xFFFF
+        self._rx = ctypes.create_string_buffer(self._lib.ninedof_calrx_size())
+        self._image_size = self._lib.ninedof_image_size()
+        self._lib.ninedof_calrx_init(self._rx, self.mote_id)
+        self._reply = (ctypes.c_uint8 * REPLY_MAX)()
+        self._rtype = ctypes.c_uint8()
+
+    def handle(self, am_type: int, payload: bytes):
+        payload = bytes(payload)
+        if len(payload) > 255:
+            return None
+        n = self._lib.ninedof_calrx_handle(self._rx, am_type & 0xFF, payload, len(payload),
+                                           self._reply, ctypes.byref(self._rtype))
+        if n == 0:
+            return None
+        return int(self._rtype.value), bytes(self._reply[:n])
+
+    def flags(self) -> int:
+        return int(self._lib.ninedof_calrx_flags(self._rx))
+
+    def correct(self, raw) -> np.ndarray:
+        return _correct_with(self._lib.ninedof_calrx_correct_block, self._rx, raw)
+
+    @property
+    def version(self) -> int:
+        """Version of the set in force (0 = raw since boot)."""
+        return int(self._lib.ninedof_calrx_version(self._rx))
+
+    @property
+    def sensors(self) -> int:
+        """Bit NINEDOF_SENSOR_x set: that sensor is corrected."""
+        return int(self._lib.ninedof_calrx_sensors(self._rx))
+
+    @property
+    def crc(self) -> int:
+        """CRC-16 of the set in force."""
+        return int(self._lib.ninedof_calrx_crc(self._rx))
+
+    def active_calset(self) -> bytes:
+        """Wire bytes of the set in force (what read-back returns)."""
+        buf = (ctypes.c_uint8 * P.CALSET_SIZE)()
+        self._lib.ninedof_calrx_active(self._rx, buf)
+        return bytes(buf)
+
+    @property
+    def dirty(self) -> bool:
+        """A commit put a set in force that is not yet persisted."""
+        return bool(self._lib.ninedof_calrx_dirty(self._rx))
+
+    def mark_persisted(self) -> None:
+        self._lib.ninedof_calrx_set_dirty(self._rx, 0)
+
+    def image(self, generation: int) -> bytes:
+        buf = (ctypes.c_uint8 * self._image_size)()
+        self._lib.ninedof_calrx_image(self._rx, generation & 0xFFFF, buf)
+        return bytes(buf)
+
+    def restore(self, slot0: bytes, slot1: bytes) -> Restored:
+        """Boot-time restore from two EEPROM slot images (either may be junk)."""
+        s0 = bytes(slot0).ljust(self._image_size, b"\xff")[:self._image_size]
+        s1 = bytes(slot1).ljust(self._image_size, b"\xff")[:self._image_size]
+        nslot, ngen = ctypes.c_uint8(), ctypes.c_uint16()
+        used = self._lib.ninedof_calrx_restore(self._rx, s0, s1, ctypes.byref(nslot),
+                                               ctypes.byref(ngen))
+        return Restored(None if used == 0xFF else int(used), int(nslot.value),
+                        int(ngen.value))
+

@@ -1,0 +1,23 @@
+/*
+ * ninedof_ffi.c -- sizes of the C structures for callers that cannot see
+ * the C types (the host simulator loads this code through ctypes).  Only
+ * the host library is built from this file; the firmware does not use it.
+ */
+#include <string.h>
+#include "ninedof_cal.h"
+
+size_t ninedof_calrx_size(void) { return sizeof(ninedof_calrx_t); }
+size_t ninedof_cal_size(void) { return sizeof(ninedof_cal_t); }
+size_t ninedof_calset_size(void) { return sizeof(ninedof_calset_t); }
+size_t ninedof_image_size(void) { return NINEDOF_IMAGE_SIZE; }
+
+uint16_t ninedof_calrx_version(const ninedof_calrx_t *rx) { return rx->active.version; }
+uint8_t ninedof_calrx_sensors(const ninedof_calrx_t *rx) { return rx->active.sensors; }
+uint16_t ninedof_calrx_crc(const ninedof_calrx_t *rx) { return rx->active_crc; }
+uint8_t ninedof_calrx_dirty(const ninedof_calrx_t *rx) { return rx->dirty; }
+void ninedof_calrx_set_dirty(ninedof_calrx_t *rx, uint8_t dirty) { rx->dirty = dirty; }
+
+void ninedof_calrx_active(const ninedof_calrx_t *rx, uint8_t *out)
+{
+  memcpy(out, &rx->active_wire, sizeof(rx->active_wire));
+}

@@ -135,3 +135,32 @@ class StillDetector:
             if np.isnan(x).any() or (x.std(axis=0) >= lim).any():
                 return False
         return True
+
+    def push_many(self, rows: np.ndarray) -> np.ndarray:
+        """Push rows; per row, what ``push`` would return had the rows come one
+        at a time (the trailing window ending at that row is still).  Vectorised
+        (running sums, as ``still_mask``) for the logger, which sees thousands
+        of rows per read."""
+        rows = np.asarray(rows, float).reshape(-1, 9)
+        n = len(rows)
+        if n == 0:
+            return np.zeros(0, bool)
+        w = self.w
+        x_all = np.vstack([self._buf[1:], rows])          # w-1 previous rows + new ones
+        ok = (self._n + np.arange(1, n + 1)) >= w
+        for name, sl, lim in (("accel", slice(0, 3), self.th.accel_g),
+                              ("gyro", slice(3, 6), self.th.gyro_dps),
+                              ("mag", slice(6, 9), self.th.mag_gauss)):
+            x = x_all[:, sl] / self.scales[name]
+            isnan = np.isnan(x)
+            nans = np.concatenate([[0], np.cumsum(isnan.sum(axis=1))])
+            nans = nans[w:] - nans[:-w]                     # NaN values per window
+            if nans.min() == 3 * w:                         # sensor absent throughout
+                continue
+            ref = np.nanmean(x, axis=0) if not isnan.all() else np.zeros(3)
+            x = np.where(isnan, 0.0, x - np.nan_to_num(ref))  # centred: no cancellation
+            sd = _moving_std(x, w)[w - 1:]
+            ok &= (nans == 3 * w) | ((nans == 0) & (sd < lim).all(axis=1))
+        self._buf = x_all[-w:].copy()
+        self._n += n
+        return ok

@@ -58,7 +58,7 @@ def test_razor_acc_files_give_six_poses_one_per_file(razor_static, board):
     n = sum(c["A"] for c in counts)
     assert all(c["A"] == c["M"] == c["G"] for c in counts)
     assert len(d) == n and d.meta["samples"] == {"accel": n, "gyro": n, "mag": n}
-    assert d.meta["format"] == "razor-text" and d.meta["source"] == [str(f) for f in files]
+    assert d.meta["format"] == "razor-text" and d.meta["source"] == "; ".join(map(str, files))
     assert d.meta["rate_hz"] == 50.0 and d.meta["rates_hz"]["gyro"] == 50.0
     np.testing.assert_allclose(d.t, np.arange(n) / 50.0)
     assert d.kind == "static" and d.meta["kind_decision"].startswith("auto: static")
@@ -162,7 +162,10 @@ def test_timestamped_runs_keep_their_own_time_bases(measured_dir, timestamped, r
     assert np.array_equal(has_a, has_g) and np.array_equal(has_m, ~has_a)
     np.testing.assert_array_equal(d.t[has_m], mag[:, 0])
     np.testing.assert_array_equal(d.sensor("mag")[has_m], mag[:, 1:])
-    np.testing.assert_array_equal(d.raw[has_a, :6], imu[:, 1:])
+    # the converter wrote +250 deg/s as 32768, one past int16: stored as full scale 32767
+    np.testing.assert_array_equal(d.raw[has_a, :6], np.minimum(imu[:, 1:], 32767))
+    n_over = int((imu[:, 1:] == 32768).sum())
+    assert (f"{n_over} values of 32768" in d.meta.get("notes", "")) == (n_over > 0)
     assert 74 < d.meta["rates_hz"]["mag"] < 80 and 95 < d.meta["rates_hz"]["accel"] < 101
     assert d.chips == {"accel": "MPU6050", "gyro": "MPU6050", "mag": "HMC5883L"}
     assert d.scales == {"accel": 16384.0, "gyro": 131.0, "mag": 1090.0}
@@ -390,7 +393,7 @@ def test_broken_razor_text(measured_dir, tmp_path):
     p = tmp_path / "cut.raw"
     p.write_text("\n".join(lines[:32]) + "\n")
     d = I.read_razor_text([p])
-    assert len(d) == 10 and "line 31" in d.meta["notes"][0]
+    assert len(d) == 10 and "incomplete last sample from line 31" in d.meta["notes"]
 
 
 def test_broken_float_and_timestamped(measured_dir, tmp_path):
@@ -430,3 +433,106 @@ def test_unknown_formats(tmp_path):
         I.read_any([b])
     with pytest.raises(UserError, match="no such file"):
         I.read_any([tmp_path / "missing.raw"])
+
+
+# ---------------------------------------------------------------- motecal import (CLI, store)
+
+def _motecal(capsys, *argv):
+    from motecal.cli import main
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _db_state(db):
+    """Bytes of the database and its side files (unchanged = nothing written)."""
+    return {p.name: p.read_bytes() for p in sorted(db.parent.glob(db.name + "*"))}
+
+
+def test_cli_import_saves_whole_sessions(measured_dir, tmp_path, capsys, razor_static):
+    from motecal.store import open_store
+    db = tmp_path / "m.db"
+    files, expected = razor_static["razor1"]
+    code, out, err = _motecal(capsys, "import", *files, "--db", db, "--session", "razor1")
+    assert code == 0, err
+    assert "Session 'razor1'" in out and "6 poses found" in out and "accel 9707 at 50.0 Hz" in out
+    assert "ADXL345 256 LSB/g" in out and "kind static [auto: static" in out
+    run = measured_dir / "mpu6050-hmc5883l-timestamped" / "full-sphere"
+    code, out, err = _motecal(capsys, "import", run, "--db", db, "--session", "sphere")
+    assert code == 0, err
+    assert "mag 8190 at 77.0 Hz" in out and "rotation" in out and "gyro 22 samples" in out
+    sweep = measured_dir / "hmc5843-disturbed-sweep" / "magnetom.float"
+    code, out, err = _motecal(capsys, "import", sweep, "--db", db, "--session", "bad",
+                              "--chip", "mag=hmc5843", "--kind", "rotation")
+    assert code == 0, err
+    assert "HMC5843 1300 LSB/gauss" in out and "given: rotation" in out
+    with open_store(str(db)) as st:
+        assert [s["name"] for s in st.sessions()] == ["razor1", "sphere", "bad"]
+        r1 = st.load_session("razor1")
+        sp = st.load_session("sphere")
+        bad = st.load_session("bad")
+    assert np.array_equal(r1.raw, expected.raw) and np.array_equal(r1.label, expected.label)
+    assert r1.kind == "static" and r1.poses() == [1, 2, 3, 4, 5, 6]
+    assert r1.scales == expected.scales and r1.chips["gyro"] == "ITG3205"
+    assert r1.meta["source"] == "; ".join(map(str, files)) and r1.meta["rate_hz"] == 50.0
+    assert r1.meta["files"][5]["pose"] == 6 and r1.meta["axis_frame"].startswith("as recorded")
+    ref = I.read_timestamped(run)
+    order = np.lexsort((ref.seq, ref.mote))
+    assert np.array_equal(sp.raw, ref.raw[order], equal_nan=True)
+    assert np.array_equal(sp.t, ref.t[order]) and (sp.label == LABEL_ROT).all()
+    assert sp.meta["rates_hz"] == ref.meta["rates_hz"] and sp.scales["gyro"] == 131.0
+    assert sp.meta["clipped"] == {"gyro": 22}
+    assert bad.scales["mag"] == 1300.0 and bad.chips["mag"] == "HMC5843" and bad.kind == "rotation"
+
+
+def test_cli_failed_import_leaves_db_unchanged(measured_dir, tmp_path, capsys):
+    db = tmp_path / "m.db"
+    good = measured_dir / "sensorstick-boards" / "razor2" / "razor2_gyr_xyz.raw"
+    assert _motecal(capsys, "import", good, "--db", db, "--session", "g")[0] == 0
+    before = _db_state(db)
+    lines = good.read_text().splitlines()
+    broken = tmp_path / "broken.raw"
+    broken.write_text("\n".join(lines[:500] + ["#G-R=1.00,2.00,three"] + lines[501:]) + "\n")
+    trunc = tmp_path / "cut.float"
+    trunc.write_bytes((measured_dir / "sensorstick-mag-sweep" / "magnetom.float").read_bytes()[:999])
+    junk = tmp_path / "junk.txt"
+    junk.write_text("time;x;y;z\n1;2;3;4\n")
+    cases = [   # files, session, the one line on stderr
+        ((good, broken), "new", f"{broken}: line 501: #G-R value 3 is not a number"),
+        ((trunc,), "new", f"{trunc}: sample 84 (byte 996): truncated float file"),
+        ((junk,), "new", f"{junk}: line 1: unknown format"),
+        ((tmp_path / "nope.raw",), "new", "no such file"),
+        ((good,), "g", "session 'g' already exists"),
+    ]
+    for files, session, msg in cases:
+        code, out, err = _motecal(capsys, "import", *files, "--db", db, "--session", session)
+        assert code == 2 and out == ""
+        assert err.count("\n") == 1 and msg in err and "Traceback" not in err, err
+        assert _db_state(db) == before, msg
+    code, out, err = _motecal(capsys, "import", good, "--db", db, "--session", "g", "--kind", "static",
+                              "--replace")
+    assert code == 0 and "kind static [given: static" in out
+    code, out, err = _motecal(capsys, "import", good, "--db", db, "--session", "x", "--chip", "mag=abc")
+    assert code == 2 and "--chip mag=abc: unknown mag chip" in err
+
+
+def test_cli_csv_export_format_imports(tmp_path, capsys):
+    from motecal.store import open_store
+    raw, t = _synthetic()
+    n = len(raw)
+    src = SessionData("u", raw, np.full(n, 4), np.arange(100, 100 + n), t, np.zeros(n), np.zeros(n))
+    path = tmp_path / "u.csv"
+    I.write_csv(src, path)
+    db = tmp_path / "c.db"
+    code, out, err = _motecal(capsys, "import", path, "--db", db, "--session", "u", "--format", "csv")
+    assert code == 0, err
+    assert "3 poses found" in out
+    with open_store(str(db)) as st:
+        back = st.load_session("u")
+    assert np.array_equal(back.raw, raw) and back.motes == [4] and back.poses() == [1, 2, 3]
+    np.testing.assert_allclose(back.t, t, atol=1e-6)
+    # duplicated (mote, seq) is the file's fault: named with its line
+    text = path.read_text().splitlines()
+    path.write_text("\n".join(text + [text[5]]) + "\n")
+    code, out, err = _motecal(capsys, "import", path, "--db", db, "--session", "u2")
+    assert code == 2 and f"{path}: line {len(text) + 1}: mote 4 has sequence number 104 twice" in err

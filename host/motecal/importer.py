@@ -39,6 +39,7 @@ CSV_HEADER = ("mote",) + ("seq", "t", "label") + COLUMNS
 RAZOR_RATE_HZ = 50.0            # Razor AHRS firmware output: one sample every 20 ms
 IMPORT_MOTE = 1                 # mote id given to rows of formats without one
 AUTO_ROTATION_BELOW = 0.5       # auto kind: rotation when the still fraction is lower
+SOURCE_SEP = "; "                # meta["source"]: the files, one text
 TIMESTAMPED_GRID_HZ = 100.0     # grid for stillness of sensors on separate clocks
 RATE_PAUSE_S = 1.0              # gaps longer than this are pauses, not sample intervals
 
@@ -131,6 +132,11 @@ def _chips_for(names: dict) -> tuple[dict, dict]:
     return chips, scales
 
 
+def add_note(meta: dict, note: str) -> None:
+    """``meta["notes"]`` is one text (a database column): notes joined by '; '."""
+    meta["notes"] = f"{meta['notes']}; {note}" if meta.get("notes") else note
+
+
 # ------------------------------------------------------------------ errors and parsing
 
 def _where(path, line=None) -> str:
@@ -151,6 +157,19 @@ def _number(tok: str, path, line, what: str, allow_empty=False) -> float:
         raise _fail(path, line, f"{what} is not a number: {tok!r}") from None
     if not np.isfinite(v):
         raise _fail(path, line, f"{what} is not a finite number: {tok!r}")
+    return v
+
+
+def _count(tok: str, path, line, what: str, allow_empty=False) -> float:
+    """A raw sensor count: an integer within int16 (32768, one past full scale as
+    written by some converters, is accepted and later stored as 32767)."""
+    v = _number(tok, path, line, what, allow_empty)
+    if v != v:
+        return v
+    if v != round(v):
+        raise _fail(path, line, f"{what} is not an integer count: {tok.strip()!r}")
+    if not -32768 <= v <= 32768:
+        raise _fail(path, line, f"{what} = {tok.strip()} is outside the 16-bit range of raw counts")
     return v
 
 
@@ -290,7 +309,7 @@ def assign_labels(data: SessionData, kind: str = "auto", parts=None, pose_per_pa
                     f["pose"] = None if i in missing else i
             if missing:
                 names = [str(files[i - 1]["file"]) if files else f"part {i}" for i in missing]
-                data.meta.setdefault("notes", []).append(
+                add_note(data.meta,
                     f"no still part in {', '.join(names)}: pose label(s) "
                     f"{', '.join(map(str, missing))} absent")
     data.kind = chosen
@@ -328,6 +347,11 @@ def _clipped(raw, chips) -> dict:
 def _finish(data: SessionData, chip, kind, parts, has_labels=False,
             pose_per_part=False) -> SessionData:
     """Apply --chip overrides, fill counts/clipping, label (unless labelled)."""
+    over = data.raw == 32768
+    if over.any():
+        data.raw[over] = 32767
+        add_note(data.meta, f"{int(over.sum())} values of 32768 (one past the 16-bit full scale) "
+                 f"stored as 32767")
     overrides = parse_chip_overrides(chip)
     for sensor, (name, scale) in overrides.items():
         data.chips[sensor] = name
@@ -398,9 +422,9 @@ def read_csv(path, chip=None, kind="auto") -> SessionData:
             label = label_from_text(row[3])
         except ValueError:
             raise _fail(path, lineno, f"label must be 1.., 'rot' or empty, not {row[3]!r}") from None
-        vals = [_number(v, path, lineno, name, allow_empty=True)
+        vals = [_count(v, path, lineno, name, allow_empty=True)
                 for v, name in zip(row[4:], COLUMNS)]
-        rows.append((mote, seq, t, label, vals))
+        rows.append((mote, seq, t, label, vals, lineno))
     if not rows:
         raise _fail(path, len(lines), "no samples after the header")
     mote = np.array([r[0] for r in rows], np.int64)
@@ -408,15 +432,21 @@ def read_csv(path, chip=None, kind="auto") -> SessionData:
     t = np.array([r[2] for r in rows], float)
     label = np.array([r[3] for r in rows], np.int32)
     raw = np.array([r[4] for r in rows], float)
+    lines_of = np.array([r[5] for r in rows])
     if mote.min() < 0 or mote.max() > 0xFFFF:
         bad = int(np.flatnonzero((mote < 0) | (mote > 0xFFFF))[0])
-        raise _fail(path, i + 2 + bad, f"mote id out of range 0..65535: {mote[bad]}")
+        raise _fail(path, lines_of[bad], f"mote id out of range 0..65535: {mote[bad]}")
+    order = np.lexsort((np.arange(len(rows)), seq, mote))
+    dup = (mote[order][1:] == mote[order][:-1]) & (seq[order][1:] == seq[order][:-1])
+    if dup.any():
+        bad = order[1:][dup].min()
+        raise _fail(path, lines_of[bad], f"mote {mote[bad]} has sequence number {seq[bad]} twice")
     rates = {}
     for m in np.unique(mote):
         r = _rate_from_t(np.sort(t[mote == m]))
         rates[int(m)] = round(r, 3) if r else float(NINEDOF_RATE_HZ)
     rate = float(np.median(list(rates.values())))
-    meta = {"format": "csv", "source": [str(path)],
+    meta = {"format": "csv", "source": str(path),
             "files": [{"file": str(path), "rows": [0, len(rows)]}],
             "rate_hz": rate, "rates_hz": {s: rate for s in SENSOR_SLICES},
             "rates_by_mote_hz": {str(k): v for k, v in rates.items()},
@@ -477,7 +507,7 @@ def _parse_razor_text(path) -> tuple[np.ndarray, int | None]:
         parts = rest.split(",")
         if len(parts) != 3:
             raise _fail(path, lineno, f"expected 3 values after #{key}-R=, found {len(parts)}")
-        vals = [_number(p, path, lineno, f"#{key}-R value {j + 1}") for j, p in enumerate(parts)]
+        vals = [_count(p, path, lineno, f"#{key}-R value {j + 1}") for j, p in enumerate(parts)]
         if expect == 0:
             start_line = lineno
         cur[_RAZOR_COLS[key]] = vals
@@ -516,12 +546,12 @@ def read_razor_text(paths, chip=None, kind="auto") -> SessionData:
         pos += len(raw)
     raw = np.vstack(blocks)
     n = len(raw)
-    meta = {"format": "razor-text", "source": [str(p) for p in paths], "files": files,
+    meta = {"format": "razor-text", "source": SOURCE_SEP.join(map(str, paths)), "files": files,
             "rate_hz": RAZOR_RATE_HZ, "rates_hz": {s: RAZOR_RATE_HZ for s in SENSOR_SLICES},
             "clocks": "shared (one A, M, G sample every 20 ms; t = row / 50)",
             "axis_frame": RAZOR_FRAME}
-    if notes:
-        meta["notes"] = notes
+    for note in notes:
+        add_note(meta, note)
     data = _session(Path(paths[0]).stem if len(paths) == 1 else Path(paths[0]).parent.name
                     or Path(paths[0]).stem, raw, np.arange(n) / RAZOR_RATE_HZ,
                     chips={"accel": "ADXL345", "gyro": "ITG3205", "mag": "HMC5883L"}, meta=meta)
@@ -545,11 +575,14 @@ def _float_values(path) -> np.ndarray:
                         f"{len(buf)} bytes is not a whole number of 12-byte samples "
                         f"(3 big-endian float32)")
     x = np.frombuffer(buf, ">f4").astype(np.float64).reshape(-1, 3)
-    bad = ~np.isfinite(x).all(axis=1) | (np.abs(x) > 1e5).any(axis=1)
+    with np.errstate(invalid="ignore"):
+        bad = ~np.isfinite(x).all(axis=1) | (np.abs(x) > 32768).any(axis=1) \
+            | (x != np.round(x)).any(axis=1)
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
-        raise UserError(f"{path}: sample {k + 1} (byte {k * 12}): not a raw magnetometer count "
-                        f"({x[k].tolist()}); not a big-endian float32 triplet file?")
+        raise UserError(f"{path}: sample {k + 1} (byte {k * 12}): not raw integer counts "
+                        f"({', '.join(f'{v:g}' for v in x[k])}); not a big-endian float32 "
+                        f"triplet file?")
     return x
 
 
@@ -562,7 +595,7 @@ def read_razor_float(path, chip="hmc5883l", kind="auto") -> SessionData:
     n = len(x)
     raw = np.full((n, 9), np.nan)
     raw[:, 6:9] = x
-    meta = {"format": "razor-float", "source": [str(path)],
+    meta = {"format": "razor-float", "source": str(path),
             "files": [{"file": str(path), "rows": [0, n], "samples": n}],
             "rate_hz": RAZOR_RATE_HZ, "rates_hz": {"mag": RAZOR_RATE_HZ},
             "clocks": "magnetometer only, 50 Hz stream (t = row / 50)",
@@ -622,7 +655,7 @@ def _parse_timestamped(path):
         if len(parts) != ncol:
             raise _fail(path, lineno, f"expected {ncol} columns, found {len(parts)}")
         t.append(_number(parts[0], path, lineno, "t_s"))
-        vals.append([_number(p, path, lineno, f"column {j + 2}") for j, p in enumerate(parts[1:])])
+        vals.append([_count(p, path, lineno, f"column {j + 2}") for j, p in enumerate(parts[1:])])
     if not t:
         raise _fail(path, len(lines), "no samples after the header")
     raw = np.full((len(t), 9), np.nan)
@@ -678,7 +711,8 @@ def read_timestamped(dir_or_files, chip=None, kind="auto") -> SessionData:
     order = np.argsort(t, kind="stable")
     t, raw = t[order], raw[order]
     first = Path(files[0])
-    meta = {"format": "timestamped-csv", "source": [str(f) for f in files], "files": fileinfo,
+    meta = {"format": "timestamped-csv", "source": SOURCE_SEP.join(map(str, files)),
+            "files": fileinfo,
             "rate_hz": max(rates.values()), "rates_hz": rates,
             "clocks": "separate: each sensor on its own time base, t from the files",
             "axis_frame": TIMESTAMPED_FRAME}
@@ -689,7 +723,7 @@ def read_timestamped(dir_or_files, chip=None, kind="auto") -> SessionData:
         data.chips[s] = name
         data.scales[s] = CHIP_SCALES[s].get(name, NOMINAL_SCALES[s])
         if s not in chips:
-            data.meta.setdefault("notes", []).append(
+            add_note(data.meta,
                 f"{owner[s]}: no chip named for {s}; assumed {name}")
     return _finish(data, chip, kind, None)
 
@@ -802,7 +836,7 @@ def _fmt_scale(sensor, scale) -> str:
 def summary(data: SessionData) -> str:
     """One paragraph: samples per sensor, rates, kind and poses, chips/scales."""
     m = data.meta
-    src = m.get("source", [])
+    src = [f["file"] for f in m.get("files", [])] or ([m["source"]] if m.get("source") else [])
     counts = m.get("samples") or _sensor_counts(data.raw)
     rates = m.get("rates_hz", {})
     parts = []
@@ -831,22 +865,17 @@ def summary(data: SessionData) -> str:
     if clipped:
         text += " Clipped at full scale: " + ", ".join(
             f"{s} {k} samples" for s, k in clipped.items()) + "."
-    for note in m.get("notes", []):
-        text += f" Note: {note}."
+    if m.get("notes"):
+        text += f" Notes: {m['notes']}."
     return text
 
 
 def run(args) -> int:
     data = read_any(args.files, fmt=args.format, chip=args.chip or None, kind=args.kind)
     data.name = args.session
-    from .store import open_store          # imported here: the store module is optional
-    store = open_store(args.db, create=True)
-    try:
+    from .store import open_store
+    with open_store(args.db, create=True) as store:
         store.save_session(data, replace=args.replace)
-    finally:
-        close = getattr(store, "close", None)
-        if close:
-            close()
     print(summary(data))
     print(f"Saved to {args.db} as session '{args.session}'.")
     return 0

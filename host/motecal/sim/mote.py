@@ -1,0 +1,238 @@
+"""A simulated sensor mote: what the firmware in tinyos/ does, in simulated time.
+
+* Sample clock: exactly ``rate_hz`` (125 Hz) in the mote's own time base, which
+  runs ``clock_ppm`` fast against true time, from a random start phase in the
+  first period.  Sample ``k`` is taken at true time ``t0 + k / (rate * (1 + ppm
+  1e-6))`` and gets sequence number ``k mod 65536``.
+* Batching: ``batch`` records per ninedof_samples_msg (``seq`` = first
+  record's); at the end of the session the partial batch is sent.  A commit
+  message closes the batch being filled (its records were corrected with the
+  set in force when they were taken), so each message has one flags byte that
+  is true for all its records.
+* Send queue: 4 messages including the one on the radio; a batch that finds
+  it full is dropped and its samples counted in ``dropped``.  Everything is
+  unicast to the BaseStation (address 0), group 0x22, ack requested, at most
+  2 retries (radio.Mac).  A message given up (``send_fail``, as the firmware
+  counts it) whose frames all failed to reach the BaseStation loses its
+  samples (``radio_lost``); one whose acks were lost got through.
+* Status: a ninedof_mote_status_msg every 2 s (mote time, random phase).
+* Calibration: frames addressed to this mote go to ``CalReceiver.handle`` (the
+  firmware's C code through ctypes); its reply goes back to address 0 through
+  the same queue; samples are corrected with ``CalReceiver.correct`` and
+  flagged with ``CalReceiver.flags()``.  Without it: raw records, flags 0.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from collections import deque
+
+import numpy as np
+
+from .. import protocol as P
+from .radio import Mac
+
+QUEUE_LEN = 4
+MAX_RETRIES = 2
+STATUS_PERIOD = P.NINEDOF_STATUS_PERIOD_MS / 1000.0
+BS_ADDR = 0
+READ_BLOCK = 1250         # samples asked from the physics at a time
+_EPS = 1e-9
+
+
+class Message:
+    """One message in a send queue (samples, status or calibration reply)."""
+    __slots__ = ("mote", "am_type", "payload", "k0", "count", "raw", "records", "flags",
+                 "at_bs")
+
+    def __init__(self, mote, am_type, payload, k0=None, count=0, raw=None, records=None,
+                 flags=0):
+        self.mote = mote
+        self.am_type = am_type
+        self.payload = payload
+        self.k0 = k0
+        self.count = count
+        self.raw = raw
+        self.records = records
+        self.flags = flags
+        self.at_bs = False        # the BaseStation received it (even if unacked)
+
+
+def _cal_value(cal, name):
+    v = getattr(cal, name, None)
+    if callable(v):
+        v = v()
+    return v
+
+
+class SimMote:
+    def __init__(self, net, mote_id: int, sampler, clock_ppm: float, rng, *,
+                 batch: int, rate_hz: float, duration: float, cal=None):
+        self.net = net
+        self.loop = net.loop
+        self.id = int(mote_id)
+        self.sampler = sampler
+        self.batch = int(batch)
+        self.clock_ppm = float(clock_ppm)
+        scale = 1.0 + self.clock_ppm * 1e-6
+        self.period = 1.0 / (rate_hz * scale)
+        self.t0 = rng.random() * self.period
+        if math.isinf(duration):
+            self.n_total = sys.maxsize
+        elif duration > self.t0:
+            n = math.ceil((duration - self.t0) / self.period)
+            while n > 0 and self.t0 + (n - 1) * self.period >= duration:
+                n -= 1
+            while self.t0 + n * self.period < duration:
+                n += 1
+            self.n_total = n
+        else:
+            self.n_total = 0
+        self.duration = duration
+        self.status_period = STATUS_PERIOD / scale
+        self.cal = cal
+        self.mac = Mac(self.id, net.channel, rng, max_retries=MAX_RETRIES)
+        net.channel.attach(self.id, self)
+        self.queue: deque[Message] = deque()
+        self.next_k = 0                      # first sample not yet put into a message
+        self._gen = 0
+        self._buf = np.zeros((0, 9), np.int16)
+        self._buf_k0 = 0
+        # counters (samples unless said otherwise)
+        self.dropped = 0                     # send queue full
+        self.radio_lost = 0                  # in messages given up by the radio
+        self.msgs_dropped = 0                # sample messages dropped (queue full)
+        self.status_sent = 0
+        self.status_dropped = 0
+        self.replies = 0
+        self.replies_dropped = 0
+        self.send_fail = 0                   # messages given up (all kinds)
+        self._schedule_batch()
+        self.loop.at(rng.random() * self.status_period, self._status, None)
+
+    # ------------------------------------------------------------------ samples
+    def generated(self, now: float | None = None) -> int:
+        """Samples taken up to ``now`` (true time)."""
+        now = self.loop.now if now is None else now
+        if now < self.t0:
+            return 0
+        return min(self.n_total, int(math.floor((now - self.t0) / self.period + _EPS)) + 1)
+
+    def sample_times(self, k0: int, k1: int) -> np.ndarray:
+        return self.t0 + np.arange(k0, k1, dtype=np.float64) * self.period
+
+    def _raw(self, k0: int, k1: int) -> np.ndarray:
+        end = self._buf_k0 + len(self._buf)
+        if k1 > end:
+            upto = max(k1, min(end + READ_BLOCK, self.n_total))
+            new = np.asarray(self.sampler.read(self.sample_times(end, upto)), np.int16)
+            keep = self._buf[k0 - self._buf_k0:]
+            self._buf = np.concatenate([keep, new]) if len(keep) else new
+            self._buf_k0 = k0
+        i = k0 - self._buf_k0
+        return self._buf[i:i + (k1 - k0)]
+
+    def _schedule_batch(self) -> None:
+        if self.next_k >= self.n_total:
+            return
+        k_end = min(self.next_k + self.batch, self.n_total)
+        self.loop.at(self.t0 + (k_end - 1) * self.period, self._batch_event, self._gen)
+
+    def _batch_event(self, gen) -> None:
+        if gen != self._gen:
+            return
+        k_end = min(self.next_k + self.batch, self.n_total)
+        self._emit(self.next_k, k_end)
+        self._schedule_batch()
+
+    def _emit(self, k0: int, k1: int) -> None:
+        self.next_k = k1
+        raw = self._raw(k0, k1)
+        flags = 0
+        rec = raw
+        if self.cal is not None:
+            flags = int(self.cal.flags())
+            if flags & P.FLAG_CORRECTED:
+                rec = np.asarray(self.cal.correct(raw), np.int16)
+        if len(self.queue) >= QUEUE_LEN:
+            self.dropped += k1 - k0
+            self.msgs_dropped += 1
+            return
+        payload = P.pack_samples(k0 & 0xFFFF, flags, rec)
+        self.queue.append(Message(self.id, P.AM_NINEDOF_SAMPLES_MSG, payload, k0, k1 - k0,
+                                  raw, rec, flags))
+        self._kick()
+
+    def _flush_partial(self) -> None:
+        """Send the samples taken so far of the batch being filled."""
+        g = self.generated()
+        if g > self.next_k:
+            self._emit(self.next_k, g)
+            self._gen += 1
+            self._schedule_batch()
+
+    # ------------------------------------------------------------------ radio
+    def _kick(self) -> None:
+        if not self.mac.busy and self.queue:
+            m = self.queue[0]
+            self.mac.send(BS_ADDR, P.DEFAULT_GROUP, m.am_type, m.payload, True, m, self._sent)
+
+    def _sent(self, msg: Message, ok: bool) -> None:
+        self.queue.popleft()
+        if not ok:
+            self.send_fail += 1
+            if not msg.at_bs:          # no ack, but the BaseStation may have it anyway
+                self.radio_lost += msg.count
+        self._kick()
+
+    def _enqueue_other(self, am_type: int, payload: bytes) -> bool:
+        if len(self.queue) >= QUEUE_LEN:
+            return False
+        self.queue.append(Message(self.id, am_type, payload))
+        self._kick()
+        return True
+
+    def on_frame(self, f) -> None:
+        """A data frame heard on the radio (any destination)."""
+        if f.dest != self.id or self.cal is None:
+            return
+        if f.am_type == P.AM_NINEDOF_CAL_COMMIT_MSG:
+            self._flush_partial()
+        reply = self.cal.handle(f.am_type, bytes(f.payload))
+        if reply:
+            rtype, rpayload = reply
+            if self._enqueue_other(rtype, bytes(rpayload)):
+                self.replies += 1
+            else:
+                self.replies_dropped += 1
+
+    # ------------------------------------------------------------------ status
+    def _status(self, _) -> None:
+        now = self.loop.now
+        if now >= self.duration:
+            return
+        version = sensors = 0
+        if self.cal is not None:
+            v = _cal_value(self.cal, "version")
+            version = int(v) if v is not None else (int(self.cal.flags()) >> P.FLAG_VERSION_SHIFT)
+            s = _cal_value(self.cal, "sensors")
+            sensors = int(s) if s is not None else 0
+        payload = P.MOTE_STATUS.pack(
+            seq=self.generated() & 0xFFFF, version=version & 0xFFFF, sensors=sensors,
+            dropped=self.dropped & 0xFFFF, send_fail=self.send_fail & 0xFFFF,
+            i2c_errors=0, late=0)
+        if self._enqueue_other(P.AM_NINEDOF_MOTE_STATUS_MSG, payload):
+            self.status_sent += 1
+        else:
+            self.status_dropped += 1
+        self.loop.at(now + self.status_period, self._status, None)
+
+    # ------------------------------------------------------------------ stats
+    def counters(self) -> dict:
+        d = dict(generated=self.generated(), dropped=self.dropped,
+                 radio_lost=self.radio_lost, msgs_dropped=self.msgs_dropped,
+                 status_sent=self.status_sent, status_dropped=self.status_dropped,
+                 replies=self.replies, replies_dropped=self.replies_dropped,
+                 queued=sum(m.count for m in self.queue), clock_ppm=self.clock_ppm)
+        d.update(self.mac.counters())
+        return d

@@ -606,7 +606,7 @@ class SessionWriter:
 
     ``add_samples`` and ``set_label`` only queue; ``commit`` writes everything
     queued in one transaction (samples first, then labels, counters, events),
-    and ``maybe_commit`` does so once ``commit_every`` seconds have passed.
+    and ``due`` says when ``commit_every`` seconds have passed.
     """
 
     _INSERT = ("INSERT INTO samples (session, mote, seq, t, flags, ax, ay, az, gx, gy, gz, "
@@ -662,11 +662,10 @@ class SessionWriter:
             raise ValueError(f"unknown line counters {sorted(unknown)}")
         self._line = dict(counters)
 
-    def maybe_commit(self) -> bool:
-        if time.monotonic() - self._last_commit >= self.commit_every:
-            self.commit()
-            return True
-        return False
+    @property
+    def due(self) -> bool:
+        """``commit_every`` seconds have passed since the last commit."""
+        return time.monotonic() - self._last_commit >= self.commit_every
 
     def commit(self) -> None:
         st = self.store

@@ -1,0 +1,490 @@
+"""Guided capture: what the person does next, and which samples become a pose.
+
+The decisions live here, as explicit state machines, one per followed mote
+(as ArduPilot runs one ``CompassCalibrator`` per compass):
+
+* ``PoseCapture`` (``--guided static80``):  MOVE -> WAIT_STILL -> CAPTURE ->
+  (accept) MOVE ... -> DONE.  The board must move between poses; when the
+  trailing stillness window (``still.StillDetector``) becomes still, the
+  window's rows start a capture; ``samples`` still rows in a row make the pose
+  (labelled with its index), a moving row first discards the capture and the
+  same pose is tried again.  A pose whose gravity direction lies within
+  ``min_angle_deg`` of an accepted one is refused with a warning -- the one
+  accept/reject point is ``PoseCapture._consider``.
+* ``RotationCapture`` (``--guided rotation``): labels rows ``rot`` from the
+  start until ``samples`` rows or until the magnetometer directions (around a
+  running sphere-fit centre) hit ``coverage`` of equal-area sphere cells.
+
+In interactive use a pose is only captured after the person confirmed it
+(``arm``: Enter); non-interactive flows are always armed and advance whenever
+a new still pose appears.
+
+``GuidedFlow`` holds the per-mote machines and is what the logger talks to:
+``update(mote, seq, raw)`` returns ``GuideEvent``s, among them ``label``
+events telling the logger which stored rows to label.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from .session import LABEL_ROT, NOMINAL_SCALES
+from .still import StillDetector, StillThresholds
+
+DEFAULT_POSES = 80
+DEFAULT_POSE_SAMPLES = 200
+DEFAULT_MIN_ANGLE = 15.0
+DEFAULT_ROT_SAMPLES = 5000
+DEFAULT_COVERAGE = 0.9
+MAG_OVERFLOW = -4096
+
+
+# --------------------------------------------------------------------------
+# Directions and coverage
+# --------------------------------------------------------------------------
+def even_directions(n: int) -> np.ndarray:
+    """n unit vectors spread evenly over the sphere (Fibonacci lattice), (n, 3).
+
+    The first points are near +Z (board flat, face up), so the guided order
+    starts from the natural pose and spirals down to face down.
+    """
+    k = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * k / n
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = k * math.pi * (3.0 - math.sqrt(5.0))
+    return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+
+
+def unit(v: np.ndarray) -> np.ndarray:
+    v = np.asarray(v, float)
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
+def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angles between unit vectors a (..., 3) and b (..., 3), degrees."""
+    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1.0, 1.0)))
+
+
+class SphereCoverage:
+    """Equal-area cells on the unit sphere: ``bands`` equal-height z bands
+    (equal area, Archimedes) times ``sectors`` equal azimuth sectors, as
+    MotionCal counts the gaps in a magnetometer sweep."""
+
+    def __init__(self, bands: int = 10, sectors: int = 10):
+        self.bands, self.sectors = bands, sectors
+        self.hits = np.zeros(bands * sectors, np.int64)
+
+    @property
+    def cells(self) -> int:
+        return self.bands * self.sectors
+
+    def cell_of(self, v: np.ndarray) -> np.ndarray:
+        v = unit(np.atleast_2d(v))
+        band = np.clip(((1.0 - v[:, 2]) / 2.0 * self.bands).astype(int), 0, self.bands - 1)
+        az = (np.arctan2(v[:, 1], v[:, 0]) + math.pi) / (2 * math.pi)
+        sector = np.clip((az * self.sectors).astype(int), 0, self.sectors - 1)
+        return band * self.sectors + sector
+
+    def reset(self):
+        self.hits[:] = 0
+
+    def add(self, v: np.ndarray) -> None:
+        if len(np.atleast_2d(v)):
+            np.add.at(self.hits, self.cell_of(v), 1)
+
+    @property
+    def fraction(self) -> float:
+        return float((self.hits > 0).mean())
+
+    def map(self, mark: np.ndarray | None = None) -> list[str]:
+        """Text map, top row = +Z band: '#' hit, '.' empty, 'o' the cell of ``mark``."""
+        grid = (self.hits > 0).reshape(self.bands, self.sectors)
+        m = int(self.cell_of(mark)[0]) if mark is not None else -1
+        rows = []
+        for b in range(self.bands):
+            rows.append("".join("o" if b * self.sectors + s == m else ("#" if grid[b, s] else ".")
+                                for s in range(self.sectors)))
+        return rows
+
+
+_AXES = (("+X", np.array([1.0, 0, 0])), ("-X", np.array([-1.0, 0, 0])),
+         ("+Y", np.array([0, 1.0, 0])), ("-Y", np.array([0, -1.0, 0])),
+         ("+Z", np.array([0, 0, 1.0])), ("-Z", np.array([0, 0, -1.0])))
+
+
+def describe_up(d: np.ndarray) -> str:
+    """Words for a gravity direction: which board face points up, and the tilt.
+
+    ``d`` is the accelerometer's reading at rest (it points up, away from the
+    Earth).  "+Z face up" is the board flat, components on top.
+    """
+    d = unit(d)
+    dots = [float(d @ a) for _, a in _AXES]
+    i = int(np.argmax(dots))
+    name, axis = _AXES[i]
+    tilt = math.degrees(math.acos(max(-1.0, min(1.0, dots[i]))))
+    if tilt < 5.0:
+        return f"{name} face up, level"
+    horiz = d - dots[i] * axis
+    j = max((k for k in range(6) if abs(float(_AXES[k][1] @ axis)) < 0.5),
+            key=lambda k: float(horiz @ _AXES[k][1]))
+    return f"{name} face up, tilted {tilt:.0f} deg toward {_AXES[j][0]}"
+
+
+def sketch_up(d: np.ndarray) -> list[str]:
+    """A three-line sketch of the board seen from the side that is up:
+    the face-up axis in the middle, an arrow toward the tilt."""
+    d = unit(d)
+    dots = [float(d @ a) for _, a in _AXES]
+    i = int(np.argmax(dots))
+    name, axis = _AXES[i]
+    horiz = d - dots[i] * axis
+    others = [k for k in range(6) if abs(float(_AXES[k][1] @ axis)) < 0.5]
+    # screen right / screen up: the first two other axes with a positive sign
+    right = next(_AXES[k] for k in others if _AXES[k][0][0] == "+")
+    upv = next(_AXES[k] for k in others if _AXES[k][0][0] == "+" and _AXES[k][0] != right[0])
+    x, y = float(horiz @ right[1]), float(horiz @ upv[1])
+    arrows = {(0, 1): "^", (1, 1): "/", (1, 0): ">", (1, -1): "\\", (0, -1): "v",
+              (-1, -1): "/", (-1, 0): "<", (-1, 1): "\\"}
+    if math.hypot(x, y) < math.sin(math.radians(5.0)):
+        arrow = " "
+    else:
+        a = math.atan2(y, x)
+        q = (round(math.cos(a) * 1.2), round(math.sin(a) * 1.2))
+        arrow = arrows.get((max(-1, min(1, q[0])), max(-1, min(1, q[1]))), " ")
+    return [f"   {upv[0]}     ",
+            f" +-----+ tilt {arrow}",
+            f" | {name} | {right[0]}",
+            " +-----+"]
+
+
+# --------------------------------------------------------------------------
+# Events
+# --------------------------------------------------------------------------
+@dataclass
+class GuideEvent:
+    kind: str            # capturing | accepted | discarded | too_close | label | done
+    mote: int
+    pose: int = 0
+    text: str = ""
+    seq_lo: int = 0
+    seq_hi: int = 0
+    label: int = 0
+
+
+class Phase(Enum):
+    MOVE = "move the board to the next pose"
+    WAIT_STILL = "hold the board still"
+    CAPTURE = "capturing: keep still"
+    ROTATE = "turn the board through all directions"
+    DONE = "done"
+
+
+@dataclass
+class Pose:
+    index: int
+    direction: np.ndarray
+    seq_lo: int
+    seq_hi: int
+
+
+# --------------------------------------------------------------------------
+# Static poses
+# --------------------------------------------------------------------------
+class PoseCapture:
+    """The static80 flow of one mote."""
+
+    kind = "static80"
+
+    def __init__(self, mote: int, *, poses: int = DEFAULT_POSES,
+                 samples: int = DEFAULT_POSE_SAMPLES, min_angle_deg: float = DEFAULT_MIN_ANGLE,
+                 rate_hz: float = 125.0, scales: dict | None = None, auto: bool = True,
+                 thresholds: StillThresholds = StillThresholds()):
+        self.mote = mote
+        self.poses = poses
+        self.samples = samples
+        self.min_angle = min_angle_deg
+        self.auto = auto
+        self.armed = auto
+        self.det = StillDetector(rate_hz, scales or NOMINAL_SCALES, thresholds)
+        if samples < self.det.w:
+            raise ValueError(f"a pose needs at least {self.det.w} samples (the still window)")
+        self.targets = even_directions(poses)
+        self.accepted: list[Pose] = []
+        self.coverage = SphereCoverage(4, 5)
+        self.phase = Phase.WAIT_STILL
+        self.captured = 0
+        self.discards = 0
+        self.warning = ""
+        self._hist_seq = np.zeros(0, np.int64)
+        self._hist_acc = np.zeros((0, 3))
+        self._cap_lo = 0
+        self._cap_hi = 0
+        self._cap_sum = np.zeros(3)
+
+    @property
+    def next_pose(self) -> int:
+        return len(self.accepted) + 1
+
+    @property
+    def done(self) -> bool:
+        return self.phase is Phase.DONE
+
+    @property
+    def target(self) -> np.ndarray | None:
+        return None if self.done else self.targets[len(self.accepted)]
+
+    def arm(self) -> None:
+        """The person says the board is placed (interactive use)."""
+        self.armed = True
+
+    def _close_to(self, d: np.ndarray) -> tuple[int, float] | None:
+        if not self.accepted:
+            return None
+        dirs = np.array([p.direction for p in self.accepted])
+        ang = angle_deg(dirs, d)
+        j = int(np.argmin(ang))
+        return (self.accepted[j].index, float(ang[j])) if ang[j] < self.min_angle else None
+
+    def _consider(self, d: np.ndarray, events: list) -> bool:
+        """The one accept/reject decision for a still stretch with mean gravity
+        direction ``d``; returns False (and warns) when it is too close."""
+        close = self._close_to(d)
+        if close is None:
+            return True
+        pose, ang = close
+        self.warning = (f"mote {self.mote}: this pose is {ang:.0f} deg from pose {pose} "
+                        f"(need {self.min_angle:.0f}): turn the board further")
+        events.append(GuideEvent("too_close", self.mote, self.next_pose, self.warning))
+        self.phase = Phase.MOVE
+        return False
+
+    def update(self, seq: np.ndarray, raw: np.ndarray) -> list[GuideEvent]:
+        """Feed this mote's new rows (arrival order); returns what happened."""
+        events: list[GuideEvent] = []
+        n = len(seq)
+        if n == 0:
+            return events
+        still = self.det.push_many(raw)
+        acc = np.asarray(raw, float)[:, :3]
+        h = len(self._hist_seq)
+        all_seq = np.concatenate([self._hist_seq, seq])
+        all_acc = np.vstack([self._hist_acc, acc])
+        w = self.det.w
+        i = 0
+        while i < n and not self.done:
+            if self.phase is Phase.MOVE:
+                moving = np.flatnonzero(~still[i:])
+                if not len(moving):
+                    break
+                i += int(moving[0])
+                self.phase = Phase.WAIT_STILL
+            elif self.phase is Phase.WAIT_STILL:
+                if not self.armed:
+                    break
+                found = np.flatnonzero(still[i:])
+                if not len(found):
+                    break
+                j = i + int(found[0])
+                lo = h + j - w + 1                     # window start in all_*
+                window = all_acc[max(lo, 0):h + j + 1]
+                i = j + 1
+                if not self._consider(unit(window.mean(axis=0)), events):
+                    continue
+                self.phase = Phase.CAPTURE
+                self.warning = ""
+                self.captured = len(window)
+                self._cap_sum = window.sum(axis=0)
+                self._cap_lo = int(all_seq[max(lo, 0)])
+                self._cap_hi = int(all_seq[h + j])
+                events.append(GuideEvent("capturing", self.mote, self.next_pose,
+                                         f"mote {self.mote}: pose {self.next_pose} still, "
+                                         "capturing"))
+            elif self.phase is Phase.CAPTURE:
+                need = self.samples - self.captured
+                seg = still[i:i + need]
+                bad = np.flatnonzero(~seg)
+                take = int(bad[0]) if len(bad) else len(seg)
+                if take:
+                    self.captured += take
+                    self._cap_sum += acc[i:i + take].sum(axis=0)
+                    self._cap_hi = int(seq[i + take - 1])
+                i += take
+                if len(bad):
+                    self.discards += 1
+                    events.append(GuideEvent(
+                        "discarded", self.mote, self.next_pose,
+                        f"mote {self.mote}: moved during pose {self.next_pose} "
+                        f"({self.captured}/{self.samples}): hold it still again"))
+                    self.phase = Phase.WAIT_STILL
+                    self.captured = 0
+                elif self.captured >= self.samples:
+                    self._finish(events)
+        keep = min(w, len(all_seq))
+        self._hist_seq = all_seq[-keep:].copy()
+        self._hist_acc = all_acc[-keep:].copy()
+        return events
+
+    def _finish(self, events: list) -> None:
+        d = unit(self._cap_sum / self.captured)
+        self.captured = 0
+        if not self._consider(d, events):
+            return
+        k = self.next_pose
+        pose = Pose(k, d, self._cap_lo, self._cap_hi)
+        self.accepted.append(pose)
+        self.coverage.add(d)
+        off = angle_deg(self.targets[k - 1], d)
+        events.append(GuideEvent("label", self.mote, k, "", pose.seq_lo, pose.seq_hi, k))
+        events.append(GuideEvent(
+            "accepted", self.mote, k,
+            f"mote {self.mote}: pose {k}/{self.poses} recorded ({describe_up(d)}; "
+            f"{off:.0f} deg from the suggested pose; coverage "
+            f"{self.coverage.fraction:.0%})"))
+        self.armed = self.auto
+        if len(self.accepted) >= self.poses:
+            self.phase = Phase.DONE
+            events.append(GuideEvent("done", self.mote, k, f"mote {self.mote}: all "
+                                     f"{self.poses} poses recorded"))
+        else:
+            self.phase = Phase.MOVE
+
+    def status(self) -> dict:
+        return dict(kind=self.kind, mote=self.mote, phase=self.phase.value,
+                    pose=self.next_pose, poses=self.poses, captured=self.captured,
+                    samples=self.samples, armed=self.armed, warning=self.warning,
+                    coverage=self.coverage.fraction,
+                    target=None if self.done else describe_up(self.target),
+                    sketch=[] if self.done else sketch_up(self.target),
+                    map=self.coverage.map(self.target))
+
+
+# --------------------------------------------------------------------------
+# Rotation sweep
+# --------------------------------------------------------------------------
+def sphere_centre(m: np.ndarray) -> np.ndarray:
+    """Centre of the best sphere through points m (n, 3): linear least squares
+    on |m|^2 = 2 c.m + k; falls back to the mid-range for too few points."""
+    m = np.asarray(m, float)
+    mid = (m.max(axis=0) + m.min(axis=0)) / 2.0
+    if len(m) < 20:
+        return mid
+    a = np.column_stack([2.0 * m, np.ones(len(m))])
+    sol, _, rank, sv = np.linalg.lstsq(a, (m * m).sum(axis=1), rcond=None)
+    if rank < 4 or sv[-1] < 1e-6 * sv[0]:
+        return mid
+    return sol[:3]
+
+
+class RotationCapture:
+    """The rotation flow of one mote: label rows ``rot`` while the board is turned."""
+
+    kind = "rotation"
+
+    def __init__(self, mote: int, *, samples: int = DEFAULT_ROT_SAMPLES,
+                 coverage: float = DEFAULT_COVERAGE, auto: bool = True,
+                 bands: int = 10, sectors: int = 10, refit_every: int = 250):
+        self.mote = mote
+        self.samples = samples
+        self.target_coverage = coverage
+        self.auto = auto
+        self.armed = auto
+        self.coverage = SphereCoverage(bands, sectors)
+        self.refit_every = refit_every
+        self.phase = Phase.ROTATE
+        self.count = 0
+        self._mag = np.zeros((0, 3))
+        self._fitted_at = 0
+        self.centre = np.zeros(3)
+
+    @property
+    def done(self) -> bool:
+        return self.phase is Phase.DONE
+
+    def arm(self) -> None:
+        self.armed = True
+
+    def update(self, seq: np.ndarray, raw: np.ndarray) -> list[GuideEvent]:
+        events: list[GuideEvent] = []
+        if self.done or not self.armed or not len(seq):
+            return events
+        take = min(len(seq), self.samples - self.count)
+        s = np.asarray(seq[:take])
+        self.count += take
+        events.append(GuideEvent("label", self.mote, 0, "", int(s.min()), int(s.max()),
+                                 LABEL_ROT))
+        mag = np.asarray(raw, float)[:take, 6:9]
+        good = np.isfinite(mag).all(axis=1) & (mag != MAG_OVERFLOW).all(axis=1)
+        self._mag = np.vstack([self._mag, mag[good]])
+        if len(self._mag) - self._fitted_at >= self.refit_every or self.count >= self.samples:
+            self._fitted_at = len(self._mag)
+            self.centre = sphere_centre(self._mag)
+            self.coverage.reset()
+            self.coverage.add(self._mag - self.centre)
+        frac = self.coverage.fraction
+        if self.count >= self.samples or frac >= self.target_coverage:
+            self.phase = Phase.DONE
+            why = (f"coverage {frac:.0%}" if frac >= self.target_coverage
+                   else f"{self.samples} samples")
+            events.append(GuideEvent("done", self.mote, 0,
+                                     f"mote {self.mote}: rotation recorded ({self.count} "
+                                     f"samples, {why})"))
+        return events
+
+    def status(self) -> dict:
+        return dict(kind=self.kind, mote=self.mote, phase=self.phase.value, count=self.count,
+                    samples=self.samples, armed=self.armed, coverage=self.coverage.fraction,
+                    target_coverage=self.target_coverage, map=self.coverage.map())
+
+
+# --------------------------------------------------------------------------
+# Several motes
+# --------------------------------------------------------------------------
+@dataclass
+class GuidedFlow:
+    """One capture per followed mote (``follow`` = a mote id, or None = all)."""
+
+    kind: str                              # static80 | rotation
+    follow: int | None = None
+    auto: bool = True
+    options: dict = field(default_factory=dict)
+    captures: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if self.kind not in ("static80", "rotation"):
+            raise ValueError(f"unknown guided flow {self.kind!r}")
+
+    def _capture(self, mote: int):
+        cap = self.captures.get(mote)
+        if cap is None:
+            cls = PoseCapture if self.kind == "static80" else RotationCapture
+            cap = self.captures[mote] = cls(mote, auto=self.auto, **self.options)
+        return cap
+
+    def update(self, mote: np.ndarray, seq: np.ndarray, raw: np.ndarray) -> list[GuideEvent]:
+        """Rows of any motes (arrival order); unfollowed motes are ignored."""
+        events: list[GuideEvent] = []
+        if not len(mote):
+            return events
+        for m in np.unique(mote):
+            m = int(m)
+            if self.follow is not None and m != self.follow:
+                continue
+            sel = mote == m
+            events += self._capture(m).update(seq[sel], raw[sel])
+        return events
+
+    def arm(self) -> None:
+        for cap in self.captures.values():
+            cap.arm()
+
+    @property
+    def done(self) -> bool:
+        return bool(self.captures) and all(c.done for c in self.captures.values())
+
+    def status(self) -> list[dict]:
+        return [self.captures[m].status() for m in sorted(self.captures)]

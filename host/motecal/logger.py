@@ -1,0 +1,789 @@
+"""``motecal log``: record what the BaseStation forwards into the database,
+optionally guiding a person through 80 static poses or a rotation sweep.
+
+Data path, all vectorised per read (``bench/bench_logger.py`` measures it):
+source bytes -> ``protocol.FrameDecoder`` (in ``sources``) -> sample messages
+decoded together (``decode_sample_frames``) -> sequence numbers unwrapped and
+checked per mote (``LinkTracker``: gaps = lost samples, duplicates dropped,
+late ones filling gaps counted as reordered) -> ``store.SessionWriter``, which
+commits a transaction every 0.25 s.  Other messages (mote and BaseStation
+status) go into the link statistics; anything unusable is counted and skipped.
+
+The port may vanish (unplugged, TCP closed): the logger commits, records a
+``disconnect`` event, retries with backoff and resumes.  Ctrl-C and SIGTERM
+end the session cleanly: everything received is committed and the session is
+marked ended.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import signal
+import sys
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import protocol as P
+from . import sources as S
+from .errors import UserError
+from .guide import (DEFAULT_COVERAGE, DEFAULT_MIN_ANGLE, DEFAULT_POSE_SAMPLES, DEFAULT_POSES,
+                    DEFAULT_ROT_SAMPLES, GuidedFlow)
+from .store import LINE_COUNTERS, LINK_COUNTERS, SessionWriter, open_store
+
+# Layout offsets inside an AM frame body (AM header + sample payload), from protocol
+_AMH = P.AM_HEADER.size                       # 7: dest(2) src(2) len(1) group(1) type(1)
+_SRC, _TYPE = 2, 6
+_SH = P.SAMPLES_HEADER.size                   # 4: seq(2) flags(1) count(1)
+_REC = P.NINEDOF_RECORD_SIZE                  # 18
+_REC_BYTES = np.arange(_REC)
+
+REORDER_WINDOW = 2048        # a sequence number further back than this: mote restarted
+DRAIN_IDLE_S = 0.3           # after a guided flow is done: stop once the line is this quiet
+DRAIN_MAX_S = 3.0
+BACKOFF_MIN_S, BACKOFF_MAX_S = 0.1, 2.0
+
+
+# --------------------------------------------------------------------------
+# Decoding many sample messages at once
+# --------------------------------------------------------------------------
+@dataclass
+class SampleBatch:
+    """Sample messages of one read, arrays in arrival order."""
+    src: np.ndarray           # (m,) mote id of each message
+    seq: np.ndarray           # (m,) 16-bit sequence number of its first record
+    flags: np.ndarray         # (m,)
+    count: np.ndarray         # (m,)
+    records: np.ndarray       # (N, 9) int16, all records
+    rec_msg: np.ndarray       # (N,) index of the message of each record
+    rec_index: np.ndarray     # (N,) position of the record within its message
+    bad: int = 0              # AM_NINEDOF_SAMPLES_MSG frames whose count/length disagree
+
+    def __len__(self):
+        return len(self.src)
+
+
+def decode_sample_frames(frames: list[P.Frame]) -> tuple[SampleBatch, list[P.Frame]]:
+    """Split frames into sample messages (decoded together with numpy, the
+    same result as ``protocol.decode_message`` frame by frame) and the rest."""
+    n = len(frames)
+    bodies = [f.body for f in frames]
+    lens = np.fromiter(map(len, bodies), np.int64, n)
+    is_am = np.fromiter((f.dispatch == P.DISPATCH_AM for f in frames), bool, n)
+    blob = np.frombuffer(b"".join(bodies), np.uint8)
+    starts = np.zeros(n, np.int64)
+    if n > 1:
+        np.cumsum(lens[:-1], out=starts[1:])
+    has_type = is_am & (lens >= _AMH)
+    typ = np.full(n, -1, np.int64)
+    typ[has_type] = blob[starts[has_type] + _TYPE]
+    is_samples = typ == P.AM_NINEDOF_SAMPLES_MSG
+    count = np.zeros(n, np.int64)
+    long_enough = is_samples & (lens >= _AMH + _SH)
+    count[long_enough] = blob[starts[long_enough] + _AMH + 3]
+    ok = long_enough & (count >= 1) & (lens == _AMH + _SH + _REC * count)
+    idx = np.flatnonzero(ok)
+    s = starts[idx]
+    cnt = count[idx]
+    src = (blob[s + _SRC].astype(np.int64) << 8) | blob[s + _SRC + 1]
+    seq = (blob[s + _AMH].astype(np.int64) << 8) | blob[s + _AMH + 1]
+    flags = blob[s + _AMH + 2].astype(np.int64)
+    total = int(cnt.sum())
+    rec_msg = np.repeat(np.arange(len(idx)), cnt)
+    first = np.cumsum(cnt) - cnt
+    rec_index = np.arange(total) - first[rec_msg]
+    off = s[rec_msg] + _AMH + _SH + _REC * rec_index
+    records = blob[off[:, None] + _REC_BYTES].copy().view(P.RECORD_DTYPE).reshape(total, 9) \
+        .astype(np.int16)
+    others = [frames[i] for i in np.flatnonzero(~ok & ~is_samples)]
+    batch = SampleBatch(src, seq, flags, cnt, records, rec_msg, rec_index,
+                        bad=int((is_samples & ~ok).sum()))
+    return batch, others
+
+
+# --------------------------------------------------------------------------
+# Sequence numbers and link statistics
+# --------------------------------------------------------------------------
+def _wrapdiff(a, b):
+    """a - b in 16-bit sequence space, in -32768..32767."""
+    return (np.asarray(a, np.int64) - b + 32768) % 65536 - 32768
+
+
+class MoteLink:
+    """Sequence state and counters of one mote.
+
+    Sequence numbers are unwrapped (continued past 65535) so that ordering
+    survives the wrap.  ``end`` is one past the highest record seen; records
+    beyond it leave a hole (lost); a late record inside a hole fills it
+    (reordered, no longer lost); one seen before is a duplicate (dropped);
+    one more than ``REORDER_WINDOW`` behind means the mote restarted: its
+    numbering is continued after ``end``.
+    """
+
+    def __init__(self, mote: int, counters: dict | None = None, last_seq: int | None = None):
+        self.mote = mote
+        self.c = {k: 0 for k in LINK_COUNTERS}
+        self.c.update(counters or {})
+        self.last16 = None
+        if last_seq is not None:
+            self.last16 = last_seq & 0xFFFF
+            self.last_u = last_seq
+            self.end = last_seq + 1
+        self.holes: list[list[int]] = []        # [lo, hi) ranges not received
+
+    def _gap(self, lo: int, hi: int):
+        self.c["lost"] += hi - lo
+        self.holes.append([lo, hi])
+
+    def _prune(self):
+        if self.holes and self.holes[0][1] < self.end - REORDER_WINDOW:
+            self.holes = [h for h in self.holes if h[1] >= self.end - REORDER_WINDOW]
+
+    def accept(self, seq16: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """Unwrapped first sequence number per message, and a keep-mask over the
+        messages' records (None: keep all)."""
+        seq16 = np.asarray(seq16, np.int64)
+        count = np.asarray(count, np.int64)
+        self.c["frames"] += len(seq16)
+        if self.last16 is None:
+            self.last16 = int(seq16[0])
+            self.last_u = int(seq16[0])
+            self.end = int(seq16[0])
+            self.c["first_seq"] = self.end
+        prev = np.concatenate([[self.last16], seq16[:-1]])
+        u = self.last_u + np.cumsum(_wrapdiff(seq16, prev))
+        ends = u + count
+        prev_end = np.maximum.accumulate(np.concatenate([[self.end], ends[:-1]]))
+        if (u >= prev_end).all():                        # in order, perhaps with gaps
+            for i in np.flatnonzero(u > prev_end):
+                self._gap(int(prev_end[i]), int(u[i]))
+            self.end = int(max(prev_end[-1], ends[-1]))
+            self.last16, self.last_u = int(seq16[-1]), int(u[-1])
+            self.c["samples"] += int(count.sum())
+            self.c["last_seq"] = self.end - 1
+            self._prune()
+            return u, None
+        return self._accept_slow(seq16, count)
+
+    def _accept_slow(self, seq16, count):
+        us = np.empty(len(seq16), np.int64)
+        keep = []
+        for i, (s, c) in enumerate(zip(seq16.tolist(), count.tolist())):
+            u = self.last_u + int(_wrapdiff(s, self.last16))
+            if u < self.end - REORDER_WINDOW:              # numbering started again
+                self.c["restarts"] += 1
+                u = self.end
+            self.last16, self.last_u = s, u
+            us[i] = u
+            for r in range(u, u + c):
+                if r >= self.end:
+                    if r > self.end:
+                        self._gap(self.end, r)
+                    self.end = r + 1
+                    keep.append(True)
+                elif self._fill(r):
+                    self.c["reordered"] += 1
+                    self.c["lost"] -= 1
+                    keep.append(True)
+                else:
+                    self.c["duplicates"] += 1
+                    keep.append(False)
+        keep = np.array(keep, bool)
+        self.c["samples"] += int(keep.sum())
+        self.c["last_seq"] = self.end - 1
+        self._prune()
+        return us, keep
+
+    def _fill(self, r: int) -> bool:
+        for k, (lo, hi) in enumerate(self.holes):
+            if lo <= r < hi:
+                parts = [p for p in ([lo, r], [r + 1, hi]) if p[1] > p[0]]
+                self.holes[k:k + 1] = parts
+                return True
+        return False
+
+    def status(self, msg: dict) -> None:
+        c = self.c
+        c["status_msgs"] += 1
+        c["mote_dropped"] = msg["dropped"]
+        c["mote_send_fail"] = msg["send_fail"]
+        c["mote_i2c_errors"] = msg["i2c_errors"]
+        c["mote_late"] = msg["late"]
+        c["cal_version"] = msg["version"]
+        c["cal_sensors"] = msg["sensors"]
+
+
+@dataclass
+class Rows:
+    """Records ready to store: arrays in arrival order."""
+    mote: np.ndarray
+    seq: np.ndarray
+    flags: np.ndarray
+    raw: np.ndarray
+
+    def __len__(self):
+        return len(self.seq)
+
+
+class LinkTracker:
+    """Turns decoded reads into rows and keeps every link counter."""
+
+    def __init__(self, link: dict | None = None, line: dict | None = None,
+                 last_seqs: dict | None = None):
+        link, last_seqs = link or {}, last_seqs or {}
+        self.motes: dict[int, MoteLink] = {
+            m: MoteLink(m, c, last_seqs.get(m)) for m, c in link.items()}
+        for m, s in last_seqs.items():
+            self.motes.setdefault(m, MoteLink(m, None, s))
+        self.line = {k: 0 for k in LINE_COUNTERS}
+        self.line.update(line or {})
+        self.line["gap_s"] = float(self.line["gap_s"])
+        # decoder counters of the sources closed so far (and of earlier runs)
+        self._dec_base = {k: self.line[k] for k in P.DecoderStats().as_dict()}
+
+    def mote(self, m: int) -> MoteLink:
+        link = self.motes.get(m)
+        if link is None:
+            link = self.motes[m] = MoteLink(m)
+        return link
+
+    def samples(self, b: SampleBatch) -> Rows:
+        self.line["bad_msgs"] += b.bad
+        n = len(b.records)
+        if not len(b):
+            return Rows(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64),
+                        np.zeros((0, 9), np.int16))
+        u_msg = np.empty(len(b), np.int64)
+        keep = np.ones(n, bool)
+        if (b.src == b.src[0]).all():
+            groups = [(int(b.src[0]), None)]
+        else:
+            groups = [(int(m), np.flatnonzero(b.src == m)) for m in np.unique(b.src)]
+        for m, mi in groups:
+            seq16 = b.seq if mi is None else b.seq[mi]
+            cnt = b.count if mi is None else b.count[mi]
+            u, k = self.mote(m).accept(seq16, cnt)
+            if mi is None:
+                u_msg[:] = u
+                if k is not None:
+                    keep = k
+            else:
+                u_msg[mi] = u
+                if k is not None:
+                    recs = np.flatnonzero(np.isin(b.rec_msg, mi))   # arrival order of m's records
+                    keep[recs] = k
+        seq = u_msg[b.rec_msg] + b.rec_index
+        rows = Rows(b.src[b.rec_msg], seq, b.flags[b.rec_msg], b.records)
+        if not keep.all():
+            rows = Rows(rows.mote[keep], rows.seq[keep], rows.flags[keep], rows.raw[keep])
+        return rows
+
+    def other(self, frames: list[P.Frame]) -> None:
+        line = self.line
+        for f in frames:
+            if f.protocol == P.PROTO_ACK:
+                line["acks"] += 1
+                continue
+            am = f.am()
+            if am is None:
+                line["unknown_msgs"] += 1
+                continue
+            if am.am_type == P.AM_NINEDOF_MOTE_STATUS_MSG:
+                msg = P.decode_message(am)
+                if msg is None:
+                    line["bad_msgs"] += 1
+                else:
+                    self.mote(am.src).status(msg)
+            elif am.am_type == P.AM_NINEDOF_BS_STATUS_MSG:
+                msg = P.decode_message(am)
+                if msg is None:
+                    line["bad_msgs"] += 1
+                else:
+                    line["bs_status_msgs"] += 1
+                    for k, v in msg.items():
+                        line["bs_" + k] = v
+            elif am.am_type in P.FIXED_MESSAGES:
+                if P.decode_message(am) is None:
+                    line["bad_msgs"] += 1
+                # calibration replies: the uploader's business, not the logger's
+            else:
+                line["unknown_msgs"] += 1
+
+    def decoder(self, stats: P.DecoderStats, closed: bool = False) -> None:
+        """Take the current source's decoder counters (``closed``: it is done)."""
+        for k, v in stats.as_dict().items():
+            self.line[k] = self._dec_base[k] + v
+        if closed:
+            self._dec_base = {k: self.line[k] for k in self._dec_base}
+
+
+# --------------------------------------------------------------------------
+# The logging loop
+# --------------------------------------------------------------------------
+class Logger:
+    """Reads a source until stopped and writes everything into a session.
+
+    ``run`` returns when: ``request_stop`` was called (Ctrl-C, SIGTERM, 'q'),
+    ``duration`` seconds passed, a recorded file ended, or the guided flow is
+    done and the line has gone quiet.  It always commits and ends the session.
+    """
+
+    def __init__(self, spec: S.PortSpec, writer: SessionWriter, tracker: LinkTracker, *,
+                 guide: GuidedFlow | None = None, display=None,
+                 duration: float | None = None, source: S.Source | None = None):
+        self.spec = spec
+        self.writer = writer
+        self.tracker = tracker
+        self.guide = guide
+        self.display = display or NullDisplay()
+        self.duration = duration
+        self.source = source
+        self.stop_event = threading.Event()
+        self.stop_reason = ""
+        self.connected = False
+        self.started = time.monotonic()
+
+    def request_stop(self, reason: str = "stopped") -> None:
+        if not self.stop_event.is_set():
+            self.stop_reason = reason
+        self.stop_event.set()
+
+    @property
+    def elapsed(self) -> float:
+        return time.monotonic() - self.started
+
+    def _time_up(self) -> bool:
+        if self.duration is not None and self.elapsed >= self.duration:
+            self.request_stop(f"{self.duration:g} s elapsed")
+        return self.stop_event.is_set()
+
+    def run(self) -> None:
+        self.started = time.monotonic()
+        src = self.source or S.open_source(self.spec)
+        self.connected = True
+        self.display.start(self)
+        drain_since = None
+        last_data = time.monotonic()
+        try:
+            while not self._time_up():
+                try:
+                    frames = src.read()
+                except S.SourceEnded:
+                    self.request_stop("end of input")
+                    break
+                except S.SourceLost as e:
+                    self.tracker.decoder(src.stats, closed=True)
+                    src.close()
+                    src = None
+                    if drain_since is not None:
+                        self.request_stop("port closed after the guided flow")
+                        break
+                    src = self._reconnect(str(e))
+                    if src is None:
+                        break
+                    continue
+                now = time.monotonic()
+                if frames:
+                    self.handle(frames)
+                    last_data = now
+                self.tracker.decoder(src.stats)
+                if self.writer.due:
+                    self.commit()
+                self.display.tick(self)
+                if self.guide is not None and self.guide.done:
+                    if drain_since is None:
+                        drain_since = now
+                    if now - last_data >= DRAIN_IDLE_S or now - drain_since >= DRAIN_MAX_S:
+                        self.request_stop("guided flow done")
+        finally:
+            if src is not None:
+                self.tracker.decoder(src.stats, closed=True)
+                src.close()
+            self.connected = False
+            self.commit()
+            self.writer.end()
+            self.display.stop(self)
+
+    def handle(self, frames: list[P.Frame]) -> None:
+        batch, others = decode_sample_frames(frames)
+        if others:
+            self.tracker.other(others)
+        rows = self.tracker.samples(batch)
+        if not len(rows):
+            return
+        t = np.full(len(rows), self.writer.now())
+        self.writer.add_samples(rows.mote, rows.seq, t, rows.flags, rows.raw)
+        if self.guide is not None:
+            for ev in self.guide.update(rows.mote, rows.seq, rows.raw):
+                if ev.kind == "label":
+                    self.writer.set_label(ev.mote, ev.seq_lo, ev.seq_hi, ev.label)
+                    continue
+                if ev.kind != "capturing":
+                    self.writer.add_event(ev.kind, ev.text, ev.mote)
+                self.display.event(ev.text)
+
+    def commit(self) -> None:
+        for m, link in self.tracker.motes.items():
+            self.writer.set_link_stats(m, link.c)
+        self.writer.set_line_stats(self.tracker.line)
+        self.writer.commit()
+
+    def _reconnect(self, reason: str) -> S.Source | None:
+        self.connected = False
+        t0 = time.monotonic()
+        self.tracker.line["disconnects"] += 1
+        self.writer.add_event("disconnect", reason)
+        self.commit()
+        self.display.event(f"port lost ({reason}); reconnecting")
+        delay = BACKOFF_MIN_S
+        while not self._time_up():
+            if self.stop_event.wait(delay):
+                break
+            try:
+                src = S.open_source(self.spec)
+            except S.PortError:
+                delay = min(2 * delay, BACKOFF_MAX_S)
+                self.display.tick(self)
+                continue
+            gap = time.monotonic() - t0
+            self.tracker.line["gap_s"] += gap
+            self.writer.add_event("reconnect", f"after {gap:.1f} s")
+            self.display.event(f"port back after {gap:.1f} s")
+            self.connected = True
+            return src
+        self.tracker.line["gap_s"] += time.monotonic() - t0
+        return None
+
+    # -- what displays show ------------------------------------------------------
+    def summary_lines(self) -> list[str]:
+        w, tr = self.writer, self.tracker
+        out = []
+        total = sum(m.c["samples"] for m in tr.motes.values())
+        out.append(f"session {w.name}: {total} samples from {len(tr.motes)} mote(s) "
+                   f"in {self.elapsed:.1f} s ({self.stop_reason or 'running'})")
+        for m in sorted(tr.motes):
+            c = tr.motes[m].c
+            line = (f"  mote {m}: {c['samples']} samples, lost {c['lost']}, "
+                    f"duplicates {c['duplicates']}, reordered {c['reordered']}")
+            cap = self.guide.captures.get(m) if self.guide else None
+            if cap is not None and cap.kind == "static80":
+                line += f", poses {len(cap.accepted)}/{cap.poses}"
+            elif cap is not None:
+                line += f", rotation {cap.count} samples, coverage {cap.coverage.fraction:.0%}"
+            out.append(line)
+        ln = tr.line
+        out.append(f"  line: {ln['frames']} frames, {ln['crc_errors']} CRC errors, "
+                   f"{ln['bad_frames'] + ln['bad_msgs']} malformed, {ln['unknown_msgs']} "
+                   f"unknown, {ln['garbage_bytes']} garbage bytes, {ln['disconnects']} "
+                   f"disconnects ({ln['gap_s']:.1f} s)")
+        return out
+
+
+class NullDisplay:
+    def start(self, logger): pass
+    def event(self, text): pass
+    def tick(self, logger): pass
+    def stop(self, logger): pass
+
+
+class PlainDisplay(NullDisplay):
+    """Plain lines (no TTY): every event, a status line every ``every`` seconds."""
+
+    def __init__(self, out=None, every: float = 5.0):
+        self.out = out or sys.stdout
+        self.every = every
+        self._next = 0.0
+        self._prompted: dict = {}
+
+    def _print(self, text):
+        print(text, file=self.out, flush=True)
+
+    def start(self, logger):
+        self._print(f"logging {logger.spec} into session {logger.writer.name}"
+                    + (f" ({logger.guide.kind}, guided)" if logger.guide else ""))
+        self._next = time.monotonic() + self.every
+
+    def event(self, text):
+        if text:
+            self._print(text)
+
+    def tick(self, logger):
+        if logger.guide is not None and not logger.guide.auto:
+            for st in logger.guide.status():       # interactive without a TTY for output
+                key = (st["mote"], st.get("pose"), st["armed"])
+                if st["kind"] == "static80" and st["target"] and self._prompted.get(
+                        st["mote"]) != key and not st["armed"]:
+                    self._prompted[st["mote"]] = key
+                    self._print(f"mote {st['mote']}: pose {st['pose']}/{st['poses']}: "
+                                f"{st['target']}; hold still and press Enter")
+        now = time.monotonic()
+        if now >= self._next:
+            self._next = now + self.every
+            tr = logger.tracker
+            total = sum(m.c["samples"] for m in tr.motes.values())
+            extra = ""
+            if logger.guide is not None:
+                parts = []
+                for st in logger.guide.status():
+                    if st["kind"] == "static80":
+                        parts.append(f"mote {st['mote']} pose {st['pose']}/{st['poses']}")
+                    else:
+                        parts.append(f"mote {st['mote']} {st['count']}/{st['samples']} "
+                                     f"cov {st['coverage']:.0%}")
+                extra = "; " + ", ".join(parts)
+            self._print(f"[{logger.elapsed:6.1f} s] {total} samples, "
+                        f"{tr.line['crc_errors']} CRC errors"
+                        + ("" if logger.connected else ", reconnecting") + extra)
+
+    def stop(self, logger):
+        for line in logger.summary_lines():
+            self._print(line)
+
+
+class RichDisplay(NullDisplay):
+    """Live panel on a terminal (rich): link per mote, guidance, recent events."""
+
+    def __init__(self):
+        from rich.console import Console
+        self.console = Console()
+        self.live = None
+        self.events: deque = deque(maxlen=6)
+        self._rates: dict = {}
+        self._last = 0.0
+
+    def start(self, logger):
+        from rich.live import Live
+        self.live = Live(self._render(logger), console=self.console, refresh_per_second=4,
+                         transient=False)
+        self.live.start()
+
+    def event(self, text):
+        if text:
+            self.events.append(text)
+
+    def tick(self, logger):
+        now = time.monotonic()
+        if self.live is not None and now - self._last >= 0.25:
+            self._last = now
+            self.live.update(self._render(logger))
+
+    def stop(self, logger):
+        if self.live is not None:
+            self.live.update(self._render(logger))
+            self.live.stop()
+        for line in logger.summary_lines():
+            self.console.print(line)
+
+    def _rate(self, mote, samples):
+        now = time.monotonic()
+        hist = self._rates.setdefault(mote, deque(maxlen=20))
+        hist.append((now, samples))
+        t0, s0 = hist[0]
+        return (samples - s0) / (now - t0) if now > t0 else 0.0
+
+    def _render(self, logger):
+        from rich.console import Group
+        from rich.panel import Panel
+        from rich.table import Table
+        from rich.text import Text
+        tr = logger.tracker
+        table = Table(box=None, pad_edge=False)
+        for col in ("mote", "samples", "rate/s", "lost", "dup", "reord", "status"):
+            table.add_column(col, justify="right")
+        for m in sorted(tr.motes):
+            c = tr.motes[m].c
+            table.add_row(str(m), str(c["samples"]), f"{self._rate(m, c['samples']):.0f}",
+                          str(c["lost"]), str(c["duplicates"]), str(c["reordered"]),
+                          f"drop {c['mote_dropped']} late {c['mote_late']}")
+        ln = tr.line
+        state = "[green]connected[/]" if logger.connected else "[red]reconnecting[/]"
+        head = Text.from_markup(
+            f"[b]{logger.writer.name}[/]  {logger.spec}  {state}  {logger.elapsed:.0f} s   "
+            f"frames {ln['frames']}  CRC err {ln['crc_errors']}  garbage {ln['garbage_bytes']}"
+            f"  disconnects {ln['disconnects']}")
+        parts = [head, table]
+        if logger.guide is not None:
+            for st in logger.guide.status():
+                parts.append(_guide_text(st))
+        if self.events:
+            parts.append(Text("\n".join(self.events), style="dim"))
+        return Panel(Group(*parts), title="motecal log", subtitle="Ctrl-C ends the session")
+
+
+def _guide_text(st: dict):
+    from rich.text import Text
+    lines = []
+    if st["kind"] == "static80":
+        lines.append(f"mote {st['mote']}: pose {min(st['pose'], st['poses'])} of {st['poses']}"
+                     f" - {st['phase']}"
+                     + (f" ({st['captured']}/{st['samples']})" if st["captured"] else ""))
+        if st["target"]:
+            lines.append(f"  suggested: {st['target']}"
+                         + ("" if st["armed"] else "  -- place it, then press Enter"))
+        sketch = st["sketch"]
+        cov = [f"coverage {st['coverage']:.0%} (o = suggested)"] + st["map"]
+        for k in range(max(len(sketch), len(cov))):
+            a = sketch[k] if k < len(sketch) else ""
+            b = cov[k] if k < len(cov) else ""
+            lines.append(f"  {a:24s} {b}")
+        if st["warning"]:
+            lines.append(f"  ! {st['warning']}")
+    else:
+        lines.append(f"mote {st['mote']}: rotation - {st['phase']}: {st['count']}/"
+                     f"{st['samples']} samples, coverage {st['coverage']:.0%} "
+                     f"(stops at {st['target_coverage']:.0%})"
+                     + ("" if st["armed"] else "  -- press Enter to start"))
+        lines += ["  " + r for r in st["map"]]
+    return Text("\n".join(lines))
+
+
+class _KeyReader(threading.Thread):
+    """Interactive use: Enter confirms a pose, 'q' + Enter ends the session."""
+
+    def __init__(self, logger: Logger, stream=None):
+        super().__init__(daemon=True)
+        self.logger = logger
+        self.stream = stream or sys.stdin
+
+    def run(self):
+        for line in self.stream:
+            if line.strip().lower() in ("q", "quit"):
+                self.logger.request_stop("quit")
+                return
+            if self.logger.guide is not None:
+                self.logger.guide.arm()
+
+
+# --------------------------------------------------------------------------
+# Command line
+# --------------------------------------------------------------------------
+def _positive(kind):
+    def parse(text):
+        try:
+            v = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if not v > 0 or (isinstance(v, float) and not math.isfinite(v)):
+            raise argparse.ArgumentTypeError(f"must be > 0: {text!r}")
+        return v
+    return parse
+
+
+def _mote_id(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a mote id: {text!r}") from None
+    if not 0 <= v <= 0xFFFF:
+        raise argparse.ArgumentTypeError(f"mote id must be 0..65535: {text!r}")
+    return v
+
+
+def _board(text):
+    mote, sep, board = text.partition("=")
+    if not sep or not board:
+        raise argparse.ArgumentTypeError(f"want MOTE=BOARD, not {text!r}")
+    return _mote_id(mote), board
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "log", help="record a session from the BaseStation into the database",
+        description="Record what the BaseStation forwards (serial port, pyserial URL, "
+                    "serial@DEV:BAUD, sf@HOST:PORT, or a recorded file) into a database "
+                    "session, optionally guiding through 80 static poses or a rotation.")
+    p.add_argument("--port", help="device, pyserial URL (socket://, rfc2217://, loop://), "
+                                  "serial@DEV:BAUD, sf@HOST:PORT or a recorded file; "
+                                  "default: $MOTECOM")
+    p.add_argument("--baud", type=_positive(int), help="baud rate (default 250000)")
+    p.add_argument("--db", required=True, help="database: sqlite file or postgresql:// URL")
+    p.add_argument("--session", required=True, help="session name")
+    p.add_argument("--append", action="store_true", help="add to an existing session")
+    p.add_argument("--guided", choices=("static80", "rotation"), help="guide a person")
+    p.add_argument("--kind", choices=("free", "idle", "static80", "rotation"),
+                   help="session kind when not guided (default free)")
+    p.add_argument("--mote", type=_mote_id, help="mote the guided flow follows (default all)")
+    p.add_argument("--duration", type=_positive(float), help="stop after SECONDS")
+    p.add_argument("--yes", action="store_true",
+                   help="non-interactive: advance whenever a new still pose appears")
+    p.add_argument("--notes", help="free text stored with the session")
+    p.add_argument("--board", type=_board, action="append", default=[], metavar="MOTE=BOARD",
+                   help="which sensor board sits on which mote (repeatable)")
+    g = p.add_argument_group("guided flow")
+    g.add_argument("--poses", type=_positive(int), default=DEFAULT_POSES)
+    g.add_argument("--pose-samples", type=_positive(int), default=DEFAULT_POSE_SAMPLES)
+    g.add_argument("--min-angle", type=_positive(float), default=DEFAULT_MIN_ANGLE,
+                   help="degrees a new pose must be from every earlier one")
+    g.add_argument("--rot-samples", type=_positive(int), default=DEFAULT_ROT_SAMPLES)
+    g.add_argument("--coverage", type=_positive(float), default=DEFAULT_COVERAGE,
+                   help="rotation stops at this fraction of sphere cells hit")
+    p.add_argument("--commit-every", type=_positive(float), default=0.25,
+                   help=argparse.SUPPRESS)
+    p.set_defaults(func=run)
+
+
+def _guide(args, interactive: bool) -> GuidedFlow | None:
+    if not args.guided:
+        return None
+    if args.guided == "static80":
+        if args.pose_samples < 50:
+            raise UserError("--pose-samples must be at least 50 (the stillness window)")
+        opts = dict(poses=args.poses, samples=args.pose_samples, min_angle_deg=args.min_angle,
+                    rate_hz=P.NINEDOF_RATE_HZ)
+    else:
+        if args.coverage > 1:
+            raise UserError("--coverage is a fraction, 0 < c <= 1")
+        opts = dict(samples=args.rot_samples, coverage=args.coverage)
+    return GuidedFlow(args.guided, follow=args.mote, auto=not interactive, options=opts)
+
+
+def run(args) -> int:
+    spec = S.parse_port(args.port, args.baud)
+    interactive = bool(args.guided) and not args.yes and sys.stdin.isatty()
+    guide = _guide(args, interactive)
+    store = open_store(args.db, create=True)
+    try:
+        if store.session_exists(args.session) and not args.append:
+            raise UserError(f"session {args.session!r} already exists in {store.target} "
+                            "(choose another name, or --append to add to it)")
+        source = S.open_source(spec)
+        try:
+            meta = {"source": str(spec), "rate_hz": P.NINEDOF_RATE_HZ, "notes": args.notes,
+                    "baud": spec.baud}
+            if args.board:
+                meta["boards"] = {str(m): b for m, b in args.board}
+            kind = args.guided or args.kind or "free"
+            link = line = last = None
+            if args.append and store.session_exists(args.session):
+                stats = store.link_stats(args.session)
+                link, line = stats["motes"], stats["line"]
+                last = store.last_seqs(args.session)
+            writer = store.open_session(args.session, kind=kind, meta=meta, append=args.append,
+                                        commit_every=args.commit_every)
+        except BaseException:
+            source.close()
+            raise
+        tracker = LinkTracker(link, line, last)
+        display = RichDisplay() if sys.stdout.isatty() else PlainDisplay()
+        logger = Logger(spec, writer, tracker, guide=guide, display=display,
+                        duration=args.duration, source=source)
+        old = {}
+
+        def on_signal(signum, frame):
+            logger.request_stop("interrupted" if signum == signal.SIGINT else "terminated")
+
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            old[sig] = signal.signal(sig, on_signal)
+        try:
+            if interactive:
+                _KeyReader(logger).start()
+            logger.run()
+        finally:
+            for sig, h in old.items():
+                signal.signal(sig, h)
+    finally:
+        store.close()
+    return 0

@@ -1,0 +1,346 @@
+"""Opening the line to the BaseStation: serial ports, pyserial URLs, TinyOS
+MOTECOM sources and recorded byte streams.
+
+Accepted port specifications (``--port``, else the ``MOTECOM`` variable):
+
+* a device path (``/dev/ttyUSB1``, a pty from ``motecal sim --pty``);
+* any pyserial URL: ``socket://host:port``, ``rfc2217://host:port``, ``loop://``;
+* TinyOS MOTECOM syntax: ``serial@/dev/ttyUSB1:250000`` (the baud may also be
+  a platform name such as ``iris``), ``sf@host:9002`` (SerialForwarder),
+  ``network@host:port`` (raw serial bytes over TCP, same as ``socket://``);
+* a regular file holding a recorded serial byte stream (``motecal sim --out``);
+  it ends at end of file.
+
+Every source turns what it reads into checked ``protocol.Frame`` objects and
+counts what it had to skip in ``stats`` (``protocol.DecoderStats``).
+"""
+from __future__ import annotations
+
+import os
+import select
+import socket
+import stat
+from dataclasses import dataclass
+
+import serial
+from serial.urlhandler import protocol_socket
+
+from . import protocol as P
+from .errors import UserError
+
+DEFAULT_BAUD = 250000          # the BaseStation's rate in this project
+SF_DEFAULT_PORT = 9002
+READ_TIMEOUT = 0.05            # seconds a read waits for data
+READ_SIZE = 1 << 16
+
+# TinyOS platform names usable as the baud rate in serial@PORT:PLATFORM
+PLATFORM_BAUD = {"iris": 57600, "micaz": 57600, "mica2": 57600, "mica2dot": 19200,
+                 "telos": 115200, "telosb": 115200, "tmote": 115200, "eyes": 115200,
+                 "intelmote2": 115200, "shimmer": 115200}
+
+
+class PortError(UserError):
+    """The port cannot be opened (bad specification, missing device, refused)."""
+
+
+class SourceLost(Exception):
+    """The port went away while reading (unplugged, connection closed)."""
+
+
+class SourceEnded(Exception):
+    """A finite source (a recorded file) has no more data."""
+
+
+@dataclass(frozen=True)
+class PortSpec:
+    kind: str            # "serial" (device path or pyserial URL), "sf", "file"
+    target: str          # device path, URL, host name or file path
+    baud: int
+    port: int = 0        # TCP port for "sf"
+    text: str = ""       # as the user gave it
+
+    def __str__(self):
+        return self.text or self.target
+
+
+def _parse_baud(text: str, where: str) -> int:
+    if text.lower() in PLATFORM_BAUD:
+        return PLATFORM_BAUD[text.lower()]
+    try:
+        baud = int(text)
+    except ValueError:
+        raise PortError(f"bad baud rate {text!r} in {where}") from None
+    if baud <= 0:
+        raise PortError(f"bad baud rate {text!r} in {where}")
+    return baud
+
+
+def _host_port(text: str, default: int | None, where: str) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep:
+        host, port = text, ""
+    if not host:
+        raise PortError(f"no host in {where}")
+    if not port:
+        if default is None:
+            raise PortError(f"no TCP port in {where}")
+        return host, default
+    try:
+        n = int(port)
+    except ValueError:
+        raise PortError(f"bad TCP port {port!r} in {where}") from None
+    if not 0 < n < 65536:
+        raise PortError(f"bad TCP port {port!r} in {where}")
+    return host, n
+
+
+def parse_port(text: str | None, baud: int | None = None, env=None) -> PortSpec:
+    """Turn ``--port`` (or ``MOTECOM`` when it is None) and ``--baud`` into a PortSpec."""
+    env = os.environ if env is None else env
+    if not text:
+        text = env.get("MOTECOM", "")
+        if not text:
+            raise PortError("no port: give --port (device, pyserial URL, serial@DEV:BAUD, "
+                            "sf@HOST:PORT) or set MOTECOM")
+    if baud is not None and baud <= 0:
+        raise PortError(f"bad baud rate {baud}")
+    spec_baud = None
+    if "://" in text:
+        kind, target = "serial", text
+    elif text.startswith("serial@"):
+        dev = text[len("serial@"):]
+        head, sep, tail = dev.rpartition(":")
+        if sep and head and (tail.isdigit() or tail.lower() in PLATFORM_BAUD):
+            dev, spec_baud = head, _parse_baud(tail, text)
+        if not dev:
+            raise PortError(f"no device in {text}")
+        kind, target = "serial", dev
+    elif text.startswith("sf@"):
+        host, port = _host_port(text[3:], SF_DEFAULT_PORT, text)
+        return PortSpec("sf", host, baud or DEFAULT_BAUD, port, text)
+    elif text.startswith("network@"):
+        host, port = _host_port(text[len("network@"):], None, text)
+        kind, target = "serial", f"socket://{host}:{port}"
+    elif "@" in text.split("/")[0]:
+        raise PortError(f"unknown port kind in {text!r} (serial@, sf@ or network@)")
+    else:
+        try:
+            st = os.stat(text)
+        except OSError:
+            st = None
+        kind = "file" if st is not None and stat.S_ISREG(st.st_mode) else "serial"
+        target = text
+    if spec_baud is not None and baud is not None and spec_baud != baud:
+        raise PortError(f"{text} says {spec_baud} baud but --baud says {baud}")
+    return PortSpec(kind, target, spec_baud or baud or DEFAULT_BAUD, 0, text)
+
+
+# --------------------------------------------------------------------------
+# Sources
+# --------------------------------------------------------------------------
+class Source:
+    """Common part: frames out, skip counters in ``stats``."""
+
+    spec: PortSpec
+
+    def __init__(self, spec: PortSpec):
+        self.spec = spec
+        self.stats = P.DecoderStats()
+
+    def read(self) -> list[P.Frame]:         # pragma: no cover - interface
+        raise NotImplementedError
+
+    def send(self, am: P.AMPacket, ack_seq: int | None = None) -> None:  # pragma: no cover
+        raise NotImplementedError
+
+    def close(self) -> None:                 # pragma: no cover - interface
+        raise NotImplementedError
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class _SocketSerial(protocol_socket.Serial):
+    """pyserial's socket:// port, but ``read`` returns what one recv() gives.
+
+    pyserial's own read keeps reading until ``size`` bytes arrived and, when
+    the peer closes in between, raises and drops the bytes it already had;
+    the logger must not lose those.
+    """
+
+    def read(self, size=1):
+        if not self.is_open:
+            raise serial.PortNotOpenError()
+        ready, _, _ = select.select([self._socket], [], [], self._timeout)
+        if not ready:
+            return b""
+        try:
+            buf = self._socket.recv(size)
+        except (BlockingIOError, InterruptedError):
+            return b""
+        except OSError as e:
+            raise serial.SerialException(f"read failed: {e}") from None
+        if not buf:
+            raise serial.SerialException("socket disconnected")
+        return buf
+
+
+class SerialSource(Source):
+    """A serial port: device path or any pyserial URL, TinyOS HDLC framing."""
+
+    def __init__(self, spec: PortSpec):
+        super().__init__(spec)
+        self.decoder = P.FrameDecoder()
+        self.stats = self.decoder.stats
+        try:
+            if spec.target.startswith("socket://"):
+                self.ser = _SocketSerial(None, baudrate=spec.baud, timeout=READ_TIMEOUT)
+                self.ser.port = spec.target
+                self.ser.open()
+                self._socket = True
+            else:
+                self.ser = serial.serial_for_url(spec.target, baudrate=spec.baud,
+                                                 timeout=READ_TIMEOUT)
+                self._socket = False
+        except (serial.SerialException, OSError, ValueError) as e:
+            raise PortError(f"cannot open port {spec}: {_reason(e)}") from None
+
+    def read(self) -> list[P.Frame]:
+        try:
+            if self._socket:
+                data = self.ser.read(READ_SIZE)
+            else:
+                n = self.ser.in_waiting
+                data = self.ser.read(min(n, READ_SIZE) if n > 0 else 1)
+        except (serial.SerialException, OSError) as e:
+            raise SourceLost(_reason(e)) from None
+        return self.decoder.feed(data) if data else []
+
+    def send(self, am: P.AMPacket, ack_seq: int | None = None) -> None:
+        try:
+            self.ser.write(P.encode_am(am, ack_seq=ack_seq))
+        except (serial.SerialException, OSError) as e:
+            raise SourceLost(_reason(e)) from None
+
+    def close(self) -> None:
+        try:
+            self.ser.close()
+        except (serial.SerialException, OSError):
+            pass
+
+
+class SFSource(Source):
+    """TinyOS SerialForwarder client: "U " handshake, then length-prefixed
+    packets holding dispatch byte, AM header and payload (no HDLC, no CRC)."""
+
+    HANDSHAKE = b"U "
+
+    def __init__(self, spec: PortSpec):
+        super().__init__(spec)
+        try:
+            self.sock = socket.create_connection((spec.target, spec.port), timeout=5.0)
+            self.sock.sendall(self.HANDSHAKE)
+            got = b""
+            while len(got) < 2:
+                chunk = self.sock.recv(2 - len(got))
+                if not chunk:
+                    break
+                got += chunk
+        except OSError as e:
+            raise PortError(f"cannot open port {spec}: {_reason(e)}") from None
+        if got != self.HANDSHAKE:
+            self.sock.close()
+            raise PortError(f"{spec}: not a SerialForwarder (handshake {got!r})")
+        self.sock.settimeout(READ_TIMEOUT)
+        self._buf = bytearray()
+
+    def read(self) -> list[P.Frame]:
+        try:
+            data = self.sock.recv(READ_SIZE)
+        except socket.timeout:
+            return []
+        except OSError as e:
+            raise SourceLost(_reason(e)) from None
+        if not data:
+            raise SourceLost("SerialForwarder closed the connection")
+        buf = self._buf
+        buf += data
+        out = []
+        pos = 0
+        while pos < len(buf) and pos + 1 + buf[pos] <= len(buf):
+            n = buf[pos]
+            packet = bytes(buf[pos + 1:pos + 1 + n])
+            pos += 1 + n
+            if n < 1:
+                self.stats.bad_frames += 1
+                continue
+            frame = P.Frame(P.PROTO_PACKET_NOACK, None, packet[0], packet[1:])
+            if frame.dispatch == P.DISPATCH_AM and frame.am() is None:
+                self.stats.bad_frames += 1
+                continue
+            out.append(frame)
+        del buf[:pos]
+        self.stats.frames += len(out)
+        return out
+
+    def send(self, am: P.AMPacket, ack_seq: int | None = None) -> None:
+        body = bytes((P.DISPATCH_AM,)) + P.AM_HEADER.pack(
+            am.dest & 0xFFFF, am.src & 0xFFFF, len(am.payload), am.group & 0xFF,
+            am.am_type & 0xFF) + am.payload
+        try:
+            self.sock.sendall(bytes((len(body),)) + body)
+        except OSError as e:
+            raise SourceLost(_reason(e)) from None
+
+    def close(self) -> None:
+        try:
+            self.sock.close()
+        except OSError:
+            pass
+
+
+class FileSource(Source):
+    """A recorded serial byte stream; raises SourceEnded at end of file."""
+
+    def __init__(self, spec: PortSpec):
+        super().__init__(spec)
+        self.decoder = P.FrameDecoder()
+        self.stats = self.decoder.stats
+        try:
+            self.f = open(spec.target, "rb")
+        except OSError as e:
+            raise PortError(f"cannot open {spec}: {_reason(e)}") from None
+
+    def read(self) -> list[P.Frame]:
+        data = self.f.read(READ_SIZE)
+        if not data:
+            raise SourceEnded(str(self.spec))
+        return self.decoder.feed(data)
+
+    def send(self, am: P.AMPacket, ack_seq: int | None = None) -> None:
+        raise PortError(f"{self.spec} is a recorded file: nothing can be sent to it")
+
+    def close(self) -> None:
+        self.f.close()
+
+
+def _reason(e: BaseException) -> str:
+    text = str(e) or type(e).__name__
+    return text.splitlines()[0]
+
+
+def open_source(spec: PortSpec | str | None, baud: int | None = None) -> Source:
+    """Open a source from a PortSpec or a port string (None: MOTECOM).
+
+    Raises PortError (a UserError, one line) when it cannot be opened.
+    """
+    if not isinstance(spec, PortSpec):
+        spec = parse_port(spec, baud)
+    if spec.kind == "sf":
+        return SFSource(spec)
+    if spec.kind == "file":
+        return FileSource(spec)
+    return SerialSource(spec)

@@ -1,0 +1,109 @@
+"""``motecal export`` (a session to the project CSV) and ``motecal sessions``
+(what a database holds)."""
+from __future__ import annotations
+
+import csv
+import json
+import os
+import sys
+import tempfile
+
+import numpy as np
+
+from .errors import UserError
+from .session import COLUMNS, label_to_text
+from .store import open_store
+
+CSV_HEADER = ("mote", "seq", "t", "label") + COLUMNS
+
+
+def write_csv(data, path: str) -> int:
+    """Write a SessionData as the project CSV, atomically (temp file + rename).
+
+    Columns ``mote,seq,t,label,ax..mz``: t in seconds (empty if unknown), label
+    as ``session.label_to_text``, counts as integers, empty where missing.
+    Returns the number of rows.
+    """
+    path = os.path.abspath(path)
+    folder = os.path.dirname(path)
+    if not os.path.isdir(folder):
+        raise UserError(f"cannot write {path}: folder {folder} does not exist")
+    if os.path.isdir(path):
+        raise UserError(f"cannot write {path}: it is a directory")
+    n = len(data)
+    uniq, inv = np.unique(data.label, return_inverse=True)
+    labels = np.array([label_to_text(int(u)) for u in uniq], dtype=object)[inv] if n else []
+    t = [("" if not np.isfinite(v) else f"{v:.6f}") for v in data.t.tolist()]
+    raw = data.raw
+    cols = []
+    for j in range(9):
+        col = raw[:, j]
+        ok = np.isfinite(col)
+        txt = np.where(ok, np.where(ok, col, 0).astype(np.int64).astype(str), "")
+        cols.append(txt.tolist())
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".export-", suffix=".csv", dir=folder)
+    except OSError as e:
+        raise UserError(f"cannot write {path}: {e.strerror}") from None
+    try:
+        with os.fdopen(fd, "w", newline="") as f:
+            w = csv.writer(f, lineterminator="\n")
+            w.writerow(CSV_HEADER)
+            w.writerows(zip(data.mote.tolist(), data.seq.tolist(), t, labels, *cols))
+        os.replace(tmp, path)
+    except BaseException as e:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        if isinstance(e, OSError):
+            raise UserError(f"cannot write {path}: {e.strerror or e}") from None
+        raise
+    return n
+
+
+def export(args) -> int:
+    with open_store(args.db) as store:
+        data = store.load_session(args.session, args.mote)
+    n = write_csv(data, args.csv)
+    print(f"wrote {n} samples of session {args.session} "
+          f"(motes {', '.join(map(str, data.motes)) or 'none'}) to {args.csv}")
+    return 0
+
+
+def list_sessions(args) -> int:
+    with open_store(args.db) as store:
+        rows = store.sessions()
+        if args.json:
+            for r in rows:
+                r["link"] = store.link_stats(r["name"])
+            json.dump(rows, sys.stdout, indent=1)
+            print()
+            return 0
+    if not rows:
+        print(f"{args.db}: no sessions")
+        return 0
+    head = ("name", "kind", "motes", "samples", "poses", "started", "ended", "source")
+    table = [head] + [(r["name"], r["kind"], ",".join(map(str, r["motes"])), str(r["samples"]),
+                       str(r["poses"]), r["started"] or "", r["ended"] or "(open)",
+                       r["source"] or "") for r in rows]
+    widths = [max(len(row[i]) for row in table) for i in range(len(head))]
+    for row in table:
+        print("  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip())
+    return 0
+
+
+def register(sub) -> None:
+    p = sub.add_parser("export", help="write a session as the project CSV",
+                       description="Write a stored session as CSV: mote,seq,t,label,ax,ay,az,"
+                                   "gx,gy,gz,mx,my,mz (empty cells where a sensor is missing).")
+    p.add_argument("--db", required=True, help="database: sqlite file or postgresql:// URL")
+    p.add_argument("--session", required=True)
+    p.add_argument("--csv", required=True, metavar="OUT", help="CSV file to write")
+    p.add_argument("--mote", type=int, help="only this mote")
+    p.set_defaults(func=export)
+
+    p = sub.add_parser("sessions", help="list the sessions in a database")
+    p.add_argument("--db", required=True, help="database: sqlite file or postgresql:// URL")
+    p.add_argument("--json", action="store_true", help="JSON with link statistics")
+    p.set_defaults(func=list_sessions)

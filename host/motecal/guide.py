@@ -6,8 +6,8 @@ The decisions live here, as explicit state machines, one per followed mote
 * ``PoseCapture`` (``--guided static80``):  MOVE -> WAIT_STILL -> CAPTURE ->
   (accept) MOVE ... -> DONE.  The board must move between poses; when the
   trailing stillness window (``still.StillDetector``) becomes still, the
-  window's rows start a capture; ``samples`` still rows in a row make the pose
-  (labelled with its index), a moving row first discards the capture and the
+  window's rows (less the first ``settle_s``) start a capture; ``samples``
+  still rows in a row make the pose (labelled with its index), a moving row first discards the capture and the
   same pose is tried again.  A pose whose gravity direction lies within
   ``min_angle_deg`` of an accepted one is refused with a warning -- the one
   accept/reject point is ``PoseCapture._consider``.
@@ -39,6 +39,8 @@ DEFAULT_POSE_SAMPLES = 200
 DEFAULT_MIN_ANGLE = 15.0
 DEFAULT_ROT_SAMPLES = 5000
 DEFAULT_COVERAGE = 0.9
+DEFAULT_SETTLE_S = 0.2       # the first rows of a still window are left out: the end of
+#                              a smooth move is indistinguishable from stillness
 MAG_OVERFLOW = -4096
 
 
@@ -203,6 +205,7 @@ class PoseCapture:
     def __init__(self, mote: int, *, poses: int = DEFAULT_POSES,
                  samples: int = DEFAULT_POSE_SAMPLES, min_angle_deg: float = DEFAULT_MIN_ANGLE,
                  rate_hz: float = 125.0, scales: dict | None = None, auto: bool = True,
+                 settle_s: float = DEFAULT_SETTLE_S,
                  thresholds: StillThresholds = StillThresholds()):
         self.mote = mote
         self.poses = poses
@@ -211,8 +214,11 @@ class PoseCapture:
         self.auto = auto
         self.armed = auto
         self.det = StillDetector(rate_hz, scales or NOMINAL_SCALES, thresholds)
-        if samples < self.det.w:
-            raise ValueError(f"a pose needs at least {self.det.w} samples (the still window)")
+        self.settle = int(round(settle_s * rate_hz))
+        if not 0 <= self.settle < self.det.w:
+            raise ValueError("settle_s must be shorter than the still window")
+        if samples < self.det.w - self.settle:
+            raise ValueError(f"a pose needs at least {self.det.w - self.settle} samples")
         self.targets = even_directions(poses)
         self.accepted: list[Pose] = []
         self.coverage = SphereCoverage(4, 5)
@@ -290,8 +296,8 @@ class PoseCapture:
                 if not len(found):
                     break
                 j = i + int(found[0])
-                lo = h + j - w + 1                     # window start in all_*
-                window = all_acc[max(lo, 0):h + j + 1]
+                lo = max(h + j - w + 1 + self.settle, 0)   # window start (+ settling) in all_*
+                window = all_acc[lo:h + j + 1]
                 i = j + 1
                 if not self._consider(unit(window.mean(axis=0)), events):
                     continue
@@ -299,7 +305,7 @@ class PoseCapture:
                 self.warning = ""
                 self.captured = len(window)
                 self._cap_sum = window.sum(axis=0)
-                self._cap_lo = int(all_seq[max(lo, 0)])
+                self._cap_lo = int(all_seq[lo])
                 self._cap_hi = int(all_seq[h + j])
                 events.append(GuideEvent("capturing", self.mote, self.next_pose,
                                          f"mote {self.mote}: pose {self.next_pose} still, "

@@ -1,0 +1,287 @@
+"""The motecal database: schema and migrations, sessions in and out, atomic
+imports, calibrations, the live writer, CSV export, and one-line errors."""
+import csv
+import os
+import sqlite3
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from motecal import store as store_mod
+from motecal.errors import UserError
+from motecal.session import LABEL_ROT, SessionData
+from motecal.store import SCHEMA_VERSION, open_store
+from motecal.store_cli import CSV_HEADER, write_csv
+
+
+def _session(name="s1", n=12, motes=(1, 2), seed=0):
+    rng = np.random.default_rng(seed)
+    k = n // len(motes)
+    mote = np.repeat(motes, k)
+    seq = np.tile(np.arange(70000, 70000 + k), len(motes))
+    raw = rng.integers(-2000, 2000, (len(mote), 9)).astype(float)
+    raw[2, 6:] = np.nan                        # magnetometer missing in one row
+    raw[5, :6] = np.nan
+    t = np.linspace(0, 1, len(mote))
+    t[3] = np.nan
+    label = np.zeros(len(mote), int)
+    label[1:4] = 7
+    label[4] = LABEL_ROT
+    return SessionData(name, raw, mote, seq, t, label, np.full(len(mote), 0x11),
+                       kind="static80", scales={"accel": 256.0, "gyro": 14.375, "mag": 1300.0},
+                       chips={"accel": "ADXL345", "gyro": "ITG3200", "mag": "HMC5843"},
+                       meta={"source": "unit test", "rate_hz": 125, "notes": "n",
+                             "boards": {"1": "B7"}, "started": "2024-05-01T10:00:00Z"})
+
+
+def _same(a: SessionData, b: SessionData):
+    order = np.lexsort((a.seq, a.mote))
+    np.testing.assert_array_equal(b.mote, a.mote[order])
+    np.testing.assert_array_equal(b.seq, a.seq[order])
+    np.testing.assert_array_equal(b.raw, a.raw[order])          # NaN == NaN here
+    np.testing.assert_allclose(b.t, a.t[order], equal_nan=True)
+    np.testing.assert_array_equal(b.label, a.label[order])
+    np.testing.assert_array_equal(b.flags, a.flags[order])
+
+
+def test_roundtrip_keeps_samples_and_metadata(tmp_path):
+    db = tmp_path / "m.db"
+    data = _session()
+    with open_store(str(db), create=True) as st:
+        st.save_session(data)
+        got = st.load_session("s1")
+        only2 = st.load_session("s1", mote=2)
+        listing = st.sessions()
+    _same(data, got)
+    assert set(only2.mote) == {2} and len(only2) == 6
+    assert got.kind == "static80" and got.scales["mag"] == 1300.0 and got.chips["mag"] == "HMC5843"
+    assert got.meta["source"] == "unit test" and got.meta["rate_hz"] == 125.0
+    assert got.meta["boards"] == {"1": "B7"} and got.meta["started"] == "2024-05-01T10:00:00.000Z"
+    assert listing == [dict(name="s1", kind="static80", started="2024-05-01T10:00:00.000Z",
+                            ended=None, source="unit test", rate_hz=125.0, notes="n",
+                            samples=12, motes=[1, 2], poses=1)]
+    # labels are stored as CSV text, NULL where a sensor is missing
+    con = sqlite3.connect(db)
+    assert sorted({r[0] for r in con.execute("SELECT label FROM samples")}) == ["", "7", "rot"]
+    assert con.execute("SELECT COUNT(*) FROM samples WHERE mx IS NULL").fetchone()[0] == 1
+    assert con.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+    assert con.execute("SELECT version FROM schema_version").fetchone()[0] == SCHEMA_VERSION
+
+
+def test_save_session_is_atomic(tmp_path, monkeypatch):
+    db = str(tmp_path / "m.db")
+    st = open_store(db, create=True)
+    big = _session("big", n=300_000, motes=(1, 2, 3))
+    calls = {"n": 0}
+    real = st._b_insert
+
+    def failing(cur, rows):           # dies after the first chunk was written
+        calls["n"] += 1
+        real(cur, rows)
+        if calls["n"] == 2:
+            raise RuntimeError("disk on fire")
+
+    monkeypatch.setattr(st, "_b_insert", failing)
+    with pytest.raises(RuntimeError):
+        st.save_session(big)
+    monkeypatch.undo()
+    assert st.sessions() == []
+    assert sqlite3.connect(db).execute("SELECT COUNT(*) FROM samples").fetchone()[0] == 0
+    # bad data is refused before anything is written
+    bad = _session("bad")
+    bad.raw[0, 0] = 0.5
+    with pytest.raises(UserError, match="integer counts"):
+        st.save_session(bad)
+    dup = _session("dup")
+    dup.seq[1] = dup.seq[0]
+    with pytest.raises(UserError, match="sequence number 70000 twice"):
+        st.save_session(dup)
+    st.save_session(_session("s1"))
+    with pytest.raises(UserError, match="already exists"):
+        st.save_session(_session("s1", seed=5))
+    st.save_calibration("s1", 1, {"v": 1})
+    st.save_session(_session("s1", seed=5), replace=True)
+    _same(_session("s1", seed=5), st.load_session("s1"))
+    with pytest.raises(UserError, match="no calibration"):
+        st.load_calibration("s1")        # replaced sessions lose their calibrations
+    assert [s["name"] for s in st.sessions()] == ["s1"]
+    st.close()
+
+
+def test_unknown_session_lists_known_ones(tmp_path):
+    with open_store(str(tmp_path / "m.db"), create=True) as st:
+        with pytest.raises(UserError, match="it holds no sessions"):
+            st.load_session("x")
+        st.save_session(_session("alpha"))
+        st.save_session(_session("beta"))
+        with pytest.raises(UserError) as e:
+            st.load_session("gamma")
+        assert str(e.value) == f"unknown session 'gamma' in {tmp_path / 'm.db'} (known: alpha, beta)"
+        with pytest.raises(UserError, match=r"no samples of mote 9 \(motes: 1, 2\)"):
+            st.load_session("alpha", mote=9)
+
+
+def test_calibrations_latest_per_mote(tmp_path):
+    with open_store(str(tmp_path / "m.db"), create=True) as st:
+        st.save_session(_session())
+        a = st.save_calibration("s1", 1, {"accel": {"A": np.eye(3), "c": np.zeros(3)}})
+        b = st.save_calibration("s1", 2, {"v": 2})
+        c = st.save_calibration("s1", 1, {"v": 3, "f": np.float32(1.5)})
+        assert a < b < c
+        assert st.load_calibration("s1", 1) == {"v": 3, "f": 1.5}
+        assert st.load_calibration("s1", 2) == {"v": 2}
+        assert st.load_calibration("s1") == {"v": 3, "f": 1.5}
+        with pytest.raises(UserError, match="no calibration stored for session 's1' mote 5"):
+            st.load_calibration("s1", 5)
+        with pytest.raises(UserError, match="unknown session"):
+            st.save_calibration("nope", 1, {})
+        with pytest.raises(UserError, match="not JSON"):
+            st.save_calibration("s1", 1, {"x": object()})
+
+
+def test_open_errors_are_one_line_user_errors(tmp_path):
+    text = tmp_path / "notes.txt"
+    text.write_text("hello, not a database\n" * 50)
+    other = tmp_path / "other.db"
+    sqlite3.connect(other).execute("CREATE TABLE foo (x)").connection.commit()
+    cases = [
+        (str(tmp_path / "missing.db"), False, "no database"),
+        (str(text), False, "not a motecal database"),
+        (str(other), True, "not a motecal database"),
+        (str(tmp_path / "nofolder" / "x.db"), True, "does not exist"),
+        (str(text / "x.db"), True, "does not exist"),
+        (str(tmp_path), True, "is a directory"),
+        ("mysql://host/db", True, "unsupported database URL"),
+        ("", True, "no database given"),
+    ]
+    for target, create, msg in cases:
+        with pytest.raises(UserError, match=msg) as e:
+            open_store(target, create=create)
+        assert "\n" not in str(e.value)
+
+
+def test_newer_schema_refused_and_old_schema_migrated(tmp_path):
+    newer = str(tmp_path / "newer.db")
+    open_store(newer, create=True).close()
+    con = sqlite3.connect(newer)
+    con.execute("UPDATE schema_version SET version = ?", (SCHEMA_VERSION + 1,))
+    con.commit()
+    con.close()
+    with pytest.raises(UserError, match="newer than this motecal"):
+        open_store(newer)
+    # a database made by schema version 1 (no link statistics yet) is migrated
+    old = str(tmp_path / "old.db")
+    con = sqlite3.connect(old)
+    b = store_mod._SqliteBackend.types
+    for stmt in store_mod.MIGRATIONS[1]:
+        con.execute(stmt.format(**b))
+    con.execute("INSERT INTO schema_version VALUES (1)")
+    con.execute("INSERT INTO sessions (name, kind, started, scales, chips, meta) VALUES "
+                "('old', 'idle', 0, '{}', '{}', '{}')")
+    con.execute("INSERT INTO samples (session, mote, seq, ax, ay, az) VALUES (1, 4, 9, 1, 2, 3)")
+    con.commit()
+    con.close()
+    with open_store(old) as st:
+        assert st.schema_version == SCHEMA_VERSION
+        d = st.load_session("old")
+        assert d.raw[0, :3].tolist() == [1, 2, 3] and np.isnan(d.raw[0, 3:]).all()
+        assert st.link_stats("old") == {"line": {}, "motes": {}}
+
+
+def test_live_writer_batches_labels_stats_and_end(tmp_path):
+    db = str(tmp_path / "live.db")
+    with open_store(db, create=True) as st:
+        w = st.open_session("run", kind="free", meta={"source": "loop://", "notes": None})
+        with pytest.raises(UserError, match="already exists"):
+            st.open_session("run", kind="free")
+        raw = np.arange(40 * 9).reshape(40, 9) - 100
+        w.add_samples(np.full(40, 3), np.arange(65530, 65570), np.full(40, 0.5),
+                      np.zeros(40, int), raw)
+        w.set_label(3, 65540, 65549, 12)
+        w.add_event("disconnect", "socket closed")
+        w.set_link_stats(3, {"frames": 8, "samples": 40, "lost": 2})
+        w.set_line_stats({"crc_errors": 5, "gap_s": 0.25})
+        assert w.pending == 40
+        # nothing is visible to another connection before the commit
+        other = sqlite3.connect(db)
+        assert other.execute("SELECT COUNT(*) FROM samples").fetchone()[0] == 0
+        w.commit()
+        assert other.execute("SELECT COUNT(*) FROM samples").fetchone()[0] == 40
+        # the same rows again (a replay after reconnecting) are ignored
+        w.add_samples(np.full(2, 3), np.array([65530, 65570]), np.zeros(2), np.zeros(2, int),
+                      np.ones((2, 9), int))
+        w.end()
+        d = st.load_session("run")
+        assert len(d) == 41 and d.raw[0].tolist() == list(range(-100, -91))
+        assert (np.flatnonzero(d.label == 12) == np.arange(10, 20)).all()
+        stats = st.link_stats("run")
+        assert stats["motes"][3]["lost"] == 2 and stats["line"]["gap_s"] == 0.25
+        assert [e["kind"] for e in st.events("run")] == ["disconnect"]
+        assert st.sessions()[0]["ended"] is not None
+        # --append continues the same session and reopens it
+        w2 = st.open_session("run", kind="free", append=True)
+        assert st.sessions()[0]["ended"] is None
+        assert st.last_seqs("run") == {3: 65570}
+        w2.end()
+        with pytest.raises(ValueError):
+            w2.set_link_stats(1, {"bogus": 1})
+
+
+def test_export_csv_format_and_atomic(tmp_path, monkeypatch):
+    data = _session()
+    out = tmp_path / "out.csv"
+    assert write_csv(data, str(out)) == 12
+    rows = list(csv.reader(out.open()))
+    assert tuple(rows[0]) == CSV_HEADER
+    assert rows[0] == "mote,seq,t,label,ax,ay,az,gx,gy,gz,mx,my,mz".split(",")
+    r = {int(x[0]) * 10**6 + int(x[1]): x for x in rows[1:]}
+    for i in range(len(data)):
+        x = r[int(data.mote[i]) * 10**6 + int(data.seq[i])]
+        assert x[2] == ("" if np.isnan(data.t[i]) else f"{data.t[i]:.6f}")
+        assert x[3] == {0: "", 7: "7", LABEL_ROT: "rot"}[int(data.label[i])]
+        assert x[4:] == ["" if np.isnan(v) else str(int(v)) for v in data.raw[i]]
+    # a failure while writing leaves the old file untouched and no temp file
+    out.write_text("previous\n")
+    import motecal.store_cli as sc
+
+    class Boom(Exception):
+        pass
+
+    def bad_writer(*a, **k):
+        raise Boom()
+
+    monkeypatch.setattr(sc.csv, "writer", bad_writer)
+    with pytest.raises(Boom):
+        write_csv(data, str(out))
+    assert out.read_text() == "previous\n"
+    assert sorted(os.listdir(tmp_path)) == ["out.csv"]
+
+
+def _motecal(*args, **kw):
+    return subprocess.run([sys.executable, "-m", "motecal", *args], capture_output=True,
+                          text=True, timeout=60, **kw)
+
+
+def test_export_and_sessions_commands(tmp_path):
+    db = str(tmp_path / "m.db")
+    with open_store(db, create=True) as st:
+        st.save_session(_session("alpha"))
+    out = tmp_path / "a.csv"
+    r = _motecal("export", "--db", db, "--session", "alpha", "--csv", str(out), "--mote", "2")
+    assert r.returncode == 0, r.stderr
+    assert len(out.read_text().splitlines()) == 1 + 6
+    r = _motecal("sessions", "--db", db)
+    assert r.returncode == 0 and "alpha" in r.stdout and "static80" in r.stdout
+    for args, msg in (
+            (("export", "--db", db, "--session", "nope", "--csv", str(out)), "unknown session"),
+            (("export", "--db", str(tmp_path / "x.db"), "--session", "a", "--csv", str(out)),
+             "no database"),
+            (("export", "--db", db, "--session", "alpha", "--csv", str(tmp_path / "no" / "a.csv")),
+             "does not exist"),
+            (("export", "--db", db, "--session", "alpha"), "required")):
+        r = _motecal(*args)
+        assert r.returncode == 2, (args, r.stderr)
+        assert msg in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+        assert "Traceback" not in r.stderr

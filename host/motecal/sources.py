@@ -168,8 +168,12 @@ class _SocketSerial(protocol_socket.Serial):
 
     pyserial's own read keeps reading until ``size`` bytes arrived and, when
     the peer closes in between, raises and drops the bytes it already had;
-    the logger must not lose those.
+    and ``open`` flushes (discards) whatever already arrived.  The logger must
+    lose neither.
     """
+
+    def reset_input_buffer(self):
+        """Keep the bytes: on a fresh connection they are all the peer's data."""
 
     def read(self, size=1):
         if not self.is_open:

@@ -1,0 +1,286 @@
+"""Logger pieces: vectorised decoding agrees with protocol.decode_message,
+sequence tracking (wrap, gaps, duplicates, reordering, restarts), the guided
+state machines, and whole in-process runs into sqlite."""
+import numpy as np
+import pytest
+
+from motecal import protocol as P
+from motecal import sources as S
+from motecal.guide import (GuidedFlow, PoseCapture, RotationCapture, SphereCoverage,
+                           describe_up, even_directions, sketch_up)
+from motecal.logger import LinkTracker, Logger, MoteLink, decode_sample_frames
+from motecal.session import LABEL_ROT
+from motecal.store import open_store
+from test_logger_streams import pose_trajectory, sample_frames
+
+
+def _frames(data: bytes):
+    return P.FrameDecoder().feed(data)
+
+
+# --------------------------------------------------------------------------
+# decoding
+# --------------------------------------------------------------------------
+def test_batch_decoding_equals_decode_message():
+    rng = np.random.default_rng(4)
+    stream = []
+    for i in range(400):
+        kind = rng.integers(0, 10)
+        if kind < 7:                      # sample messages of any count
+            n = int(rng.integers(1, 7))
+            rec = rng.integers(-32768, 32768, (n, 9))
+            stream.append(P.encode_am(P.AMPacket(0xFFFF, int(rng.integers(0, 65536)), 0x22,
+                                                 P.AM_NINEDOF_SAMPLES_MSG,
+                                                 P.pack_samples(int(rng.integers(0, 65536)),
+                                                                int(rng.integers(0, 256)), rec))))
+        elif kind == 7:                   # count disagrees with the length
+            bad = P.pack_samples(5, 0, np.ones((3, 9))) + b"\x00"
+            stream.append(P.encode_am(P.AMPacket(0xFFFF, 1, 0x22, P.AM_NINEDOF_SAMPLES_MSG, bad)))
+        elif kind == 8:
+            stream.append(P.message_frame(P.MOTE_STATUS, dest=0xFFFF, src=3, seq=9, dropped=2))
+        else:
+            stream.append(P.encode_frame(bytes((P.PROTO_PACKET_NOACK, 0x42)) + b"abc"))
+    frames = _frames(b"".join(stream))
+    batch, others = decode_sample_frames(frames)
+    expect = []
+    n_other = n_bad = 0
+    for f in frames:
+        am = f.am()
+        if am is not None and am.am_type == P.AM_NINEDOF_SAMPLES_MSG:
+            msg = P.decode_message(am)
+            if msg is None:
+                n_bad += 1
+            else:
+                expect.append((am.src, msg))
+        else:
+            n_other += 1
+    assert len(batch) == len(expect) and batch.bad == n_bad > 0 and len(others) == n_other > 0
+    assert batch.src.tolist() == [e[0] for e in expect]
+    assert batch.seq.tolist() == [e[1].seq for e in expect]
+    assert batch.flags.tolist() == [e[1].flags for e in expect]
+    np.testing.assert_array_equal(batch.records, np.vstack([e[1].records for e in expect]))
+    assert batch.records.dtype == np.int16
+    empty, rest = decode_sample_frames([])
+    assert len(empty) == 0 and len(empty.records) == 0 and rest == []
+
+
+# --------------------------------------------------------------------------
+# sequence numbers
+# --------------------------------------------------------------------------
+def _accept(link, seqs, count=5):
+    seqs = np.asarray(seqs) % 65536
+    u, keep = link.accept(seqs, np.full(len(seqs), count))
+    return u.tolist(), keep
+
+
+def test_wrap_gap_duplicate_reorder_restart():
+    link = MoteLink(1)
+    u, keep = _accept(link, [65525, 65530, 65535, 4, 9])          # wraps at 65536
+    assert u == [65525, 65530, 65535, 65540, 65545] and keep is None
+    u, keep = _accept(link, [24, 29])                              # 14, 19 lost
+    assert u == [65560, 65565] and link.c["lost"] == 10 and keep is None
+    u, keep = _accept(link, [19, 14, 24])       # late ones fill the gap; 24 is a duplicate
+    assert u == [65555, 65550, 65560]
+    assert keep.tolist() == [True] * 10 + [False] * 5
+    assert (link.c["lost"], link.c["reordered"], link.c["duplicates"]) == (0, 10, 5)
+    assert link.c["samples"] == 25 + 10 + 10 and link.c["last_seq"] == 65569
+    assert link.c["first_seq"] == 65525 and link.c["frames"] == 10
+    # a mote that reboots starts again from 0: its numbering is continued
+    link = MoteLink(2)
+    _accept(link, [30000, 30005])
+    u, keep = _accept(link, [0, 5])
+    assert u == [30010, 30015] and link.c["restarts"] == 1 and keep.all()
+    u, _ = _accept(link, [10, 15])
+    assert u == [30020, 30025] and link.c["lost"] == 0 and link.c["samples"] == 30
+
+
+def test_tracker_continues_an_appended_session():
+    tr = LinkTracker(link={2: {"samples": 100, "lost": 3}}, last_seqs={2: 70004})
+    frames, _ = sample_frames({2: np.zeros((10, 9), np.int16)}, seq0={2: 70005 % 65536})
+    rows = tr.samples(decode_sample_frames(_frames(b"".join(frames)))[0])
+    assert rows.seq.tolist() == list(range(70005, 70015))
+    assert tr.motes[2].c["samples"] == 110 and tr.motes[2].c["lost"] == 3
+
+
+def test_tracker_interleaved_motes_and_status():
+    raw = {m: np.arange(60 * 9).reshape(60, 9).astype(np.int16) + m for m in (1, 2, 3)}
+    frames, sent = sample_frames(raw, seq0={1: 65500, 2: 0, 3: 40000}, status_every=4)
+    tr = LinkTracker()
+    fr = _frames(b"".join(frames))
+    batch, others = decode_sample_frames(fr)
+    tr.other(others)
+    rows = tr.samples(batch)
+    for m in (1, 2, 3):
+        sel = rows.mote == m
+        assert rows.seq[sel].tolist() == sent[m][0].tolist()
+        np.testing.assert_array_equal(rows.raw[sel], raw[m])
+    assert tr.motes[1].c["status_msgs"] == 3 and tr.motes[1].c["mote_late"] == 2
+    assert tr.motes[3].c["cal_version"] == 3 and tr.line["bs_status_msgs"] == 3
+
+
+# --------------------------------------------------------------------------
+# guidance
+# --------------------------------------------------------------------------
+def test_sphere_cells_are_equal_area_and_targets_spread():
+    cov = SphereCoverage(10, 10)
+    v = np.random.default_rng(1).normal(size=(200_000, 3))
+    counts = np.bincount(cov.cell_of(v), minlength=100)
+    assert counts.min() > 0.9 * 2000 and counts.max() < 1.1 * 2000
+    d = even_directions(80)
+    np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0)
+    ang = np.degrees(np.arccos(np.clip(d @ d.T, -1, 1))) + np.eye(80) * 999
+    assert ang.min(axis=1).min() > 15.0          # no two targets closer than the warning
+    assert describe_up([0, 0, 1]) == "+Z face up, level"
+    assert describe_up([0.5, 0, 0.866]) == "+Z face up, tilted 30 deg toward +X"
+    assert describe_up([0, -1, 0.05]) == "-Y face up, tilted 3 deg toward +Z" or \
+        describe_up([0, -1, 0.05]) == "-Y face up, level"
+    assert describe_up([-0.7, 0, -0.7]).startswith(("-X face up, tilted 45", "-Z face up, tilted 45"))
+    assert any("+Z" in line for line in sketch_up([0, 0.3, 1]))
+
+
+def _feed(cap, raw, seq0=0, chunk=37):
+    events = []
+    for i in range(0, len(raw), chunk):
+        events += cap.update(np.arange(seq0 + i, seq0 + i + len(raw[i:i + chunk])),
+                             raw[i:i + chunk])
+    return events
+
+
+def test_static_poses_labelled_inside_true_still_stretches():
+    raw, truth = pose_trajectory(n_poses=6, seed=3)
+    cap = PoseCapture(1, poses=6)
+    events = _feed(cap, raw, seq0=100)
+    labels = [e for e in events if e.kind == "label"]
+    assert [e.label for e in labels] == [1, 2, 3, 4, 5, 6] and cap.done
+    for e in labels:
+        assert e.seq_hi - e.seq_lo + 1 == 200
+        assert set(truth[e.seq_lo - 100:e.seq_hi - 100 + 1]) == {e.label}
+    assert events[-1].kind == "done"
+    assert [p.index for p in cap.accepted] == [1, 2, 3, 4, 5, 6]
+    # the accepted gravity directions are the true ones
+    for p, d in zip(cap.accepted, even_directions(6)):
+        assert np.degrees(np.arccos(np.clip(p.direction @ d, -1, 1))) < 1.0
+
+
+def test_movement_during_capture_discards_and_retries():
+    raw, truth = pose_trajectory(n_poses=3, seed=4, still=400)
+    raw = raw.copy()
+    s1 = np.flatnonzero(truth == 1)
+    bump = s1[0] + 120                          # a knock 120 rows into pose 1
+    raw[bump:bump + 6, :3] += np.array([40, -30, 25], np.int16)
+    cap = PoseCapture(1, poses=3)
+    events = _feed(cap, raw)
+    kinds = [e.kind for e in events if e.kind in ("discarded", "accepted")]
+    assert kinds == ["discarded", "accepted", "accepted", "accepted"]
+    first = next(e for e in events if e.kind == "label")
+    assert first.seq_lo > bump + 6 and set(truth[first.seq_lo:first.seq_hi + 1]) == {1}
+    assert cap.discards == 1
+
+
+def test_pose_too_close_is_refused_with_a_warning():
+    raw, truth = pose_trajectory(n_poses=2, seed=5)
+    # the board goes back (5 deg off) to pose 1 before reaching pose 2
+    r1 = raw[truth == 1]
+    tilt = np.array([[1, 0, 0], [0, np.cos(0.09), -np.sin(0.09)], [0, np.sin(0.09), np.cos(0.09)]])
+    near = r1.astype(float).copy()
+    near[:, :3] = near[:, :3] @ tilt.T
+    wobble = raw[truth == 0][:120]
+    stream = np.vstack([raw[:np.flatnonzero(truth == 1)[-1] + 1], wobble, near.astype(np.int16),
+                        raw[np.flatnonzero(truth == 1)[-1] + 1:]])
+    cap = PoseCapture(1, poses=2)
+    events = _feed(cap, stream)
+    kinds = [e.kind for e in events if e.kind != "capturing"]
+    assert kinds[:3] == ["label", "accepted", "too_close"]
+    assert "from pose 1" in next(e.text for e in events if e.kind == "too_close")
+    assert kinds[-1] == "done" and [p.index for p in cap.accepted] == [1, 2]
+    assert cap.accepted[1].direction @ cap.accepted[0].direction < np.cos(np.radians(15))
+
+
+def test_interactive_pose_waits_for_enter():
+    raw, truth = pose_trajectory(n_poses=2, seed=6)
+    cap = PoseCapture(1, poses=2, auto=False)
+    half = np.flatnonzero(truth == 1)[0] + 100
+    assert not [e for e in _feed(cap, raw[:half]) if e.kind == "label"]
+    assert cap.phase.name == "WAIT_STILL" and not cap.armed
+    half = np.flatnonzero(truth == 0)[-1] - 30        # on the way to pose 2
+    cap = PoseCapture(1, poses=2, auto=False)
+    _feed(cap, raw[:half])
+    cap.arm()                                   # the person presses Enter
+    events = _feed(cap, raw[half:], seq0=half)
+    labels = [e for e in events if e.kind == "label"]
+    assert [e.label for e in labels] == [1]     # the next pose needs another Enter
+    assert not cap.armed and cap.next_pose == 2
+    assert set(truth[labels[0].seq_lo:labels[0].seq_hi + 1]) == {2}
+
+
+def test_rotation_until_coverage_or_count():
+    rng = np.random.default_rng(7)
+    n = 3000
+    # a magnetometer turned through all directions, with a hard-iron offset
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    raw = np.zeros((n, 9), np.int16)
+    raw[:, 6:] = np.rint(d * 500 + [120, -80, 40])
+    cap = RotationCapture(2, samples=5000, coverage=0.9)
+    events = _feed(cap, raw, seq0=1000, chunk=50)
+    assert cap.done and events[-1].kind == "done"
+    assert 0.9 <= cap.coverage.fraction
+    assert cap.count < 1000                     # random directions cover the sphere quickly
+    np.testing.assert_allclose(cap.centre, [120, -80, 40], atol=5)
+    lab = [e for e in events if e.kind == "label"]
+    assert all(e.label == LABEL_ROT for e in lab)
+    assert lab[0].seq_lo == 1000 and lab[-1].seq_hi == 1000 + cap.count - 1
+    # a turn about one axis only never covers the sphere: stops at the count
+    ang = np.linspace(0, 20 * np.pi, 1200)
+    ring = np.zeros((1200, 9), np.int16)
+    ring[:, 6] = np.rint(500 * np.cos(ang))
+    ring[:, 7] = np.rint(500 * np.sin(ang))
+    cap = RotationCapture(2, samples=1000)
+    events = _feed(cap, ring, chunk=64)
+    assert cap.done and cap.count == 1000 and cap.coverage.fraction < 0.3
+    assert "1000 samples" in events[-1].text
+
+
+def test_guided_flow_follows_one_mote_or_all():
+    raw, _ = pose_trajectory(n_poses=2, seed=8)
+    mote = np.repeat([1, 2], len(raw))
+    seq = np.tile(np.arange(len(raw)), 2)
+    both = np.vstack([raw, raw])
+    flow = GuidedFlow("static80", follow=2, options=dict(poses=2))
+    ev = flow.update(mote, seq, both)
+    assert {e.mote for e in ev} == {2} and flow.done and list(flow.captures) == [2]
+    flow = GuidedFlow("static80", options=dict(poses=2))
+    ev = flow.update(mote, seq, both)
+    assert {e.mote for e in ev if e.kind == "label"} == {1, 2} and flow.done
+    with pytest.raises(ValueError):
+        GuidedFlow("dance")
+
+
+# --------------------------------------------------------------------------
+# whole runs, in process
+# --------------------------------------------------------------------------
+def test_logger_run_from_recorded_file(tmp_path):
+    raws = {m: pose_trajectory(n_poses=4, seed=10 + m)[0] for m in (1, 2, 3)}
+    frames, sent = sample_frames(raws, seq0={1: 65000, 2: 0, 3: 123}, status_every=50)
+    rec = tmp_path / "rec.bin"
+    rec.write_bytes(b"\xff\x00junk" + b"".join(frames))
+    db = str(tmp_path / "run.db")
+    with open_store(db, create=True) as st:
+        w = st.open_session("r", kind="static80", meta={"source": str(rec)})
+        lg = Logger(S.parse_port(str(rec)), w, LinkTracker(),
+                    guide=GuidedFlow("static80", follow=2, options=dict(poses=4)))
+        lg.run()
+        assert lg.stop_reason in ("end of input", "guided flow done")
+        d = st.load_session("r")
+        for m in (1, 2, 3):
+            dm = d.for_mote(m)
+            np.testing.assert_array_equal(dm.seq, sent[m][0])
+            np.testing.assert_array_equal(dm.raw, sent[m][1])
+        assert d.for_mote(2).poses() == [1, 2, 3, 4] and d.for_mote(1).poses() == []
+        assert np.bincount(d.for_mote(2).label)[1:].tolist() == [200] * 4
+        stats = st.link_stats("r")
+        assert stats["line"]["garbage_bytes"] == 6 and stats["line"]["frames"] == len(frames)
+        assert stats["motes"][1]["first_seq"] == 65000 and stats["motes"][3]["lost"] == 0
+        assert st.sessions()[0]["ended"] is not None
+        kinds = [e["kind"] for e in st.events("r")]
+        assert kinds.count("accepted") == 4 and kinds[-1] == "done"

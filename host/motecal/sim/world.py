@@ -1,0 +1,90 @@
+"""The simulated world: N boards on one rig (physics) + motes, radio,
+BaseStation and serial line (network), in one object other code can drive.
+
+    w = World(motes=3, session="static80", seed=1)
+    data = w.run_until(10.0)        # serial bytes up to simulated t = 10 s
+    w.write(frame)                  # PC -> BaseStation bytes, at w.now
+    w.done, w.stats, w.sent[1].seq, w.sent[1].raw, w.truth()
+
+Mote ids are 1..N; the BaseStation is 0.  The session lasts the trajectory's
+duration (or ``duration``); ``done`` is True once it is over and every queue
+has drained onto the line.  The motes keep answering calibration messages
+after that.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+from .. import protocol as P
+from ..errors import UserError
+from .model import load_model, write_truth
+from .network import Network
+from .trajectory import KINDS, make_trajectory
+
+MAX_BATCH = 6        # 4 + 18 * 6 = 112 <= 114, the RF230's largest TOSH_DATA_LENGTH
+MAX_MOTES = 1000
+
+
+def check_options(motes, session, baud, loss, batch, duration) -> None:
+    """UserError (one line) for any option out of range."""
+    if isinstance(motes, bool) or not isinstance(motes, int) or not 1 <= motes <= MAX_MOTES:
+        raise UserError(f"--motes must be an integer 1..{MAX_MOTES}, not {motes}")
+    if session not in KINDS:
+        raise UserError(f"unknown session {session!r} (expected one of {', '.join(KINDS)})")
+    if not isinstance(baud, int) or not 300 <= baud <= 4_000_000:
+        raise UserError(f"--baud must be an integer 300..4000000, not {baud}")
+    if not (isinstance(loss, (int, float)) and 0.0 <= loss <= 1.0):
+        raise UserError(f"--loss must be a probability within 0..1, not {loss}")
+    if not isinstance(batch, int) or not 1 <= batch <= MAX_BATCH:
+        raise UserError(f"--batch must be 1..{MAX_BATCH} (4 + 18 x batch bytes must fit "
+                        f"the RF230's 114-byte payload), not {batch}")
+    if duration is not None and not (duration > 0 and math.isfinite(duration)):
+        raise UserError(f"--duration must be a positive number of seconds, not {duration}")
+
+
+class World(Network):
+    def __init__(self, motes: int = 3, session: str = "static80", seed: int = 1,
+                 baud: int = 250000, loss: float = 0.0, model=None,
+                 batch: int = P.NINEDOF_BATCH, duration: float | None = None,
+                 *, cal_factory="auto"):
+        check_options(motes, session, baud, loss, batch, duration)
+        self.seed = int(seed)
+        self.session = session
+        self.model = model if hasattr(model, "board") else load_model(model)
+        self.trajectory = make_trajectory(session, self.seed, duration=duration,
+                                          rate_hz=self.model.rate_hz)
+        dur = float(duration) if duration is not None else float(self.trajectory.duration)
+        self.boards = {m: self.model.board(m, self.seed) for m in range(1, motes + 1)}
+        samplers = {m: b.sampler(self.trajectory, self.seed) for m, b in self.boards.items()}
+        ppm = {m: b.clock_ppm for m, b in self.boards.items()}
+        super().__init__(samplers, ppm, duration=dur, baud=baud, loss=loss, batch=batch,
+                         seed=self.seed, rate_hz=self.model.rate_hz, cal_factory=cal_factory)
+
+    def network_truth(self) -> dict:
+        """When each mote sampled: sample k of mote m was taken at true time
+        ``t0_s + k * period_s`` and carries sequence number ``k mod 65536``."""
+        return {str(m): {"t0_s": mote.t0, "period_s": mote.period,
+                         "clock_ppm": mote.clock_ppm, "samples": mote.n_total}
+                for m, mote in self.motes.items()}
+
+    def truth(self) -> dict:
+        """The physics truth (model.write_truth's JSON: the model with every
+        board written out, seed, trajectory, physical truth per board) plus
+        ``truth.network`` (see network_truth)."""
+        d = write_truth(os.devnull, self.model, self.boards, self.trajectory, self.seed)
+        d["truth"]["network"] = self.network_truth()
+        d["truth"]["session"] = dict(kind=self.session, duration_s=self.duration,
+                                     motes=len(self.motes), baud=self.baud, loss=self.loss,
+                                     batch=self.batch)
+        return d
+
+    def write_truth(self, path) -> dict:
+        d = self.truth()
+        try:
+            Path(path).write_text(json.dumps(d, indent=1) + "\n", encoding="utf-8")
+        except OSError as e:
+            raise UserError(f"cannot write truth file {path}: {e.strerror or e}") from None
+        return d

@@ -271,3 +271,55 @@ def test_world_api_matches_physics():
     st = w.stats
     assert st["motes"][1]["generated"] == len(w.sent[1])
     assert truth["truth"]["seed"] == 3 and set(truth["truth"]["physical_truth"]) == {"1", "2"}
+
+
+def _calset(mote, version, accel_offset):
+    """A calibration set: identity everywhere, accel x offset in counts."""
+    eye = [16384, 0, 0, 0, 16384, 0, 0, 0, 16384]
+    s = [P.CAL_SENSOR.pack(a=eye, c=[accel_offset * 16384 if i == 0 else 0, 0, 0],
+                           shift=14, reserved=0) for i in range(3)]
+    return P.CALSET_HEADER.pack(mote=mote, version=version, sensors=1, reserved=0) + b"".join(s)
+
+
+def test_upload_through_the_network_corrects_on_the_mote():
+    mote_c = pytest.importorskip("motecal.mote_c")
+    net = make_net(2, duration=6.0, cal_factory=mote_c.CalReceiver)
+    out = bytearray(net.run_until(1.0))
+    cs = _calset(1, 3, 100)
+    seq = 1
+    for off in range(0, len(cs), P.NINEDOF_FRAG_DATA):
+        chunk = cs[off:off + P.NINEDOF_FRAG_DATA]
+        net.write(P.message_frame(P.CAL_FRAG, dest=1, ack_seq=seq, mote=1, version=3,
+                                  offset=off, len=len(chunk), data=chunk))
+        seq += 1
+        out += net.run_until(net.now + 0.05)
+    net.write(P.message_frame(P.CAL_COMMIT, dest=1, ack_seq=seq, mote=1, version=3,
+                              length=len(cs), action=P.CAL_APPLY, crc=P.crc16(cs)))
+    out += run_all(net)
+    frames = P.decode_stream(bytes(out))
+    assert [f.seq for f in frames if f.protocol == P.PROTO_ACK] == list(range(1, seq + 1))
+    frag_acks = [P.decode_message(f.am()) for f in frames
+                 if f.am() and f.am().am_type == P.AM_NINEDOF_CAL_FRAG_ACK_MSG]
+    assert len(frag_acks) == 6 and all(a["status"] == P.CAL_OK for a in frag_acks)
+    (commit,) = [P.decode_message(f.am()) for f in frames
+                 if f.am() and f.am().am_type == P.AM_NINEDOF_CAL_COMMIT_ACK_MSG]
+    assert commit["status"] == P.CAL_OK and commit["version"] == 3
+    got = samples_by_mote(frames)
+    mote = net.motes[1]
+    seqs, recs = per_sample(got[1])
+    assert np.array_equal(seqs, np.arange(len(seqs)))
+    raw = RampSampler(1).read(mote.t0 + seqs * mote.period)
+    flags = np.concatenate([[s.flags] * len(s.records) for s in got[1]])
+    assert set(flags.tolist()) == {0x00, 0x31}
+    assert np.all(np.diff((flags != 0).astype(int)) >= 0), "raw, then corrected"
+    corr = flags != 0
+    assert 0 < corr.sum() < len(flags)
+    exp = raw.astype(np.int32)
+    exp[corr, 0] += 100
+    assert np.array_equal(recs, np.clip(exp, -32768, 32767).astype(np.int16))
+    assert np.array_equal(net.sent[1].raw, raw) and np.array_equal(net.sent[1].flags, flags)
+    # mote 2 untouched; status reports the version in force
+    assert all(s.flags == 0 for s in got[2])
+    st = [P.decode_message(f.am()) for f in frames
+          if f.am() and f.am().src == 1 and f.am().am_type == P.AM_NINEDOF_MOTE_STATUS_MSG]
+    assert st[-1]["version"] == 3 and st[-1]["sensors"] == 1

@@ -31,6 +31,8 @@ AFAP_HIGH_WATER = 1 << 16    # do not run ahead of a slow reader by more than th
 PACED_BACKLOG = 1 << 20      # paced bytes kept for a client that does not read
 IDLE_WAIT = 0.05
 PACED_TICK = 0.005
+TCP_GRACE = 0.05             # s after the first accept before the motes boot: pyserial's
+                             # socket:// open discards what arrives while it opens
 
 
 class Pump:
@@ -45,10 +47,11 @@ class Pump:
         self._wall0 = 0.0
         self._sim0 = 0.0
 
-    def start(self) -> None:
+    def start(self, delay: float = 0.0) -> None:
+        """Boot the motes (``delay`` seconds of wall time from now)."""
         if not self.started:
             self.started = True
-            self._wall0 = time.monotonic()
+            self._wall0 = time.monotonic() + delay
             self._sim0 = self.world.now
 
     def idle(self) -> bool:
@@ -58,7 +61,7 @@ class Pump:
 
     def produce(self, can_take: bool = True) -> bytes:
         """Advance the world to where it should be now; its new serial bytes."""
-        if not self.started:
+        if not self.started or time.monotonic() < self._wall0:
             return b""
         w = self.world
         if self.speed:
@@ -72,6 +75,9 @@ class Pump:
         """How long the caller may block in select before the next step."""
         if not self.started:
             return IDLE_WAIT
+        early = self._wall0 - time.monotonic()
+        if early > 0:
+            return min(IDLE_WAIT, early)
         if self.speed:
             return PACED_TICK
         return 0.0 if (can_take and not self.idle()) else IDLE_WAIT
@@ -220,7 +226,7 @@ class TcpLine(_Endpoint):
             conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             self._client = conn
             self.connections += 1
-            self.pump.start()
+            self.pump.start(TCP_GRACE)
         elif fd is self._client:
             try:
                 data = self._client.recv(65536)

@@ -9,7 +9,8 @@
  *
  * Correction: a validated set always fits Q14 without loss (diagonal
  * <= 32767 and off-diagonal <= 8192 in Q14 terms, |c| <= 4096 counts), so
- * every sensor is brought to Q14 once per block and one fixed kernel does
+ * a sensor stored with a lower shift is rescaled to Q14 on the fly
+ * (shift 14, what the host sends, needs no copy) and one kernel does
  *   out = sat((c14 + 2^13 + sum a14_j * raw_j) >> 14)
  * which is bit-identical to the header's Q(shift) formula:
  *   (x * 2^k + 2^(s+k-1)) >> (s+k) == (x + 2^(s-1)) >> s.
@@ -24,13 +25,21 @@
 /* ---------------------------------------------------------------------- */
 /* CRC-16-CCITT (XMODEM)                                                   */
 /* ---------------------------------------------------------------------- */
+#if defined(__AVR__)
+#include <util/crc16.h>            /* avr-libc: the same CRC in assembly */
+#endif
+
 uint16_t ninedof_crc16(uint16_t crc, const uint8_t *data, uint16_t len)
 {
   while (len--) {
+#if defined(__AVR__)
+    crc = _crc_xmodem_update(crc, *data++);
+#else
     uint8_t i;
     crc ^= (uint16_t)(*data++) << 8;
     for (i = 0; i < 8; i++)
       crc = (crc & 0x8000) ? (uint16_t)((crc << 1) ^ 0x1021) : (uint16_t)(crc << 1);
+#endif
   }
   return crc;
 }
@@ -160,56 +169,150 @@ uint8_t ninedof_cal_validate(const ninedof_cal_t *cal, uint16_t my_id)
 /* ---------------------------------------------------------------------- */
 /* Correction                                                              */
 /* ---------------------------------------------------------------------- */
-/* One sensor prepared for the kernel: Q14 matrix, offset + rounding half. */
-typedef struct {
-  int16_t a[9];
-  int32_t c[3];        /* c14 + 2^13 (Q14 path) or c + 2^(shift-1) (generic) */
-  uint8_t shift;       /* 14 on the fast path */
-  uint8_t mode;        /* PREP_RAW, PREP_Q14, PREP_GENERIC */
-} prep_t;
+#if defined(__GNUC__)
+#define NINEDOF_ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define NINEDOF_ALWAYS_INLINE inline
+#endif
 
-enum { PREP_RAW = 0, PREP_Q14 = 1, PREP_GENERIC = 2 };
+#define ROUND_Q14 (1L << (NINEDOF_SHIFT_MAX - 1))
 
-static void prepare(const ninedof_cal_t *cal, uint8_t k, prep_t *p)
+/* int32 -> sat16(acc >> 14) */
+static NINEDOF_ALWAYS_INLINE int16_t sat_q14(int32_t acc)
 {
-  const ninedof_cal_sensor_native_t *s = &cal->s[k];
-  uint8_t i, up, ok = 1;
-
-  p->shift = s->shift;
-  if (!(cal->sensors & (1u << k))) {
-    p->mode = PREP_RAW;
-    return;
+  uint8_t top = (uint8_t)((uint32_t)acc >> 24) & 0xE0;   /* bits 31..29 */
+  if (top == 0x00 || top == 0xE0) {
+    /* in range: bits 29..14 = (high word << 2) | (byte 1 >> 6) */
+    uint16_t hi = (uint16_t)((uint32_t)acc >> 16);
+    uint8_t b1 = (uint8_t)((uint32_t)acc >> 8);
+    return (int16_t)(uint16_t)((uint16_t)(hi << 2) | (uint8_t)(b1 >> 6));
   }
-  if (s->shift < NINEDOF_SHIFT_MIN || s->shift > NINEDOF_SHIFT_MAX) {
-    /* never reaches here after decode/validate; treat like raw */
-    p->mode = PREP_RAW;
-    return;
-  }
-  up = (uint8_t)(NINEDOF_SHIFT_MAX - s->shift);
-  for (i = 0; i < 9; i++) {
-    int32_t v = (int32_t)s->a[i] * ((int32_t)1 << up);
-    if (v > 32767 || v < -32768)
-      ok = 0;
-    p->a[i] = (int16_t)v;
-  }
-  for (i = 0; i < 3; i++) {
-    /* |c| <= 2^26 keeps c * 2^up + 2^13 well inside int32 */
-    if (s->c[i] > (1L << 26) || s->c[i] < -(1L << 26))
-      ok = 0;
-    else
-      p->c[i] = s->c[i] * ((int32_t)1 << up) + (1L << (NINEDOF_SHIFT_MAX - 1));
-  }
-  if (ok) {
-    p->mode = PREP_Q14;
-    p->shift = NINEDOF_SHIFT_MAX;
-    return;
-  }
-  p->mode = PREP_GENERIC;
-  for (i = 0; i < 9; i++)
-    p->a[i] = s->a[i];
-  for (i = 0; i < 3; i++)  /* wrap like int32 hardware would, without UB */
-    p->c[i] = (int32_t)((uint32_t)s->c[i] + (1UL << (s->shift - 1)));
+  return (top & 0x80) ? (int16_t)-32768 : (int16_t)32767;
 }
+
+#if defined(__AVR__) && !defined(NINEDOF_PORTABLE_KERNEL)
+/*
+ * AVR kernel: the nine multiply-accumulates of one sensor in one asm block.
+ * Signed 16 x 16 -> 32 bit MAC with MULS/MULSU/MUL as in Atmel application
+ * note AVR201 (19 cycles, against ~40 for a call to __mulhisi3 plus a 32-bit
+ * add), column by column: each input is loaded once, the three accumulators
+ * stay in registers, matrix and offsets are read with LDD from Z.
+ * MULSU needs its operands in r16..r23 ("a" constraint).
+ */
+#include <stddef.h>
+typedef char ninedof_kernel_layout_check[
+  (offsetof(ninedof_cal_sensor_native_t, a) == 0 &&
+   offsetof(ninedof_cal_sensor_native_t, c) == 18) ? 1 : -1];
+
+#define K_LDM(LO, HI) "ldd %A[m], Z+" #LO "\n\tldd %B[m], Z+" #HI "\n\t"
+#define K_LDX "ld %A[x], X+\n\tld %B[x], X+\n\t"
+#define K_LDC(ACC, B0, B1, B2, B3)                                      \
+  "ldd %A[" #ACC "], Z+" #B0 "\n\tldd %B[" #ACC "], Z+" #B1 "\n\t"      \
+  "ldd %C[" #ACC "], Z+" #B2 "\n\tldd %D[" #ACC "], Z+" #B3 "\n\t"
+#define K_ROUND(ACC)  /* += 0x2000 (2^13); %A[m] holds 0x20 */          \
+  "add %B[" #ACC "], %A[m]\n\tadc %C[" #ACC "], %[z]\n\t"               \
+  "adc %D[" #ACC "], %[z]\n\t"
+#define K_MAC(ACC)                                                      \
+  "muls  %B[m], %B[x]\n\t"        /* mh*xh -> bytes 2,3 */               \
+  "add   %C[" #ACC "], r0\n\t"                                          \
+  "adc   %D[" #ACC "], r1\n\t"                                          \
+  "mul   %A[m], %A[x]\n\t"        /* ml*xl -> bytes 0,1 */               \
+  "add   %A[" #ACC "], r0\n\t"                                          \
+  "adc   %B[" #ACC "], r1\n\t"                                          \
+  "adc   %C[" #ACC "], %[z]\n\t"                                        \
+  "adc   %D[" #ACC "], %[z]\n\t"                                        \
+  "mulsu %B[m], %A[x]\n\t"        /* mh*xl -> bytes 1,2; C = sign */     \
+  "sbc   %D[" #ACC "], %[z]\n\t"  /* sign extension into byte 3 */      \
+  "add   %B[" #ACC "], r0\n\t"                                          \
+  "adc   %C[" #ACC "], r1\n\t"                                          \
+  "adc   %D[" #ACC "], %[z]\n\t"                                        \
+  "mulsu %B[x], %A[m]\n\t"        /* xh*ml -> bytes 1,2; C = sign */     \
+  "sbc   %D[" #ACC "], %[z]\n\t"                                        \
+  "add   %B[" #ACC "], r0\n\t"                                          \
+  "adc   %C[" #ACC "], r1\n\t"                                          \
+  "adc   %D[" #ACC "], %[z]\n\t"
+
+/* out = sat16(ACC >> 14) stored at X+: in range when bits 31..29 agree,
+ * then the result is bits 29..14 = (D:C:B << 2) >> 8. */
+#define K_SAT(ACC)                                                      \
+  "mov  %A[m], %D[" #ACC "]\n\t"                                        \
+  "andi %A[m], 0xE0\n\t"                                                \
+  "breq 1f\n\t"                                                         \
+  "cpi  %A[m], 0xE0\n\t"                                                \
+  "breq 1f\n\t"                                                         \
+  "ldi  %A[m], 0xFF\n\t"          /* saturate: 0x7FFF or 0x8000 */       \
+  "ldi  %B[m], 0x7F\n\t"                                                \
+  "sbrs %D[" #ACC "], 7\n\t"                                            \
+  "rjmp 2f\n\t"                                                         \
+  "ldi  %A[m], 0x00\n\t"                                                \
+  "ldi  %B[m], 0x80\n\t"                                                \
+  "rjmp 2f\n"                                                           \
+  "1:\n\t"                                                              \
+  "lsl  %B[" #ACC "]\n\t"                                               \
+  "rol  %C[" #ACC "]\n\t"                                               \
+  "rol  %D[" #ACC "]\n\t"                                               \
+  "lsl  %B[" #ACC "]\n\t"                                               \
+  "rol  %C[" #ACC "]\n\t"                                               \
+  "rol  %D[" #ACC "]\n\t"                                               \
+  "movw %A[m], %C[" #ACC "]\n"                                          \
+  "2:\n\t"                                                              \
+  "st   X+, %A[m]\n\t"                                                  \
+  "st   X+, %B[m]\n\t"
+
+static NINEDOF_ALWAYS_INLINE void sensor_q14(const ninedof_cal_sensor_native_t *s,
+                                             const int16_t *in, int16_t *out)
+{
+  int32_t acc0, acc1, acc2;
+  int16_t m, x;
+  uint8_t z;
+  const int16_t *p = in;
+
+  /* All loads happen before the first store, so in and out may alias. */
+  __asm__ volatile (
+    "clr %[z]\n\t"
+    K_LDC(acc0, 18, 19, 20, 21)
+    K_LDC(acc1, 22, 23, 24, 25)
+    K_LDC(acc2, 26, 27, 28, 29)
+    "ldi %A[m], 0x20\n\t"
+    K_ROUND(acc0) K_ROUND(acc1) K_ROUND(acc2)
+    K_LDX
+    K_LDM(0, 1) K_MAC(acc0) K_LDM(6, 7) K_MAC(acc1) K_LDM(12, 13) K_MAC(acc2)
+    K_LDX
+    K_LDM(2, 3) K_MAC(acc0) K_LDM(8, 9) K_MAC(acc1) K_LDM(14, 15) K_MAC(acc2)
+    K_LDX
+    K_LDM(4, 5) K_MAC(acc0) K_LDM(10, 11) K_MAC(acc1) K_LDM(16, 17) K_MAC(acc2)
+    "clr r1\n\t"
+    "movw r26, %[out]\n\t"
+    K_SAT(acc0) K_SAT(acc1) K_SAT(acc2)
+    : [acc0] "=&r" (acc0), [acc1] "=&r" (acc1), [acc2] "=&r" (acc2),
+      [m] "=&a" (m), [x] "=&a" (x), [z] "=&r" (z), [p] "+x" (p)
+    : [s] "z" (s), [out] "r" (out)
+    : "r0", "r1", "memory");
+  (void)acc0; (void)acc1; (void)acc2; (void)m; (void)x; (void)z; (void)p;
+}
+#else
+/* Same arithmetic in C, wrapping like the AVR code (only sets that were
+ * never validated can wrap). */
+static NINEDOF_ALWAYS_INLINE void sensor_q14(const ninedof_cal_sensor_native_t *s,
+                                             const int16_t *in, int16_t *out)
+{
+  int16_t x0 = in[0], x1 = in[1], x2 = in[2];
+  int32_t y[3];
+  uint8_t r;
+
+  for (r = 0; r < 3; r++) {
+    const int16_t *a = s->a + 3 * r;
+    uint32_t u = (uint32_t)s->c[r] + (uint32_t)ROUND_Q14;
+    u += (uint32_t)((int32_t)a[0] * x0);
+    u += (uint32_t)((int32_t)a[1] * x1);
+    u += (uint32_t)((int32_t)a[2] * x2);
+    y[r] = (int32_t)u;
+  }
+  out[0] = sat_q14(y[0]);
+  out[1] = sat_q14(y[1]);
+  out[2] = sat_q14(y[2]);
+}
+#endif
 
 static int16_t sat16(int32_t v)
 {
@@ -220,123 +323,106 @@ static int16_t sat16(int32_t v)
   return (int16_t)v;
 }
 
-#if defined(__AVR__) && !defined(NINEDOF_PORTABLE_KERNEL)
 /*
- * AVR kernel: one row, out = sat16((c + a0*x0 + a1*x1 + a2*x2) >> 14).
- * Signed 16x16 -> 32 multiply-accumulate with MULS/MULSU/MUL as in Atmel
- * application note AVR201 (23 cycles per product instead of a call to the
- * generic 32-bit multiply), then >>14 as "<<2, take the high word" after
- * checking that bits 31..29 agree (otherwise saturate by sign).
+ * A sensor stored with a shift below 14 (the host never sends one, but the
+ * format allows it): rescale to Q14 when that is exact and the Q14
+ * accumulator cannot overflow -- always so for a valid set -- and use the
+ * kernel; otherwise evaluate the formula at the set's own shift, wrapping
+ * like int32 hardware (only reachable for sets that were never validated).
  */
-static inline int16_t row_q14(const int16_t *a, int32_t acc,
-                              int16_t x0, int16_t x1, int16_t x2)
+static __attribute__((noinline)) void sensor_other_shift(
+    const ninedof_cal_sensor_native_t *s, const int16_t *in, int16_t *out)
 {
-  int16_t ai;
-  uint8_t zero;
+  uint8_t up = (uint8_t)(NINEDOF_SHIFT_MAX - s->shift);
+  int16_t lim = (int16_t)(32767 >> up);
+  ninedof_cal_sensor_native_t q;
+  int16_t *qa = q.a;
+  int32_t *qc = q.c;
+  uint8_t i, q14 = 1;
 
-#define NINEDOF_MAC(XV)                                                    \
-  ai = *a++;                                                             \
-  __asm__ (                                                              \
-    "clr  %[z]             \n\t"                                         \
-    "muls %B[m], %B[x]     \n\t"  /* ah*xh (signed) -> bytes 2,3 */       \
-    "add  %C[acc], r0      \n\t"                                         \
-    "adc  %D[acc], r1      \n\t"                                         \
-    "mul  %A[m], %A[x]     \n\t"  /* al*xl -> bytes 0,1 */                \
-    "add  %A[acc], r0      \n\t"                                         \
-    "adc  %B[acc], r1      \n\t"                                         \
-    "adc  %C[acc], %[z]    \n\t"                                         \
-    "adc  %D[acc], %[z]    \n\t"                                         \
-    "mulsu %B[m], %A[x]    \n\t"  /* ah(signed)*xl -> bytes 1,2 */        \
-    "sbc  %D[acc], %[z]    \n\t"                                         \
-    "add  %B[acc], r0      \n\t"                                         \
-    "adc  %C[acc], r1      \n\t"                                         \
-    "adc  %D[acc], %[z]    \n\t"                                         \
-    "mulsu %B[x], %A[m]    \n\t"  /* xh(signed)*al -> bytes 1,2 */        \
-    "sbc  %D[acc], %[z]    \n\t"                                         \
-    "add  %B[acc], r0      \n\t"                                         \
-    "adc  %C[acc], r1      \n\t"                                         \
-    "adc  %D[acc], %[z]    \n\t"                                         \
-    "clr  r1               \n\t"                                         \
-    : [acc] "+r" (acc), [z] "=&r" (zero)                                 \
-    : [m] "a" (ai), [x] "a" (XV)                                         \
-    : "r0", "r1")
-
-  NINEDOF_MAC(x0);
-  NINEDOF_MAC(x1);
-  NINEDOF_MAC(x2);
-#undef NINEDOF_MAC
-  (void)zero;
-  {
-    uint8_t top = (uint8_t)((uint32_t)acc >> 24) & 0xE0;
-    if (top == 0x00 || top == 0xE0)
-      return (int16_t)((uint32_t)acc >> 14);
-    return (acc < 0) ? (int16_t)-32768 : (int16_t)32767;
+  for (i = 0; i < 9; i++) {
+    if (s->a[i] > lim || s->a[i] < -lim - 1)
+      q14 = 0;
+    qa[i] = (int16_t)(uint16_t)((uint16_t)s->a[i] << up);
   }
-}
-#else
-static int16_t row_q14(const int16_t *a, int32_t acc,
-                       int16_t x0, int16_t x1, int16_t x2)
-{
-  acc += (int32_t)a[0] * x0;
-  acc += (int32_t)a[1] * x1;
-  acc += (int32_t)a[2] * x2;
-  return sat16(acc >> NINEDOF_SHIFT_MAX);
-}
-#endif
-
-static int16_t row_generic(const int16_t *a, int32_t acc, uint8_t shift,
-                           int16_t x0, int16_t x1, int16_t x2)
-{
-  uint32_t u = (uint32_t)acc;          /* wraps only for unvalidated sets */
-  u += (uint32_t)((int32_t)a[0] * x0);
-  u += (uint32_t)((int32_t)a[1] * x1);
-  u += (uint32_t)((int32_t)a[2] * x2);
-  return sat16((int32_t)u >> shift);
-}
-
-static void apply3(const prep_t *p, const int16_t *in, int16_t *out, uint8_t is_mag)
-{
-  int16_t x0 = in[0], x1 = in[1], x2 = in[2];   /* in and out may alias */
-  int16_t y0, y1, y2;
-
-  if (p->mode == PREP_RAW) {
-    out[0] = x0; out[1] = x1; out[2] = x2;
-    return;
+  for (i = 0; i < 3 && q14; i++) {
+    uint32_t bound = 0;
+    uint8_t j;
+    if (s->c[i] > (1L << 26) >> up || s->c[i] < -((1L << 26) >> up))
+      q14 = 0;
+    qc[i] = (int32_t)((uint32_t)s->c[i] << up);
+    for (j = 0; j < 3; j++) {           /* sum |a| * 32768 + |c| + 2^13 < 2^31 */
+      int16_t x = qa[3 * i + j];
+      bound += (uint32_t)(x < 0 ? -(int32_t)x : x);
+    }
+    if (bound * 32768UL + (1UL << 26) + (uint32_t)ROUND_Q14 >= 0x80000000UL)
+      q14 = 0;
   }
-  if (is_mag && (x0 == NINEDOF_MAG_OVERFLOW || x1 == NINEDOF_MAG_OVERFLOW ||
-                 x2 == NINEDOF_MAG_OVERFLOW)) {
-    out[0] = out[1] = out[2] = NINEDOF_MAG_OVERFLOW;
-    return;
-  }
-  if (p->mode == PREP_Q14) {
-    y0 = row_q14(p->a, p->c[0], x0, x1, x2);
-    y1 = row_q14(p->a + 3, p->c[1], x0, x1, x2);
-    y2 = row_q14(p->a + 6, p->c[2], x0, x1, x2);
+  if (q14) {
+    q.shift = NINEDOF_SHIFT_MAX;
+    sensor_q14(&q, in, out);
   } else {
-    y0 = row_generic(p->a, p->c[0], p->shift, x0, x1, x2);
-    y1 = row_generic(p->a + 3, p->c[1], p->shift, x0, x1, x2);
-    y2 = row_generic(p->a + 6, p->c[2], p->shift, x0, x1, x2);
+    int16_t x0 = in[0], x1 = in[1], x2 = in[2];
+    int16_t y[3];
+    for (i = 0; i < 3; i++) {
+      const int16_t *a = s->a + 3 * i;
+      uint32_t u = (uint32_t)s->c[i] + (1UL << (s->shift - 1));
+      u += (uint32_t)((int32_t)a[0] * x0);
+      u += (uint32_t)((int32_t)a[1] * x1);
+      u += (uint32_t)((int32_t)a[2] * x2);
+      y[i] = sat16((int32_t)u >> s->shift);
+    }
+    out[0] = y[0]; out[1] = y[1]; out[2] = y[2];
   }
-  if (is_mag) {
-    if (y0 > 4095) y0 = 4095; else if (y0 < -4095) y0 = -4095;
-    if (y1 > 4095) y1 = 4095; else if (y1 < -4095) y1 = -4095;
-    if (y2 > 4095) y2 = 4095; else if (y2 < -4095) y2 = -4095;
+}
+
+/* Sensor k of one record; returns 0 when the sensor passes raw. */
+static NINEDOF_ALWAYS_INLINE uint8_t correct_sensor(const ninedof_cal_t *cal, uint8_t k,
+                                                    const int16_t *in, int16_t *out)
+{
+  const ninedof_cal_sensor_native_t *s = &cal->s[k];
+
+  if ((cal->sensors & (1u << k)) && s->shift == NINEDOF_SHIFT_MAX) {
+    sensor_q14(s, in, out);
+    return 1;
   }
-  out[0] = y0; out[1] = y1; out[2] = y2;
+  if ((cal->sensors & (1u << k)) &&
+      s->shift >= NINEDOF_SHIFT_MIN && s->shift < NINEDOF_SHIFT_MAX) {
+    sensor_other_shift(s, in, out);
+    return 1;
+  }
+  if (in != out) {
+    out[0] = in[0]; out[1] = in[1]; out[2] = in[2];
+  }
+  return 0;
+}
+
+static void correct_record(const ninedof_cal_t *cal, const int16_t *raw, int16_t *out)
+{
+  correct_sensor(cal, NINEDOF_SENSOR_ACCEL, raw, out);
+  correct_sensor(cal, NINEDOF_SENSOR_GYRO, raw + 3, out + 3);
+  raw += 6;
+  out += 6;
+  if ((cal->sensors & (1u << NINEDOF_SENSOR_MAG)) &&
+      (raw[0] == NINEDOF_MAG_OVERFLOW || raw[1] == NINEDOF_MAG_OVERFLOW ||
+       raw[2] == NINEDOF_MAG_OVERFLOW)) {
+    out[0] = out[1] = out[2] = NINEDOF_MAG_OVERFLOW;
+  } else if (correct_sensor(cal, NINEDOF_SENSOR_MAG, raw, out)) {
+    uint8_t i;
+    for (i = 0; i < 3; i++) {
+      if (out[i] > 4095)
+        out[i] = 4095;
+      else if (out[i] < -4095)
+        out[i] = -4095;
+    }
+  }
 }
 
 void ninedof_correct_block(const ninedof_cal_t *cal, const int16_t *raw,
                            int16_t *out, uint16_t n)
 {
-  prep_t p[NINEDOF_SENSORS];
-  uint8_t k;
-
-  for (k = 0; k < NINEDOF_SENSORS; k++)
-    prepare(cal, k, &p[k]);
   while (n--) {
-    apply3(&p[NINEDOF_SENSOR_ACCEL], raw, out, 0);
-    apply3(&p[NINEDOF_SENSOR_GYRO], raw + 3, out + 3, 0);
-    apply3(&p[NINEDOF_SENSOR_MAG], raw + 6, out + 6, 1);
+    correct_record(cal, raw, out);
     raw += 9;
     out += 9;
   }

@@ -1,0 +1,53 @@
+"""Build plain C for the ATmega1281 with avr-gcc and run it in simavr.
+
+Used by tests/test_avr.py and bench/bench_cycles.py.  Programs print on
+UART0 (simavr echoes it on stderr, in colour, wrapped) and end with
+``cli(); sleep_cpu();``, which makes simavr exit.
+"""
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+TINYOS = REPO / "tinyos"
+CSRC = REPO / "tests" / "c"
+MCU = "atmega1281"
+F_CPU = 8_000_000
+AVR_CFLAGS = ["-mmcu=" + MCU, "-std=gnu99", "-Wall", "-Wextra", "-Werror",
+              f"-DF_CPU={F_CPU}UL"]
+
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
+
+
+def missing_tools() -> list[str]:
+    return [t for t in ("avr-gcc", "simavr") if shutil.which(t) is None]
+
+
+def build(sources, elf: Path, *, include=(), defines=(), opt="-Os") -> Path:
+    cmd = (["avr-gcc"] + AVR_CFLAGS + [opt]
+           + [f"-I{p}" for p in (*include, TINYOS)]
+           + [f"-D{d}" for d in defines]
+           + [str(s) for s in sources] + ["-o", str(elf)])
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    if res.returncode != 0:
+        raise RuntimeError(f"avr-gcc failed: {' '.join(cmd)}\n{res.stderr}")
+    return elf
+
+
+def run(elf: Path, timeout: float = 120) -> str:
+    """Everything the program wrote to UART0, newlines and colours removed."""
+    res = subprocess.run(["simavr", "-m", MCU, "-f", str(F_CPU), str(elf)],
+                         capture_output=True, text=True, timeout=timeout)
+    text = _ANSI.sub("", res.stdout + res.stderr)
+    lines = [ln for ln in text.splitlines() if not ln.startswith("Loaded ")]
+    return "".join(lines)
+
+
+def size(elf: Path) -> dict:
+    """text/data/bss of an ELF (avr-size)."""
+    out = subprocess.run(["avr-size", str(elf)], capture_output=True, text=True,
+                         check=True).stdout.splitlines()[1].split()
+    return {"text": int(out[0]), "data": int(out[1]), "bss": int(out[2])}

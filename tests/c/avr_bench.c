@@ -1,0 +1,166 @@
+/*
+ * avr_bench.c -- cycle counts of the per-sample work on the ATmega1281,
+ * measured in simavr with timer 1 running at clk/1 (bench/bench_cycles.py).
+ * Prints "<name> <cycles>;" for each item, then "END".
+ */
+#include <avr/interrupt.h>
+#include <avr/io.h>
+#include <avr/sleep.h>
+#include <string.h>
+
+#include "ninedof_board.h"
+#include "ninedof_cal.h"
+#include "ninedof_sampling.h"
+
+static void out_c(char c)
+{
+  while (!(UCSR0A & _BV(UDRE0)))
+    ;
+  UDR0 = (uint8_t)c;
+}
+
+static void out_s(const char *s)
+{
+  while (*s)
+    out_c(*s++);
+}
+
+static void out_u16(uint16_t v)
+{
+  char buf[6];
+  uint8_t i = 0;
+  do {
+    buf[i++] = (char)('0' + v % 10);
+    v /= 10;
+  } while (v);
+  while (i)
+    out_c(buf[--i]);
+}
+
+static uint16_t overhead;
+
+#define MEASURE(name, stmt)                                             \
+  do {                                                                  \
+    uint16_t t0_, t1_;                                                  \
+    cli();                                                              \
+    t0_ = TCNT1;                                                        \
+    stmt;                                                               \
+    t1_ = TCNT1;                                                        \
+    out_s(name " ");                                                    \
+    out_u16((uint16_t)(t1_ - t0_ - overhead));                          \
+    out_c(';');                                                         \
+  } while (0)
+
+static ninedof_calrx_t rx;
+static ninedof_cal_t cal;
+static ninedof_batch_t batch;
+static ninedof_samples_msg_t msg;
+static ninedof_eewriter_t ew;
+static int16_t raw[NINEDOF_BATCH * 9], out[NINEDOF_BATCH * 9];
+static uint8_t bytes[3][6];
+static uint8_t reply[32], rtype;
+static ninedof_calset_t wire;
+static ninedof_cal_frag_msg_t frag;
+static ninedof_cal_commit_msg_t commit;
+
+/* a plausible calibration: all three sensors, Q14, cross-axis terms */
+static void make_cal(void)
+{
+  uint8_t k, i;
+  ninedof_cal_identity(&cal, 1, 7);
+  cal.sensors = 7;
+  for (k = 0; k < 3; k++) {
+    for (i = 0; i < 9; i++)
+      cal.s[k].a[i] = (int16_t)((i % 4 == 0) ? 16384 + 300 * (int16_t)i - 900
+                                             : 170 * (int16_t)i - 600);
+    for (i = 0; i < 3; i++)
+      cal.s[k].c[i] = (int32_t)(i * 37L - 50L) * 16384L;
+  }
+}
+
+int main(void)
+{
+  uint16_t i, t0, t1, addr;
+  uint8_t v;
+
+  UCSR0A = _BV(U2X0);
+  UBRR0 = 0;
+  UCSR0B = _BV(TXEN0);
+  TCCR1A = 0;
+  TCCR1B = _BV(CS10);                 /* timer 1 at clk/1: one count per cycle */
+  t0 = TCNT1;
+  t1 = TCNT1;
+  overhead = (uint16_t)(t1 - t0);
+
+  for (i = 0; i < NINEDOF_BATCH * 9; i++)
+    raw[i] = (int16_t)(i * 1733 - 30000);
+  for (i = 0; i < 18; i++)
+    bytes[i / 6][i % 6] = (uint8_t)(i * 37 + 11);
+  make_cal();
+
+  MEASURE("correct_9axes", ninedof_correct(&cal, raw, out));
+  MEASURE("correct_block5", ninedof_correct_block(&cal, raw, out, NINEDOF_BATCH));
+  cal.sensors = 0;
+  MEASURE("correct_raw", ninedof_correct(&cal, raw, out));
+  cal.sensors = 7;
+  for (i = 0; i < 3; i++)
+    cal.s[i].shift = 13;              /* half-scale copies: still exact */
+  for (i = 0; i < 9; i++) {
+    cal.s[0].a[i] /= 2; cal.s[1].a[i] /= 2; cal.s[2].a[i] /= 2;
+  }
+  for (i = 0; i < 3; i++) {
+    cal.s[0].c[i] /= 2; cal.s[1].c[i] /= 2; cal.s[2].c[i] /= 2;
+  }
+  MEASURE("correct_9axes_q13", ninedof_correct(&cal, raw, out));
+  make_cal();
+
+  MEASURE("board_record", ninedof_board_record(bytes[0], bytes[1], bytes[2], out));
+
+  /* upload: fragments, commit (CRC + decode + validate), then batch with it */
+  ninedof_calrx_init(&rx, 1);
+  ninedof_cal_encode(&cal, &wire);
+  nxp_set_u16(&frag.mote, 1);
+  nxp_set_u16(&frag.version, 7);
+  for (i = 0; i < sizeof(wire); i += NINEDOF_FRAG_DATA) {
+    uint8_t n = (uint8_t)(sizeof(wire) - i < NINEDOF_FRAG_DATA ? sizeof(wire) - i
+                                                               : NINEDOF_FRAG_DATA);
+    nxp_set_u8(&frag.offset, (uint8_t)i);
+    nxp_set_u8(&frag.len, n);
+    memcpy(frag.data, (uint8_t *)&wire + i, n);
+    if (i == 0)
+      MEASURE("calrx_fragment", ninedof_calrx_handle(&rx, AM_NINEDOF_CAL_FRAG_MSG,
+                                                     (uint8_t *)&frag, sizeof(frag),
+                                                     reply, &rtype));
+    else
+      ninedof_calrx_handle(&rx, AM_NINEDOF_CAL_FRAG_MSG, (uint8_t *)&frag, sizeof(frag),
+                           reply, &rtype);
+  }
+  MEASURE("crc16_set", (void)ninedof_crc16(0, (uint8_t *)&wire, sizeof(wire)));
+  nxp_set_u16(&commit.mote, 1);
+  nxp_set_u16(&commit.version, 7);
+  nxp_set_u8(&commit.length, sizeof(wire));
+  nxp_set_u8(&commit.action, NINEDOF_CAL_APPLY);
+  nxp_set_u16(&commit.crc, ninedof_crc16(0, (uint8_t *)&wire, sizeof(wire)));
+  MEASURE("calrx_commit", ninedof_calrx_handle(&rx, AM_NINEDOF_CAL_COMMIT_MSG,
+                                               (uint8_t *)&commit, sizeof(commit),
+                                               reply, &rtype));
+  out_s("commit_status ");
+  out_u16(reply[6]);
+  out_c(';');
+
+  ninedof_batch_init(&batch);
+  MEASURE("batch_add", ninedof_batch_add(&batch, 0, raw));
+  for (i = 1; i < NINEDOF_BATCH; i++)
+    ninedof_batch_add(&batch, i, raw + 9 * i);
+  MEASURE("batch_pack5", ninedof_batch_pack(&batch, &rx, &msg));
+  MEASURE("calrx_flags", (void)ninedof_calrx_flags(&rx));
+
+  ninedof_eewriter_init(&ew, 0, 1);
+  MEASURE("eeprom_image", ninedof_eewriter_poll(&ew, &rx));
+  MEASURE("eeprom_next_byte", ninedof_eewriter_next(&ew, &addr, &v));
+
+  out_s("END\n");
+  cli();
+  sleep_cpu();
+  return 0;
+}

@@ -1,0 +1,336 @@
+/*
+ * logic_tests.c -- behaviour of the firmware's plain C logic (board data
+ * conversion, I2C rate, 125 Hz period, batching, status, EEPROM writer),
+ * built twice by tests/test_avr.py: with gcc on the host and with avr-gcc
+ * for the ATmega1281 in simavr.  Prints "CHECKS <n> FAILED <m>" and, for the
+ * host-vs-AVR comparison, a digest of every packed message ("D<hex>").
+ */
+#include <stdint.h>
+#include <string.h>
+
+#include "ninedof_board.h"
+#include "ninedof_cal.h"
+#include "ninedof_sampling.h"
+
+#ifdef __AVR__
+#include <avr/interrupt.h>
+#include <avr/io.h>
+#include <avr/sleep.h>
+static void out_c(char c)
+{
+  while (!(UCSR0A & _BV(UDRE0)))
+    ;
+  UDR0 = (uint8_t)c;
+}
+static void out_init(void)
+{
+  UCSR0A = _BV(U2X0);
+  UBRR0 = 0;
+  UCSR0B = _BV(TXEN0);
+}
+static void out_end(void)
+{
+  cli();
+  sleep_cpu();
+}
+#else
+#include <stdio.h>
+static void out_c(char c) { putchar(c); }
+static void out_init(void) { }
+static void out_end(void) { fflush(stdout); }
+#endif
+
+static uint16_t checks, failed;
+
+static void out_s(const char *s)
+{
+  while (*s)
+    out_c(*s++);
+}
+
+static void out_u16(uint16_t v)
+{
+  char buf[6];
+  uint8_t i = 0;
+  do {
+    buf[i++] = (char)('0' + v % 10);
+    v /= 10;
+  } while (v);
+  while (i)
+    out_c(buf[--i]);
+}
+
+static void out_hex(const uint8_t *p, uint16_t n)
+{
+  static const char digits[] = "0123456789abcdef";
+  while (n--) {
+    out_c(digits[*p >> 4]);
+    out_c(digits[*p++ & 15]);
+  }
+}
+
+#define CHECK(cond)                                                     \
+  do {                                                                  \
+    checks++;                                                           \
+    if (!(cond)) {                                                      \
+      failed++;                                                         \
+      out_s("FAIL line ");                                              \
+      out_u16(__LINE__);                                                \
+      out_c(';');                                                       \
+    }                                                                   \
+  } while (0)
+
+/* ---------------------------------------------------------------------- */
+static void test_board(void)
+{
+  /* ADXL345: little-endian X0 X1 Y0 Y1 Z0 Z1; -1 g = -256, +16 g = 4095 */
+  static const uint8_t acc[6] = { 0x00, 0x01, 0x00, 0xFF, 0xFF, 0x0F };
+  /* ITG3200: big-endian XH XL ...; -32768, 1, 0x1234 */
+  static const uint8_t gyr[6] = { 0x80, 0x00, 0x00, 0x01, 0x12, 0x34 };
+  /* HMC5883L: X, Z, Y big-endian; Z = -4096 overflow marker */
+  static const uint8_t mag[6] = { 0x01, 0x02, 0xF0, 0x00, 0xFF, 0xFE };
+  static const uint8_t id[3] = { 'H', '4', '3' }, bad_id[3] = { 'H', '4', '4' };
+  int16_t rec[9];
+
+  ninedof_board_record(acc, gyr, mag, rec);
+  CHECK(rec[0] == 256 && rec[1] == -256 && rec[2] == 4095);
+  CHECK(rec[3] == -32768 && rec[4] == 1 && rec[5] == 0x1234);
+  CHECK(rec[6] == 0x0102 && rec[7] == -2 && rec[8] == NINEDOF_HMC5883L_OVERFLOW);
+
+  CHECK(ninedof_adxl345_id_ok(0xE5) && !ninedof_adxl345_id_ok(0xE4));
+  CHECK(ninedof_itg3200_id_ok(0x68) && ninedof_itg3200_id_ok(0x69) &&
+        !ninedof_itg3200_id_ok(0x00) && !ninedof_itg3200_id_ok(0xE5));
+  CHECK(ninedof_hmc5883l_id_ok(id) && !ninedof_hmc5883l_id_ok(bad_id));
+
+  /* 400 kHz at 8 MHz: TWBR = 2, exact; the stock driver's 65 gives ~55 kHz */
+  CHECK(NINEDOF_TWBR(8000000UL, 400000UL) == 2);
+  CHECK(8000000UL / (16UL + 2UL * NINEDOF_TWBR(8000000UL, 400000UL)) == 400000UL);
+  CHECK(NINEDOF_TWBR(7372800UL, 50000UL) == 65);
+  /* the HMC5883L trigger writes MODE = single measurement */
+  CHECK(NINEDOF_HMC5883L_TRIGGER[0] == HMC5883L_MODE &&
+        (NINEDOF_HMC5883L_TRIGGER[1] & 3) == 1);
+}
+
+/* ---------------------------------------------------------------------- */
+static void test_period(void)
+{
+  CHECK(NINEDOF_PERIOD_TICKS == 250);
+  CHECK((uint32_t)NINEDOF_PERIOD_TICKS * NINEDOF_RATE_HZ == NINEDOF_ALARM_HZ);
+  CHECK(ninedof_periods_between(1000, 1000) == 0);
+  CHECK(ninedof_periods_between(1000, 1249) == 0);
+  CHECK(ninedof_periods_between(1000, 1250) == 1);
+  CHECK(ninedof_periods_between(0xFFFFFF00UL, 0x00000100UL) == 2);   /* wraps */
+  /* 125 periods are exactly one second of alarm ticks: no drift */
+  CHECK(ninedof_periods_between(0, NINEDOF_ALARM_HZ) == NINEDOF_RATE_HZ);
+}
+
+/* ---------------------------------------------------------------------- */
+static ninedof_calrx_t rx;
+static ninedof_batch_t batch;
+static ninedof_samples_msg_t msg;
+
+static void make_rec(int16_t rec[9], uint16_t seq)
+{
+  uint8_t k;
+  for (k = 0; k < 9; k++)
+    rec[k] = (int16_t)(uint16_t)(seq * 977u + k * 4099u);
+}
+
+/* Upload a calibration set through the receiver as the host would. */
+static void upload(const ninedof_cal_t *cal)
+{
+  ninedof_calset_t wire;
+  ninedof_cal_frag_msg_t frag;
+  ninedof_cal_commit_msg_t commit;
+  uint8_t reply[32], rtype, off;
+  const uint8_t *bytes = (const uint8_t *)&wire;
+
+  ninedof_cal_encode(cal, &wire);
+  for (off = 0; off < sizeof(wire); off += NINEDOF_FRAG_DATA) {
+    uint8_t n = (uint8_t)(sizeof(wire) - off < NINEDOF_FRAG_DATA ? sizeof(wire) - off
+                                                                 : NINEDOF_FRAG_DATA);
+    nxp_set_u16(&frag.mote, cal->mote);
+    nxp_set_u16(&frag.version, cal->version);
+    nxp_set_u8(&frag.offset, off);
+    nxp_set_u8(&frag.len, n);
+    memcpy(frag.data, bytes + off, n);
+    ninedof_calrx_handle(&rx, AM_NINEDOF_CAL_FRAG_MSG, (uint8_t *)&frag, sizeof(frag),
+                         reply, &rtype);
+  }
+  nxp_set_u16(&commit.mote, cal->mote);
+  nxp_set_u16(&commit.version, cal->version);
+  nxp_set_u8(&commit.length, sizeof(wire));
+  nxp_set_u8(&commit.action, NINEDOF_CAL_APPLY);
+  nxp_set_u16(&commit.crc, ninedof_crc16(0, bytes, sizeof(wire)));
+  ninedof_calrx_handle(&rx, AM_NINEDOF_CAL_COMMIT_MSG, (uint8_t *)&commit,
+                       sizeof(commit), reply, &rtype);
+  CHECK(rtype == AM_NINEDOF_CAL_COMMIT_ACK_MSG && reply[6] == NINEDOF_CAL_OK);
+}
+
+static void test_batching(void)
+{
+  int16_t rec[9];
+  uint16_t seq;
+  uint8_t len, full = 0;
+  ninedof_cal_t cal;
+
+  ninedof_calrx_init(&rx, 3);
+  ninedof_batch_init(&batch);
+  CHECK(ninedof_batch_pack(&batch, &rx, &msg) == 0);
+
+  /* a full batch of consecutive periods, across the 16-bit wrap */
+  for (seq = 0xFFFE; seq != 3; seq++) {
+    make_rec(rec, seq);
+    CHECK(ninedof_batch_fits(&batch, seq));
+    full = ninedof_batch_add(&batch, seq, rec);
+  }
+  CHECK(full == (NINEDOF_BATCH == 5));
+  CHECK(!ninedof_batch_fits(&batch, 3));
+  len = ninedof_batch_pack(&batch, &rx, &msg);
+  CHECK(len == 4 + 18 * NINEDOF_BATCH);
+  CHECK(nxp_get_u16(&msg.seq) == 0xFFFE && nxp_get_u8(&msg.count) == NINEDOF_BATCH);
+  CHECK(nxp_get_u8(&msg.flags) == 0);
+  make_rec(rec, 0xFFFF);
+  CHECK(nxp_get_i16(&msg.rec[1].gz) == rec[5]);           /* raw, big-endian */
+  out_c('D');
+  out_hex((const uint8_t *)&msg, len);
+  out_c(';');
+
+  /* a skipped period ends the batch early: count 2, then a new batch */
+  ninedof_batch_add(&batch, 10, rec);
+  CHECK(ninedof_batch_fits(&batch, 11));
+  ninedof_batch_add(&batch, 11, rec);
+  CHECK(!ninedof_batch_fits(&batch, 13));
+  len = ninedof_batch_pack(&batch, &rx, &msg);
+  CHECK(len == 4 + 18 * 2 && nxp_get_u8(&msg.count) == 2 && nxp_get_u16(&msg.seq) == 10);
+  CHECK(ninedof_batch_fits(&batch, 13));
+
+  /* with a calibration in force the packed records are corrected and flagged */
+  ninedof_cal_identity(&cal, 3, 0x25);
+  cal.sensors = 1u << NINEDOF_SENSOR_ACCEL;
+  cal.s[0].a[0] = 32767;                       /* ax * (2 - 2^-14) */
+  cal.s[0].c[1] = -100L * 16384;                /* ay - 100 */
+  upload(&cal);
+  CHECK(ninedof_calrx_flags(&rx) == (0x50 | NINEDOF_FLAG_CORRECTED));
+  for (seq = 20; seq < 23; seq++) {
+    make_rec(rec, seq);
+    rec[0] = 1000;
+    rec[1] = 50;
+    ninedof_batch_add(&batch, seq, rec);
+  }
+  len = ninedof_batch_pack(&batch, &rx, &msg);
+  CHECK(len == 4 + 18 * 3);
+  CHECK(nxp_get_u8(&msg.flags) == 0x51);
+  CHECK(nxp_get_i16(&msg.rec[2].ax) == 2000 && nxp_get_i16(&msg.rec[2].ay) == -50);
+  make_rec(rec, 22);
+  CHECK(nxp_get_i16(&msg.rec[2].gx) == rec[3]);             /* gyro not corrected */
+  out_c('D');
+  out_hex((const uint8_t *)&msg, len);
+  out_c(';');
+}
+
+/* ---------------------------------------------------------------------- */
+static void test_status(void)
+{
+  ninedof_counters_t c;
+  ninedof_mote_status_msg_t st;
+
+  ninedof_counters_init(&c);
+  c.seq = 0x1234;
+  c.dropped = 5;
+  c.send_fail = 0xFFFF;
+  c.send_fail++;                                /* counters wrap */
+  c.i2c_errors = 7;
+  c.late = 9;
+  ninedof_status_pack(&c, &rx, &st);
+  CHECK(nxp_get_u16(&st.seq) == 0x1234 && nxp_get_u16(&st.version) == 0x25);
+  CHECK(nxp_get_u8(&st.sensors) == 1 && nxp_get_u16(&st.dropped) == 5);
+  CHECK(nxp_get_u16(&st.send_fail) == 0 && nxp_get_u16(&st.i2c_errors) == 7 &&
+        nxp_get_u16(&st.late) == 9);
+  out_c('D');
+  out_hex((const uint8_t *)&st, sizeof(st));
+  out_c(';');
+}
+
+/* ---------------------------------------------------------------------- */
+static uint8_t eeprom[0x200];
+static ninedof_eewriter_t ew;
+
+/* Write up to `limit` bytes (a power cut after that); returns bytes written */
+static uint16_t ee_run(uint16_t limit)
+{
+  uint16_t addr, n = 0;
+  uint8_t v;
+  while (n < limit && ninedof_eewriter_next(&ew, &addr, &v)) {
+    eeprom[addr] = v;
+    n++;
+  }
+  return n;
+}
+
+static uint8_t boot(ninedof_calrx_t *r, uint8_t *next_slot, uint16_t *next_gen)
+{
+  ninedof_calrx_init(r, 3);
+  return ninedof_calrx_restore(r, eeprom + NINEDOF_EEPROM_SLOT0,
+                               eeprom + NINEDOF_EEPROM_SLOT1, next_slot, next_gen);
+}
+
+static void test_eeprom(void)
+{
+  static ninedof_calrx_t r2;
+  ninedof_cal_t cal;
+  uint8_t slot, used;
+  uint16_t gen;
+
+  memset(eeprom, 0xFF, sizeof(eeprom));                      /* erased EEPROM */
+  used = boot(&r2, &slot, &gen);
+  CHECK(used == 0xFF && slot == 0 && gen == 1);
+  ninedof_eewriter_init(&ew, slot, gen);
+  CHECK(ninedof_eewriter_poll(&ew, &rx));          /* rx is dirty since the upload */
+  CHECK(!rx.dirty);
+  CHECK(ee_run(1000) == NINEDOF_IMAGE_SIZE && !ninedof_eewriter_busy(&ew));
+  used = boot(&r2, &slot, &gen);
+  CHECK(used == 0 && slot == 1 && gen == 2 && r2.active.version == 0x25);
+  CHECK(r2.active_crc == rx.active_crc);
+
+  /* a second set goes to slot 1; power cut half-way keeps the first set */
+  ninedof_cal_identity(&cal, 3, 0x26);
+  cal.sensors = 1u << NINEDOF_SENSOR_GYRO;
+  upload(&cal);
+  CHECK(ninedof_eewriter_poll(&ew, &rx));
+  CHECK(ee_run(50) == 50 && ninedof_eewriter_busy(&ew));
+  used = boot(&r2, &slot, &gen);
+  CHECK(used == 0 && r2.active.version == 0x25 && slot == 1 && gen == 2);
+
+  /* a newer commit during the write restarts it in the same slot */
+  cal.version = 0x27;
+  upload(&cal);
+  CHECK(ninedof_eewriter_poll(&ew, &rx));
+  CHECK(ee_run(1000) == NINEDOF_IMAGE_SIZE);
+  used = boot(&r2, &slot, &gen);
+  CHECK(used == 1 && r2.active.version == 0x27 && slot == 0 && gen == 3);
+  CHECK(ninedof_calrx_flags(&r2) == (0x70 | NINEDOF_FLAG_CORRECTED));
+
+  /* nothing to do when nothing changed */
+  CHECK(!ninedof_eewriter_poll(&ew, &rx) && ee_run(1000) == 0);
+  out_c('D');
+  out_hex(eeprom + NINEDOF_EEPROM_SLOT0, 2 * 0x80);
+  out_c(';');
+}
+
+int main(void)
+{
+  out_init();
+  test_board();
+  test_period();
+  test_batching();
+  test_status();
+  test_eeprom();
+  out_s("CHECKS ");
+  out_u16(checks);
+  out_s(" FAILED ");
+  out_u16(failed);
+  out_s(" END\n");
+  out_end();
+  return failed != 0;
+}

@@ -1,0 +1,113 @@
+/*
+ * ninedof_board.c -- register settings and data conversion of the 9DOF board
+ * (see ninedof_board.h).  Every configuration value lives here, once.
+ *
+ * Sampling is 125 Hz, every 8 ms, all three chips read at the same instant:
+ *  - ADXL345: full resolution (3.9 mg/LSB = 256 LSB/g at any range), +-16 g,
+ *    output data rate 200 Hz, the lowest above 125 Hz (bandwidth 100 Hz), so
+ *    every read finds a sample at most 5 ms old.
+ *  - ITG-3200: FS_SEL = 3 (+-2000 deg/s, 14.375 LSB/(deg/s)), digital low-pass
+ *    42 Hz (below the 62.5 Hz Nyquist limit of 125 Hz sampling) with its 1 kHz
+ *    internal rate, sample-rate divider 3 -> 250 Hz output, samples <= 4 ms old.
+ *  - HMC5883L: single-measurement mode, triggered right after each read so
+ *    the measurement (<= 6 ms at one sample per output) is finished before
+ *    the next read 8 ms later.  Continuous mode tops out at 75 Hz and would
+ *    repeat stale samples at 125 Hz.  Gain 1090 LSB/gauss (+-1.3 Ga).
+ */
+#include "ninedof_board.h"
+
+const ninedof_reg_write_t NINEDOF_ADXL345_CONFIG[NINEDOF_ADXL345_CONFIG_LEN] = {
+  /* DATA_FORMAT: SELF_TEST=0, SPI=0 (4-wire, unused on I2C), INT_INVERT=0,
+   * FULL_RES=1 (10..13 bits, 3.9 mg/LSB), Justify=0 (right, sign-extended),
+   * Range=11 (+-16 g) */
+  { ADXL345_DATA_FORMAT, 0x0B },
+  /* BW_RATE: LOW_POWER=0 (normal operation), Rate=1011 (200 Hz output data
+   * rate, 100 Hz bandwidth) */
+  { ADXL345_BW_RATE, 0x0B },
+  /* FIFO_CTL: FIFO_MODE=00 (bypass: data registers hold the newest sample) */
+  { ADXL345_FIFO_CTL, 0x00 },
+  /* POWER_CTL: Link=0, AUTO_SLEEP=0, Measure=1 (leave standby), Sleep=0,
+   * Wakeup=00; written last, as the datasheet advises configuring in standby */
+  { ADXL345_POWER_CTL, 0x08 },
+};
+
+const ninedof_reg_write_t NINEDOF_ITG3200_CONFIG[NINEDOF_ITG3200_CONFIG_LEN] = {
+  /* PWR_MGM: H_RESET=0, SLEEP=0, STBY_XG/YG/ZG=0 (all axes on),
+   * CLK_SEL=001 (PLL with X gyro reference, recommended for stability) */
+  { ITG3200_PWR_MGM, 0x01 },
+  /* SMPLRT_DIV: F_sample = F_internal / (SMPLRT_DIV + 1) = 1 kHz / 4 = 250 Hz */
+  { ITG3200_SMPLRT_DIV, 0x03 },
+  /* DLPF_FS: FS_SEL=11 (+-2000 deg/s; the only valid setting),
+   * DLPF_CFG=011 (42 Hz low-pass, 1 kHz internal sample rate) */
+  { ITG3200_DLPF_FS, (3 << 3) | 3 },
+  /* INT_CFG: no interrupt output (the mote polls on its own 125 Hz clock) */
+  { ITG3200_INT_CFG, 0x00 },
+};
+
+const ninedof_reg_write_t NINEDOF_HMC5883L_CONFIG[NINEDOF_HMC5883L_CONFIG_LEN] = {
+  /* CRA: CRA7=0 (reserved), MA=00 (1 sample per output: shortest single
+   * measurement, 160 Hz possible), DO=110 (75 Hz; applies to continuous mode
+   * only), MS=00 (normal measurement, no bias) */
+  { HMC5883L_CRA, (0 << 5) | (6 << 2) | 0 },
+  /* CRB: GN=001 (+-1.3 Ga, 1090 LSB/gauss), low bits must be 0 */
+  { HMC5883L_CRB, 1 << 5 },
+  /* MODE: HS=0 (no 3.4 MHz I2C), MD=01 (single measurement: starts the first) */
+  { HMC5883L_MODE, 0x01 },
+};
+
+/* MODE register (0x02) = MD 01: one single measurement */
+const uint8_t NINEDOF_HMC5883L_TRIGGER[2] = { HMC5883L_MODE, 0x01 };
+
+uint8_t ninedof_adxl345_id_ok(uint8_t devid)
+{
+  return devid == ADXL345_DEVID_VALUE;
+}
+
+uint8_t ninedof_itg3200_id_ok(uint8_t who_am_i)
+{
+  return (who_am_i & ITG3200_WHO_AM_I_MASK) == ITG3200_WHO_AM_I_VALUE;
+}
+
+uint8_t ninedof_hmc5883l_id_ok(const uint8_t id[3])
+{
+  return id[0] == 'H' && id[1] == '4' && id[2] == '3';
+}
+
+static int16_t le16(const uint8_t *b)
+{
+  return (int16_t)(uint16_t)((uint16_t)b[0] | ((uint16_t)b[1] << 8));
+}
+
+static int16_t be16(const uint8_t *b)
+{
+  return (int16_t)(uint16_t)(((uint16_t)b[0] << 8) | b[1]);
+}
+
+void ninedof_adxl345_xyz(const uint8_t b[6], int16_t out[3])
+{
+  out[0] = le16(b);
+  out[1] = le16(b + 2);
+  out[2] = le16(b + 4);
+}
+
+void ninedof_itg3200_xyz(const uint8_t b[6], int16_t out[3])
+{
+  out[0] = be16(b);
+  out[1] = be16(b + 2);
+  out[2] = be16(b + 4);
+}
+
+void ninedof_hmc5883l_xyz(const uint8_t b[6], int16_t out[3])
+{
+  out[0] = be16(b);        /* 0x03, 0x04: X */
+  out[2] = be16(b + 2);    /* 0x05, 0x06: Z */
+  out[1] = be16(b + 4);    /* 0x07, 0x08: Y */
+}
+
+void ninedof_board_record(const uint8_t acc[6], const uint8_t gyro[6],
+                          const uint8_t mag[6], int16_t rec[9])
+{
+  ninedof_adxl345_xyz(acc, rec);
+  ninedof_itg3200_xyz(gyro, rec + 3);
+  ninedof_hmc5883l_xyz(mag, rec + 6);
+}

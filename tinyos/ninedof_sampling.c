@@ -1,0 +1,118 @@
+/*
+ * ninedof_sampling.c -- see ninedof_sampling.h.
+ */
+#include <string.h>
+#include "ninedof_sampling.h"
+
+/* the alarm rate must be a whole multiple of the sample rate (no drift) */
+typedef char ninedof_period_is_exact[(NINEDOF_ALARM_HZ % NINEDOF_RATE_HZ) == 0 ? 1 : -1];
+
+uint16_t ninedof_periods_between(uint32_t from, uint32_t to)
+{
+  uint32_t d = (to - from) / NINEDOF_PERIOD_TICKS;     /* unsigned: wrap-safe */
+  return d > 0xFFFFu ? 0xFFFFu : (uint16_t)d;
+}
+
+void ninedof_counters_init(ninedof_counters_t *c)
+{
+  memset(c, 0, sizeof(*c));
+}
+
+void ninedof_status_pack(const ninedof_counters_t *c, const ninedof_calrx_t *rx,
+                         ninedof_mote_status_msg_t *msg)
+{
+  nxp_set_u16(&msg->seq, c->seq);
+  nxp_set_u16(&msg->version, rx->active.version);
+  nxp_set_u8(&msg->sensors, rx->active.sensors);
+  nxp_set_u8(&msg->reserved, 0);
+  nxp_set_u16(&msg->dropped, c->dropped);
+  nxp_set_u16(&msg->send_fail, c->send_fail);
+  nxp_set_u16(&msg->i2c_errors, c->i2c_errors);
+  nxp_set_u16(&msg->late, c->late);
+}
+
+void ninedof_batch_init(ninedof_batch_t *b)
+{
+  b->seq = 0;
+  b->count = 0;
+}
+
+uint8_t ninedof_batch_fits(const ninedof_batch_t *b, uint16_t seq)
+{
+  if (b->count == 0)
+    return 1;
+  return b->count < NINEDOF_BATCH && (uint16_t)(b->seq + b->count) == seq;
+}
+
+uint8_t ninedof_batch_add(ninedof_batch_t *b, uint16_t seq, const int16_t rec[9])
+{
+  if (b->count == 0)
+    b->seq = seq;
+  memcpy(b->rec[b->count], rec, sizeof(b->rec[0]));
+  b->count++;
+  return b->count >= NINEDOF_BATCH;
+}
+
+uint8_t ninedof_batch_pack(ninedof_batch_t *b, const ninedof_calrx_t *rx,
+                           ninedof_samples_msg_t *msg)
+{
+  uint8_t i, k, n = b->count;
+
+  if (n == 0)
+    return 0;
+  ninedof_calrx_correct_block(rx, &b->rec[0][0], &b->rec[0][0], n);
+  nxp_set_u16(&msg->seq, b->seq);
+  nxp_set_u8(&msg->flags, ninedof_calrx_flags(rx));
+  nxp_set_u8(&msg->count, n);
+  for (i = 0; i < n; i++) {
+    nx_int16_t *dst = &msg->rec[i].ax;
+    for (k = 0; k < 9; k++)
+      nxp_set_i16(&dst[k], b->rec[i][k]);
+  }
+  b->count = 0;
+  return (uint8_t)(sizeof(msg->seq) + sizeof(msg->flags) + sizeof(msg->count) +
+                   n * sizeof(ninedof_record_t));
+}
+
+uint16_t ninedof_slot_addr(uint8_t slot)
+{
+  return slot ? NINEDOF_EEPROM_SLOT1 : NINEDOF_EEPROM_SLOT0;
+}
+
+void ninedof_eewriter_init(ninedof_eewriter_t *w, uint8_t next_slot,
+                           uint16_t next_generation)
+{
+  w->pos = NINEDOF_IMAGE_SIZE;
+  w->slot = next_slot & 1;
+  w->generation = next_generation;
+}
+
+uint8_t ninedof_eewriter_busy(const ninedof_eewriter_t *w)
+{
+  return w->pos < NINEDOF_IMAGE_SIZE;
+}
+
+uint8_t ninedof_eewriter_poll(ninedof_eewriter_t *w, ninedof_calrx_t *rx)
+{
+  if (!rx->dirty)
+    return 0;
+  /* restart (same slot, same generation) if a write was in progress */
+  ninedof_calrx_image(rx, w->generation, w->image);
+  rx->dirty = 0;
+  w->pos = 0;
+  return 1;
+}
+
+uint8_t ninedof_eewriter_next(ninedof_eewriter_t *w, uint16_t *addr, uint8_t *value)
+{
+  if (w->pos >= NINEDOF_IMAGE_SIZE)
+    return 0;
+  *addr = (uint16_t)(ninedof_slot_addr(w->slot) + w->pos);
+  *value = w->image[w->pos];
+  w->pos++;
+  if (w->pos == NINEDOF_IMAGE_SIZE) {     /* image complete */
+    w->slot ^= 1;
+    w->generation++;
+  }
+  return 1;
+}

@@ -1,0 +1,107 @@
+/*
+ * ninedof_sampling.h -- the sampling app's logic in plain C: the 125 Hz
+ * period, sequence numbers, batching records into ninedof_samples_msg,
+ * status counters, and the background EEPROM writer of the calibration
+ * image.  NineDofAppP.nc (nesC) only wires these to timers, the radio and
+ * the EEPROM; tests run them with gcc and in simavr.
+ */
+#ifndef NINEDOF_SAMPLING_H
+#define NINEDOF_SAMPLING_H
+
+#include <stdint.h>
+#include "NineDofMsg.h"
+#include "ninedof_cal.h"
+
+/* ---------------------------------------------------------------------- */
+/* Period                                                                  */
+/* ---------------------------------------------------------------------- */
+/* On iris the "32 kHz" alarms (Alarm32khz32C) count CPU clock / 256 =
+ * 31250 Hz, so one period is exactly 250 ticks = 8 ms (125.000 Hz).  A
+ * Timer<TMilli> of 8 would give 1024/8 = 128 Hz (binary milliseconds). */
+#ifndef NINEDOF_ALARM_HZ
+#define NINEDOF_ALARM_HZ 31250UL
+#endif
+#define NINEDOF_PERIOD_TICKS ((uint16_t)(NINEDOF_ALARM_HZ / NINEDOF_RATE_HZ))
+
+/* Whole periods between two alarm times (wrap-safe, 32-bit ticks) */
+uint16_t ninedof_periods_between(uint32_t from, uint32_t to);
+
+/* ---------------------------------------------------------------------- */
+/* Counters (wrap at 65536; the host takes differences)                    */
+/* ---------------------------------------------------------------------- */
+typedef struct {
+  uint16_t seq;          /* sequence number of the next period */
+  uint16_t dropped;      /* samples lost because the send queue was full */
+  uint16_t send_fail;    /* radio sends that failed (no ack after retries / busy) */
+  uint16_t i2c_errors;   /* sensor reads that failed */
+  uint16_t late;         /* periods skipped: the previous read was still running */
+} ninedof_counters_t;
+
+void ninedof_counters_init(ninedof_counters_t *c);
+
+/* Fill a ninedof_mote_status_msg from the counters and the set in force. */
+void ninedof_status_pack(const ninedof_counters_t *c, const ninedof_calrx_t *rx,
+                         ninedof_mote_status_msg_t *msg);
+
+/* ---------------------------------------------------------------------- */
+/* Batching                                                                */
+/* ---------------------------------------------------------------------- */
+/* Records of consecutive periods, kept raw in host order; corrected and
+ * packed when the batch is sent, so one calibration set and one flags byte
+ * cover the whole message. */
+typedef struct {
+  uint16_t seq;                          /* sequence number of rec[0] */
+  uint8_t count;
+  int16_t rec[NINEDOF_BATCH][9];
+} ninedof_batch_t;
+
+void ninedof_batch_init(ninedof_batch_t *b);
+
+/* Can a record of period `seq` join the batch?  No if it is full or the
+ * record does not follow the last one (a period was skipped or failed):
+ * only rec[0]'s sequence number travels, so records must be consecutive. */
+uint8_t ninedof_batch_fits(const ninedof_batch_t *b, uint16_t seq);
+
+/* Append (the caller checked ninedof_batch_fits); returns 1 when full. */
+uint8_t ninedof_batch_add(ninedof_batch_t *b, uint16_t seq, const int16_t rec[9]);
+
+/* Correct the records with the set in force, write the message, empty the
+ * batch; returns the payload length (4 + 18 * count), 0 if it was empty. */
+uint8_t ninedof_batch_pack(ninedof_batch_t *b, const ninedof_calrx_t *rx,
+                           ninedof_samples_msg_t *msg);
+
+/* ---------------------------------------------------------------------- */
+/* Background EEPROM writer                                                */
+/* ---------------------------------------------------------------------- */
+/* Writes the image of the set in force into the slot that does not hold
+ * the newest valid image, one byte per step (an EEPROM byte write takes
+ * 3.4 ms; sampling goes on meanwhile).  A reset or power loss in the middle
+ * leaves a slot with a bad CRC, and boot falls back to the other slot.  A
+ * commit during a write restarts the write of the newer image into the same
+ * slot. */
+typedef struct {
+  uint8_t image[NINEDOF_IMAGE_SIZE];
+  uint8_t pos;                 /* next byte; == NINEDOF_IMAGE_SIZE when idle */
+  uint8_t slot;                /* slot being written / to write next */
+  uint16_t generation;         /* generation being written / to write next */
+} ninedof_eewriter_t;
+
+/* After ninedof_calrx_restore(): where to write next. */
+void ninedof_eewriter_init(ninedof_eewriter_t *w, uint8_t next_slot,
+                           uint16_t next_generation);
+
+/* If rx->dirty, snapshot its image, clear dirty and (re)start writing.
+ * Returns 1 if a write was started. */
+uint8_t ninedof_eewriter_poll(ninedof_eewriter_t *w, ninedof_calrx_t *rx);
+
+/* The next byte to write: 1 and its EEPROM address and value, or 0 when
+ * nothing is left.  Handing out the last byte completes the image: the
+ * following write goes to the other slot with the next generation. */
+uint8_t ninedof_eewriter_next(ninedof_eewriter_t *w, uint16_t *addr, uint8_t *value);
+
+uint8_t ninedof_eewriter_busy(const ninedof_eewriter_t *w);
+
+/* EEPROM address of a slot */
+uint16_t ninedof_slot_addr(uint8_t slot);
+
+#endif /* NINEDOF_SAMPLING_H */

@@ -69,33 +69,56 @@ def test_batch_decoding_equals_decode_message():
 # --------------------------------------------------------------------------
 def _accept(link, seqs, count=5):
     seqs = np.asarray(seqs) % 65536
-    u, keep = link.accept(seqs, np.full(len(seqs), count))
-    return u.tolist(), keep
+    u, keep, released = link.accept(seqs, np.full(len(seqs), count), lambda i: ("msg", i))
+    return u.tolist(), keep, [r[0] for r in released]
 
 
 def test_wrap_gap_duplicate_reorder_restart():
     link = MoteLink(1)
-    u, keep = _accept(link, [65525, 65530, 65535, 4, 9])          # wraps at 65536
-    assert u == [65525, 65530, 65535, 65540, 65545] and keep is None
-    u, keep = _accept(link, [24, 29])                              # 14, 19 lost
-    assert u == [65560, 65565] and link.c["lost"] == 10 and keep is None
-    u, keep = _accept(link, [19, 14, 24])       # late ones fill the gap; 24 is a duplicate
+    u, keep, rel = _accept(link, [65525, 65530, 65535, 4, 9])     # wraps at 65536
+    assert u == [65525, 65530, 65535, 65540, 65545]
+    # the first frame is held until the second confirms it, then released
+    assert keep.tolist() == [False] * 5 + [True] * 20 and rel == [65525]
+    assert link.c["samples"] == 25 and link.c["first_seq"] == 65525
+    u, keep, rel = _accept(link, [24, 29])                         # 14, 19 lost
+    assert u == [65560, 65565] and link.c["lost"] == 10 and keep is None and rel == []
+    u, keep, _ = _accept(link, [19, 14, 24])    # late ones fill the gap; 24 is a duplicate
     assert u == [65555, 65550, 65560]
     assert keep.tolist() == [True] * 10 + [False] * 5
     assert (link.c["lost"], link.c["reordered"], link.c["duplicates"]) == (0, 10, 5)
     assert link.c["samples"] == 25 + 10 + 10 and link.c["last_seq"] == 65569
-    assert link.c["first_seq"] == 65525 and link.c["frames"] == 10
-    # a mote that reboots starts again from 0: its numbering is continued
+    assert link.c["frames"] == 10
+
+
+def test_implausible_frames_wait_for_confirmation():
     link = MoteLink(2)
-    _accept(link, [30000, 30005])
-    u, keep = _accept(link, [0, 5])
-    assert u == [30010, 30015] and link.c["restarts"] == 1 and keep.all()
-    u, _ = _accept(link, [10, 15])
-    assert u == [30020, 30025] and link.c["lost"] == 0 and link.c["samples"] == 30
+    _accept(link, [30000, 30005, 30010])
+    # a frame far ahead (CRC-16 let a corrupted one through), then the stream goes on
+    u, keep, rel = _accept(link, [50000, 30015, 30020])
+    assert keep.tolist() == [False] * 5 + [True] * 10 and rel == []
+    assert link.c["rejected"] == 1 and link.c["lost"] == 0 and link.end == 30025
+    # a real outage of 20 s: the frame after the jump confirms it
+    u, keep, rel = _accept(link, [32525, 32530])
+    assert keep.tolist() == [False] * 5 + [True] * 5 and rel == [32525]
+    assert link.c["lost"] == 2500 and link.end == 32535
+    # a mote that reboots starts again from 0: its numbering is continued
+    u, keep, rel = _accept(link, [0, 5, 10])
+    assert rel == [32535] and keep.tolist() == [False] * 5 + [True] * 10
+    assert link.c["restarts"] == 1 and link.end == 32550 and link.c["lost"] == 2500
+    u, keep, rel = _accept(link, [15])
+    assert u == [32550] and keep is None
+
+
+def test_a_mote_seen_once_is_not_a_mote():
+    tr = LinkTracker()
+    frames, _ = sample_frames({7: np.ones((5, 9), np.int16)})
+    rows = tr.samples(decode_sample_frames(_frames(b"".join(frames)))[0])
+    assert len(rows) == 0 and tr.seen() == {}
 
 
 def test_tracker_continues_an_appended_session():
     tr = LinkTracker(link={2: {"samples": 100, "lost": 3}}, last_seqs={2: 70004})
+    assert tr.seen().keys() == {2}
     frames, _ = sample_frames({2: np.zeros((10, 9), np.int16)}, seq0={2: 70005 % 65536})
     rows = tr.samples(decode_sample_frames(_frames(b"".join(frames)))[0])
     assert rows.seq.tolist() == list(range(70005, 70015))

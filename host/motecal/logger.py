@@ -41,7 +41,9 @@ _SH = P.SAMPLES_HEADER.size                   # 4: seq(2) flags(1) count(1)
 _REC = P.NINEDOF_RECORD_SIZE                  # 18
 _REC_BYTES = np.arange(_REC)
 
-REORDER_WINDOW = 2048        # a sequence number further back than this: mote restarted
+REORDER_WINDOW = 2048        # samples back: further is a restart (or corruption)
+MAX_JUMP = 1000              # samples ahead (8 s): further is held until confirmed
+CONFIRM_GAP = 64             # the next frame may follow a suspect one this far on
 DRAIN_IDLE_S = 0.3           # after a guided flow is done: stop once the line is this quiet
 DRAIN_MAX_S = 3.0
 BACKOFF_MIN_S, BACKOFF_MAX_S = 0.1, 2.0
@@ -118,9 +120,15 @@ class MoteLink:
     Sequence numbers are unwrapped (continued past 65535) so that ordering
     survives the wrap.  ``end`` is one past the highest record seen; records
     beyond it leave a hole (lost); a late record inside a hole fills it
-    (reordered, no longer lost); one seen before is a duplicate (dropped);
-    one more than ``REORDER_WINDOW`` behind means the mote restarted: its
-    numbering is continued after ``end``.
+    (reordered, no longer lost); one seen before is a duplicate (dropped).
+
+    A frame that does not fit -- a mote's first frame, a jump of more than
+    ``MAX_JUMP`` samples ahead, or more than ``REORDER_WINDOW`` back -- is held
+    as *suspect* until the mote's next frame: if that one continues it, the
+    suspect is released (a long gap, or a mote that restarted, whose numbering
+    is then continued after ``end``); otherwise it is rejected.  A frame
+    corrupted in a way CRC-16 missed (1 in 65536) then cannot derail the
+    numbering or invent a mote.
     """
 
     def __init__(self, mote: int, counters: dict | None = None, last_seq: int | None = None):
@@ -128,11 +136,13 @@ class MoteLink:
         self.c = {k: 0 for k in LINK_COUNTERS}
         self.c.update(counters or {})
         self.last16 = None
+        self.last_u = self.end = 0
         if last_seq is not None:
             self.last16 = last_seq & 0xFFFF
             self.last_u = last_seq
             self.end = last_seq + 1
         self.holes: list[list[int]] = []        # [lo, hi) ranges not received
+        self.suspect = None                     # (u, count, seq16, payload)
 
     def _gap(self, lo: int, hi: int):
         self.c["lost"] += hi - lo
@@ -142,60 +152,85 @@ class MoteLink:
         if self.holes and self.holes[0][1] < self.end - REORDER_WINDOW:
             self.holes = [h for h in self.holes if h[1] >= self.end - REORDER_WINDOW]
 
-    def accept(self, seq16: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-        """Unwrapped first sequence number per message, and a keep-mask over the
-        messages' records (None: keep all)."""
+    def accept(self, seq16: np.ndarray, count: np.ndarray, payload=None):
+        """Per message: unwrapped first sequence number; per record of these
+        messages: keep or not (None: keep all); and the suspect frames released
+        now, as ``[(u, payload(i))]`` (``payload(i)`` is asked for when message
+        i becomes suspect)."""
         seq16 = np.asarray(seq16, np.int64)
         count = np.asarray(count, np.int64)
         self.c["frames"] += len(seq16)
-        if self.last16 is None:
-            self.last16 = int(seq16[0])
-            self.last_u = int(seq16[0])
-            self.end = int(seq16[0])
-            self.c["first_seq"] = self.end
-        prev = np.concatenate([[self.last16], seq16[:-1]])
-        u = self.last_u + np.cumsum(_wrapdiff(seq16, prev))
-        ends = u + count
-        prev_end = np.maximum.accumulate(np.concatenate([[self.end], ends[:-1]]))
-        if (u >= prev_end).all():                        # in order, perhaps with gaps
-            for i in np.flatnonzero(u > prev_end):
-                self._gap(int(prev_end[i]), int(u[i]))
-            self.end = int(max(prev_end[-1], ends[-1]))
-            self.last16, self.last_u = int(seq16[-1]), int(u[-1])
-            self.c["samples"] += int(count.sum())
-            self.c["last_seq"] = self.end - 1
-            self._prune()
-            return u, None
-        return self._accept_slow(seq16, count)
+        if self.last16 is not None and self.suspect is None:
+            prev = np.concatenate([[self.last16], seq16[:-1]])
+            u = self.last_u + np.cumsum(_wrapdiff(seq16, prev))
+            ends = u + count
+            prev_end = np.maximum.accumulate(np.concatenate([[self.end], ends[:-1]]))
+            jump = u - prev_end
+            if ((jump >= 0) & (jump <= MAX_JUMP)).all():    # in order, perhaps with gaps
+                for i in np.flatnonzero(jump > 0):
+                    self._gap(int(prev_end[i]), int(u[i]))
+                self.end = int(max(prev_end[-1], ends[-1]))
+                self.last16, self.last_u = int(seq16[-1]), int(u[-1])
+                self.c["samples"] += int(count.sum())
+                self.c["last_seq"] = self.end - 1
+                self._prune()
+                return u, None, []
+        return self._accept_slow(seq16, count, payload)
 
-    def _accept_slow(self, seq16, count):
+    def _take(self, u: int, c: int, s16: int, keep: list) -> None:
+        """Records u..u+c-1 of a frame that fits (after any suspect decision)."""
+        self.last16, self.last_u = s16, u
+        for r in range(u, u + c):
+            if r >= self.end:
+                if r > self.end:
+                    self._gap(self.end, r)
+                self.end = r + 1
+                keep.append(True)
+            elif self._fill(r):
+                self.c["reordered"] += 1
+                self.c["lost"] -= 1
+                keep.append(True)
+            else:
+                self.c["duplicates"] += 1
+                keep.append(False)
+
+    def _accept_slow(self, seq16, count, payload):
         us = np.empty(len(seq16), np.int64)
-        keep = []
+        keep: list[bool] = []
+        released = []
         for i, (s, c) in enumerate(zip(seq16.tolist(), count.tolist())):
-            u = self.last_u + int(_wrapdiff(s, self.last16))
-            if u < self.end - REORDER_WINDOW:              # numbering started again
-                self.c["restarts"] += 1
-                u = self.end
-            self.last16, self.last_u = s, u
-            us[i] = u
-            for r in range(u, u + c):
-                if r >= self.end:
-                    if r > self.end:
-                        self._gap(self.end, r)
-                    self.end = r + 1
-                    keep.append(True)
-                elif self._fill(r):
-                    self.c["reordered"] += 1
-                    self.c["lost"] -= 1
-                    keep.append(True)
+            if self.suspect is not None:
+                su, sc, s16, data = self.suspect
+                self.suspect = None
+                if 0 <= _wrapdiff(s, s16) - sc <= CONFIRM_GAP:      # it continues the suspect
+                    if self.last16 is None:                         # a new mote's first frame
+                        self.end = su
+                        self.c["first_seq"] = su
+                    elif su < self.end - REORDER_WINDOW:            # numbering started again
+                        self.c["restarts"] += 1
+                        su = self.end
+                    k0 = len(keep)
+                    self._take(su, sc, s16, keep)
+                    self.c["samples"] += sum(keep[k0:])
+                    del keep[k0:]
+                    released.append((su, data))
                 else:
-                    self.c["duplicates"] += 1
-                    keep.append(False)
-        keep = np.array(keep, bool)
-        self.c["samples"] += int(keep.sum())
-        self.c["last_seq"] = self.end - 1
+                    self.c["rejected"] += 1
+            if self.last16 is None:
+                u = s
+            else:
+                u = self.last_u + int(_wrapdiff(s, self.last16))
+            us[i] = u
+            if self.last16 is None or u - self.end > MAX_JUMP or u < self.end - REORDER_WINDOW:
+                self.suspect = (u, c, s, payload(i) if payload is not None else None)
+                keep.extend([False] * c)
+                continue
+            k0 = len(keep)
+            self._take(u, c, s, keep)
+            self.c["samples"] += sum(keep[k0:])
+        self.c["last_seq"] = max(self.end - 1, 0)
         self._prune()
-        return us, keep
+        return us, np.array(keep, bool), released
 
     def _fill(self, r: int) -> bool:
         for k, (lo, hi) in enumerate(self.holes):
@@ -204,6 +239,11 @@ class MoteLink:
                 self.holes[k:k + 1] = parts
                 return True
         return False
+
+    @property
+    def seen(self) -> bool:
+        """Anything of this mote was accepted (not only suspect frames)."""
+        return self.c["samples"] > 0 or self.c["status_msgs"] > 0
 
     def status(self, msg: dict) -> None:
         c = self.c
@@ -244,6 +284,10 @@ class LinkTracker:
         # decoder counters of the sources closed so far (and of earlier runs)
         self._dec_base = {k: self.line[k] for k in P.DecoderStats().as_dict()}
 
+    def seen(self) -> dict[int, MoteLink]:
+        """Motes with accepted samples or status (not only rejected frames)."""
+        return {m: self.motes[m] for m in sorted(self.motes) if self.motes[m].seen}
+
     def mote(self, m: int) -> MoteLink:
         link = self.motes.get(m)
         if link is None:
@@ -258,27 +302,31 @@ class LinkTracker:
                         np.zeros((0, 9), np.int16))
         u_msg = np.empty(len(b), np.int64)
         keep = np.ones(n, bool)
+        extra: list[Rows] = []
         if (b.src == b.src[0]).all():
-            groups = [(int(b.src[0]), None)]
+            groups = [(int(b.src[0]), np.arange(len(b)))]
         else:
             groups = [(int(m), np.flatnonzero(b.src == m)) for m in np.unique(b.src)]
         for m, mi in groups:
-            seq16 = b.seq if mi is None else b.seq[mi]
-            cnt = b.count if mi is None else b.count[mi]
-            u, k = self.mote(m).accept(seq16, cnt)
-            if mi is None:
-                u_msg[:] = u
-                if k is not None:
-                    keep = k
-            else:
-                u_msg[mi] = u
-                if k is not None:
-                    recs = np.flatnonzero(np.isin(b.rec_msg, mi))   # arrival order of m's records
-                    keep[recs] = k
+            def payload(i, mi=mi):                  # a message held as suspect
+                j = int(mi[i])
+                sel = b.rec_msg == j
+                return int(b.flags[j]), b.records[sel].copy()
+            u, k, released = self.mote(m).accept(b.seq[mi], b.count[mi], payload)
+            u_msg[mi] = u
+            if k is not None:
+                keep[np.isin(b.rec_msg, mi)] = k    # m's records, in arrival order
+            for u0, (flags, rec) in released:
+                r = len(rec)
+                extra.append(Rows(np.full(r, m), u0 + np.arange(r), np.full(r, flags), rec))
         seq = u_msg[b.rec_msg] + b.rec_index
         rows = Rows(b.src[b.rec_msg], seq, b.flags[b.rec_msg], b.records)
         if not keep.all():
             rows = Rows(rows.mote[keep], rows.seq[keep], rows.flags[keep], rows.raw[keep])
+        if extra:
+            extra.append(rows)
+            rows = Rows(*(np.concatenate([getattr(x, f) for x in extra])
+                          for f in ("mote", "seq", "flags", "raw")))
         return rows
 
     def other(self, frames: list[P.Frame]) -> None:
@@ -372,12 +420,16 @@ class Logger:
                 try:
                     frames = src.read()
                 except S.SourceEnded:
+                    self.handle(src.flush())
                     self.request_stop("end of input")
                     break
                 except S.SourceLost as e:
+                    self.handle(src.flush())
                     self.tracker.decoder(src.stats, closed=True)
                     src.close()
                     src = None
+                    if self.stop_event.is_set():
+                        break
                     if drain_since is not None:
                         self.request_stop("port closed after the guided flow")
                         break
@@ -400,6 +452,7 @@ class Logger:
                         self.request_stop("guided flow done")
         finally:
             if src is not None:
+                self.handle(src.flush())
                 self.tracker.decoder(src.stats, closed=True)
                 src.close()
             self.connected = False
@@ -408,6 +461,8 @@ class Logger:
             self.display.stop(self)
 
     def handle(self, frames: list[P.Frame]) -> None:
+        if not frames:
+            return
         batch, others = decode_sample_frames(frames)
         if others:
             self.tracker.other(others)
@@ -426,7 +481,7 @@ class Logger:
                 self.display.event(ev.text)
 
     def commit(self) -> None:
-        for m, link in self.tracker.motes.items():
+        for m, link in self.tracker.seen().items():
             self.writer.set_link_stats(m, link.c)
         self.writer.set_line_stats(self.tracker.line)
         self.writer.commit()
@@ -461,11 +516,12 @@ class Logger:
     def summary_lines(self) -> list[str]:
         w, tr = self.writer, self.tracker
         out = []
-        total = sum(m.c["samples"] for m in tr.motes.values())
-        out.append(f"session {w.name}: {total} samples from {len(tr.motes)} mote(s) "
+        motes = tr.seen()
+        total = sum(m.c["samples"] for m in motes.values())
+        out.append(f"session {w.name}: {total} samples from {len(motes)} mote(s) "
                    f"in {self.elapsed:.1f} s ({self.stop_reason or 'running'})")
-        for m in sorted(tr.motes):
-            c = tr.motes[m].c
+        for m, link in motes.items():
+            c = link.c
             line = (f"  mote {m}: {c['samples']} samples, lost {c['lost']}, "
                     f"duplicates {c['duplicates']}, reordered {c['reordered']}")
             cap = self.guide.captures.get(m) if self.guide else None
@@ -593,8 +649,8 @@ class RichDisplay(NullDisplay):
         table = Table(box=None, pad_edge=False)
         for col in ("mote", "samples", "rate/s", "lost", "dup", "reord", "status"):
             table.add_column(col, justify="right")
-        for m in sorted(tr.motes):
-            c = tr.motes[m].c
+        for m, link in tr.seen().items():
+            c = link.c
             table.add_row(str(m), str(c["samples"]), f"{self._rate(m, c['samples']):.0f}",
                           str(c["lost"]), str(c["duplicates"]), str(c["reordered"]),
                           f"drop {c['mote_dropped']} late {c['mote_late']}")

@@ -150,6 +150,12 @@ class Source:
     def read(self) -> list[P.Frame]:         # pragma: no cover - interface
         raise NotImplementedError
 
+    def flush(self) -> list[P.Frame]:
+        """The stream ended (closed, lost): a frame cut off is counted, not kept
+        (a complete one whose closing flag never came is returned)."""
+        decoder = getattr(self, "decoder", None)
+        return decoder.feed(b"\x7e") if decoder is not None else []
+
     def send(self, am: P.AMPacket, ack_seq: int | None = None) -> None:  # pragma: no cover
         raise NotImplementedError
 
@@ -289,6 +295,12 @@ class SFSource(Source):
         del buf[:pos]
         self.stats.frames += len(out)
         return out
+
+    def flush(self) -> list[P.Frame]:
+        if self._buf:
+            self.stats.bad_frames += 1
+            self._buf.clear()
+        return []
 
     def send(self, am: P.AMPacket, ack_seq: int | None = None) -> None:
         body = bytes((P.DISPATCH_AM,)) + P.AM_HEADER.pack(

@@ -46,6 +46,7 @@ LINK_COUNTERS = {
     "duplicates": "records received again (dropped)",
     "reordered": "records that arrived late and filled a gap",
     "restarts": "sequence number jumped back: mote restarted",
+    "rejected": "frames rejected: sequence number implausible, not confirmed",
     "first_seq": "first unwrapped sequence number",
     "last_seq": "last unwrapped sequence number",
     "status_msgs": "mote status messages received",

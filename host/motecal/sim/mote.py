@@ -5,10 +5,10 @@
   first period.  Sample ``k`` is taken at true time ``t0 + k / (rate * (1 + ppm
   1e-6))`` and gets sequence number ``k mod 65536``.
 * Batching: ``batch`` records per ninedof_samples_msg (``seq`` = first
-  record's); at the end of the session the partial batch is sent.  A commit
-  message closes the batch being filled (its records were corrected with the
-  set in force when they were taken), so each message has one flags byte that
-  is true for all its records.
+  record's); at the end of the session the partial batch is sent.  As in
+  tinyos/ninedof_sampling.c, records are kept raw and corrected with the set
+  in force when the batch is packed, so one set and one flags byte cover the
+  whole message.
 * Send queue: 4 messages including the one on the radio; a batch that finds
   it full is dropped and its samples counted in ``dropped``.  Everything is
   unicast to the BaseStation (address 0), group 0x22, ack requested, at most
@@ -95,7 +95,6 @@ class SimMote:
         net.channel.attach(self.id, self)
         self.queue: deque[Message] = deque()
         self.next_k = 0                      # first sample not yet put into a message
-        self._gen = 0
         self._buf = np.zeros((0, 9), np.int16)
         self._buf_k0 = 0
         # counters (samples unless said otherwise)
@@ -136,11 +135,9 @@ class SimMote:
         if self.next_k >= self.n_total:
             return
         k_end = min(self.next_k + self.batch, self.n_total)
-        self.loop.at(self.t0 + (k_end - 1) * self.period, self._batch_event, self._gen)
+        self.loop.at(self.t0 + (k_end - 1) * self.period, self._batch_event, None)
 
-    def _batch_event(self, gen) -> None:
-        if gen != self._gen:
-            return
+    def _batch_event(self, _) -> None:
         k_end = min(self.next_k + self.batch, self.n_total)
         self._emit(self.next_k, k_end)
         self._schedule_batch()
@@ -162,14 +159,6 @@ class SimMote:
         self.queue.append(Message(self.id, P.AM_NINEDOF_SAMPLES_MSG, payload, k0, k1 - k0,
                                   raw, rec, flags))
         self._kick()
-
-    def _flush_partial(self) -> None:
-        """Send the samples taken so far of the batch being filled."""
-        g = self.generated()
-        if g > self.next_k:
-            self._emit(self.next_k, g)
-            self._gen += 1
-            self._schedule_batch()
 
     # ------------------------------------------------------------------ radio
     def _kick(self) -> None:
@@ -196,8 +185,6 @@ class SimMote:
         """A data frame heard on the radio (any destination)."""
         if f.dest != self.id or self.cal is None:
             return
-        if f.am_type == P.AM_NINEDOF_CAL_COMMIT_MSG:
-            self._flush_partial()
         reply = self.cal.handle(f.am_type, bytes(f.payload))
         if reply:
             rtype, rpayload = reply

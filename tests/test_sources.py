@@ -167,10 +167,12 @@ def test_pty_and_recorded_file(tmp_path):
     master, slave = os.openpty()
     tty.setraw(slave)
     path = os.ttyname(slave)
-    src = S.open_source(path)
-    os.write(master, b"\x00garbage" + b"".join(_frame(4, 5 * i) for i in range(20)))
+    os.write(master, b"\x00garbage" + b"".join(_frame(4, 5 * i) for i in range(10)))
+    src = S.open_source(path)           # what arrived before the open is kept
+    os.write(master, b"".join(_frame(4, 5 * i) for i in range(10, 20)))
     frames = _read_all(src, 20)
-    assert len(frames) == 20 and src.stats.garbage_bytes == 8
+    assert [P.decode_message(f.am()).seq for f in frames] == [5 * i for i in range(20)]
+    assert src.stats.garbage_bytes == 8
     src.close()
     os.close(master)
     os.close(slave)

@@ -174,12 +174,8 @@ class _SocketSerial(protocol_socket.Serial):
 
     pyserial's own read keeps reading until ``size`` bytes arrived and, when
     the peer closes in between, raises and drops the bytes it already had;
-    and ``open`` flushes (discards) whatever already arrived.  The logger must
-    lose neither.
+    the logger must not lose those.
     """
-
-    def reset_input_buffer(self):
-        """Keep the bytes: on a fresh connection they are all the peer's data."""
 
     def read(self, size=1):
         if not self.is_open:
@@ -198,6 +194,19 @@ class _SocketSerial(protocol_socket.Serial):
         return buf
 
 
+def _open_keeping_input(ser) -> None:
+    """Open a pyserial port without its flush of what already arrived: those
+    bytes are the BaseStation's (or the simulator's) data too."""
+    names = ("reset_input_buffer", "_reset_input_buffer")    # public; posix's own
+    for name in names:
+        setattr(ser, name, lambda: None)
+    try:
+        ser.open()
+    finally:
+        for name in names:
+            delattr(ser, name)
+
+
 class SerialSource(Source):
     """A serial port: device path or any pyserial URL, TinyOS HDLC framing."""
 
@@ -205,16 +214,15 @@ class SerialSource(Source):
         super().__init__(spec)
         self.decoder = P.FrameDecoder()
         self.stats = self.decoder.stats
+        self._socket = spec.target.startswith("socket://")
         try:
-            if spec.target.startswith("socket://"):
+            if self._socket:
                 self.ser = _SocketSerial(None, baudrate=spec.baud, timeout=READ_TIMEOUT)
                 self.ser.port = spec.target
-                self.ser.open()
-                self._socket = True
             else:
                 self.ser = serial.serial_for_url(spec.target, baudrate=spec.baud,
-                                                 timeout=READ_TIMEOUT)
-                self._socket = False
+                                                 timeout=READ_TIMEOUT, do_not_open=True)
+            _open_keeping_input(self.ser)
         except (serial.SerialException, OSError, ValueError) as e:
             raise PortError(f"cannot open port {spec}: {_reason(e)}") from None
 

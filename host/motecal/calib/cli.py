@@ -1,0 +1,151 @@
+"""``motecal calibrate``: calibrate every board of a session, gate, save.
+
+    motecal calibrate --db FILE --session NAME --out cal.json [--mote ID]
+                      [--model paper|full] [--params offsets,scales,angles]
+                      [--seed N] [--mag-field GAUSS] [--no-gyro-matrix]
+                      [--kfold K] [--force]
+
+Per board (mote): ``calibrate`` (board.calibrate_board) -> ``gate``
+(gate.decide) -> ``deliver`` (cal.json + the database).  A further step that
+needs the result (e.g. ``--upload``) is a function ``step(board, args)``
+called after ``deliver`` in ``run``.
+
+Files: one per board.  With one mote the file is ``--out`` itself; with
+several, ``-mote<ID>`` goes before the extension (``cal.json`` ->
+``cal-mote3.json``), or ``{mote}`` in ``--out`` is replaced by the id.
+
+Exit status: 0 when every board is accepted (or ``--force``); 3
+(QualityError) when a board is refused -- the accepted ones are still saved,
+the refused ones are not.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ..errors import QualityError, UserError
+from .board import calibrate_board
+from .gate import decide
+from .models import MODEL_FAMILIES, parse_groups
+from .result import BoardCalibration
+
+
+def register(subparsers):
+    p = subparsers.add_parser(
+        "calibrate", help="calibrate accelerometer, gyroscope and magnetometer of a session",
+        description=__doc__.split("\n\n")[0])
+    p.add_argument("--db", required=True, help="database (sqlite file or URL)")
+    p.add_argument("--session", required=True, help="session name")
+    p.add_argument("--out", required=True, help="calibration file (cal.json); see above for "
+                                                "several motes")
+    p.add_argument("--mote", type=int, help="calibrate only this mote")
+    p.add_argument("--model", choices=MODEL_FAMILIES, default="full",
+                   help="full: bias + lower-triangular matrix (default); paper: eqs. 1-5")
+    p.add_argument("--params", help="paper model: comma-separated subset of "
+                                    "offsets,scales,angles (default all three)")
+    p.add_argument("--seed", type=int, help="GA seed (default: random, recorded in cal.json)")
+    p.add_argument("--mag-field", type=float, metavar="GAUSS",
+                   help="known local field magnitude: fixes the magnetometer gauge to it "
+                        "instead of det(A) = 1")
+    p.add_argument("--no-gyro-matrix", action="store_true",
+                   help="gyroscope bias only (no scale/misalignment from the moves)")
+    p.add_argument("--kfold", type=int, default=5, help="held-out validation folds (default 5)")
+    p.add_argument("--force", action="store_true",
+                   help="save boards the quality gate refuses (the reasons stay in cal.json)")
+    p.set_defaults(func=run)
+    return p
+
+
+def out_path(out: str, mote: int, several: bool) -> Path:
+    """File for one board (see the module doc)."""
+    if "{mote}" in out:
+        return Path(out.replace("{mote}", str(mote)))
+    p = Path(out)
+    if not several:
+        return p
+    return p.with_name(f"{p.stem}-mote{mote}{p.suffix}")
+
+
+def calibrate(data, args) -> BoardCalibration:
+    groups = parse_groups(args.params)
+    if groups is not None and args.model != "paper":
+        raise UserError("--params selects parameter groups of --model paper")
+    if args.mag_field is not None and not args.mag_field > 0:
+        raise UserError("--mag-field must be a positive number of gauss")
+    if args.kfold < 0 or args.kfold == 1:
+        raise UserError("--kfold must be 0 (off) or at least 2")
+    return calibrate_board(data, model=args.model, groups=groups, seed=args.seed,
+                           field=args.mag_field, gyro_matrix=not args.no_gyro_matrix,
+                           kfold=args.kfold)
+
+
+def deliver(board: BoardCalibration, args, store, path: Path) -> int:
+    """Write cal.json and store the calibration in the database; returns its id."""
+    board.save(path)
+    return store.save_calibration(board.session, board.mote, board.to_json())
+
+
+def _fmt(x, spec=".3e"):
+    return "-" if x is None else format(x, spec)
+
+
+def summary(board: BoardCalibration) -> str:
+    """What ``calibrate`` prints for one board."""
+    s = board.settings
+    lines = [f"mote {board.mote}  session {board.session}  model {s.get('model')}"
+             + (f" ({','.join(s['params'])})" if s.get("params") else "")
+             + f"  seed {s.get('seed')}",
+             f"  {'sensor':<9}{'model':<28}{'n':>7}  {'mse before':>10}  {'mse after':>10}  "
+             f"{'held-out':>10}  {'|v| before':>13}  {'|v| after':>13}"]
+    for name, sc in board.sensors():
+        label = name + (f" ({sc.dataset})" if name == "mag" else "")
+        ho = sc.validation.get("mse_heldout") if sc.validation else None
+        lines.append(f"  {label:<9}{sc.model:<28}{sc.n_samples:>7}  {_fmt(sc.mse_before):>10}  "
+                     f"{_fmt(sc.mse_after):>10}  {_fmt(ho):>10}  "
+                     f"{sc.min_before:6.3f}-{sc.max_before:<6.3f}  "
+                     f"{sc.min_after:6.3f}-{sc.max_after:<6.3f} {sc.unit}")
+    if board.mag is not None and board.mag.field_gauss is not None:
+        sd = board.mag.field_std
+        lines.append(f"  magnetometer field {board.mag.field_gauss:.4f}"
+                     + (f" +- {sd:.1e}" if sd else " (given)") + " gauss"
+                     + "".join(f"; set {k}: {v['field_gauss']:.4f}"
+                               for k, v in board.mag_sets.items() if not v.get("used")))
+    for name, sc in board.sensors():
+        for n in sc.notes:
+            lines.append(f"  {name}: {n}")
+    g = board.gate
+    if g:
+        state = "accepted" if g.get("accepted") else ("refused, saved anyway (--force)"
+                                                    if g.get("forced") else "refused")
+        lines.append(f"  gate: {state}")
+        for r in g.get("reasons", []):
+            lines.append(f"    reason: {r}")
+        for w in g.get("warnings", []):
+            lines.append(f"    warning: {w}")
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    from ..store import open_store
+    with open_store(args.db) as store:
+        data = store.load_session(args.session, args.mote)
+        motes = [args.mote] if args.mote is not None else data.motes
+        if not motes or len(data) == 0:
+            raise UserError(f"session {args.session!r} has no samples")
+        several = len(motes) > 1
+        refused = []
+        for m in motes:
+            board = calibrate(data.for_mote(m), args)
+            decision = decide(board, force=args.force)
+            print(summary(board))
+            if not decision.accepted and not args.force:
+                refused.append(f"mote {m}: " + "; ".join(decision.reasons))
+                print(f"  not saved (refused; --force saves it anyway)")
+                continue
+            path = out_path(args.out, m, several)
+            cid = deliver(board, args, store, path)
+            print(f"  wrote {path} (database calibration {cid})")
+    sys.stdout.flush()
+    if refused:
+        raise QualityError("calibration refused: " + " | ".join(refused))
+    return 0

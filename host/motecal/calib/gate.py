@@ -1,0 +1,204 @@
+"""Quality gating: one explicit accept/reject decision per board.
+
+While calibrating, ``board.py`` records quality metrics for every sensor
+(``SensorCalibration.quality``); ``decide`` compares them with ``GateLimits``
+and returns a ``GateDecision`` with every reason for refusing.  The CLI then
+refuses (``QualityError``, exit 3) unless ``--force``.
+
+Reasons (and the metric behind each):
+
+* too few distinct orientations -- static poses whose gravity (or field)
+  directions are at least ``distinct_deg`` apart, fewer than the number of
+  identifiable parameters (or ``min_orientations``);
+* poses too clustered -- the directions must surround the origin: the depth
+  of the origin inside the convex hull of the unit directions (1 for a dense
+  sphere, 0.58 for the six +-axis poses, < 0 when all lie in one hemisphere)
+  below ``min_hull_depth``;
+* non-still "static" data -- a labelled pose whose per-axis standard deviation
+  exceeds the stillness thresholds of ``motecal.still`` (accel 0.02 g, gyro
+  1.5 deg/s);
+* magnetometer sweep covering too little of the sphere -- the fraction of 100
+  evenly spread directions with a calibrated sample within 25 degrees below
+  ``min_mag_coverage``;
+* residual too large -- rms magnitude error after calibration above
+  ``max_rms_rel`` of the target (1 g or the fitted field): the data do not fit
+  a fixed field / gravity (disturbed place, moving board, wrong model);
+* parameter poorly determined -- an identifiable parameter whose standard
+  deviation exceeds ``max_offset_std`` (offsets, in the sensor unit) or
+  ``max_gain_std`` (scales, cross terms).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from ..still import StillThresholds
+
+
+@dataclass(frozen=True)
+class GateLimits:
+    distinct_deg: float = 10.0
+    min_orientations: int = 6
+    min_hull_depth: float = 0.3
+    min_mag_coverage: float = 0.5
+    max_rms_rel: dict = field(default_factory=lambda: {"accel": 0.03, "mag": 0.05})
+    max_offset_std: dict = field(default_factory=lambda: {"accel": 0.005, "mag": 0.01,
+                                                         "gyro": 0.5})
+    max_gain_std: float = 0.01
+    still: StillThresholds = StillThresholds()
+
+
+LIMITS = GateLimits()
+
+
+# ---------------------------------------------------------------------------
+# metrics (pure functions on arrays)
+# ---------------------------------------------------------------------------
+def unit(v):
+    v = np.asarray(v, float)
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
+def distinct_directions(dirs, min_deg: float = LIMITS.distinct_deg) -> int:
+    """Greedy count of directions at least ``min_deg`` from all counted ones."""
+    dirs = unit(dirs)
+    cos_lim = np.cos(np.deg2rad(min_deg))
+    kept = []
+    for d in dirs:
+        if not kept or np.max(np.array(kept) @ d) < cos_lim:
+            kept.append(d)
+    return len(kept)
+
+
+def hull_depth(dirs) -> float:
+    """Distance from the origin to the nearest face of the convex hull of the
+    unit directions (negative: the origin is outside, all in one half-space)."""
+    dirs = unit(dirs)
+    if len(dirs) < 4:
+        return -1.0
+    try:
+        hull = ConvexHull(dirs)
+    except QhullError:                     # coplanar or degenerate
+        return -1.0
+    # equations: normal . x + offset <= 0 inside; the distance of 0 is -offset
+    return float(np.min(-hull.equations[:, -1]))
+
+
+def _fibonacci(n: int) -> np.ndarray:
+    i = np.arange(n) + 0.5
+    phi = np.arccos(1 - 2 * i / n)
+    th = np.pi * (1 + 5 ** 0.5) * i
+    return np.c_[np.cos(th) * np.sin(phi), np.sin(th) * np.sin(phi), np.cos(phi)]
+
+
+_CELLS = _fibonacci(100)
+
+
+def sphere_coverage(dirs, radius_deg: float = 25.0) -> float:
+    """Fraction of 100 evenly spread directions that have a sample within
+    ``radius_deg``."""
+    dirs = unit(dirs)
+    if not len(dirs):
+        return 0.0
+    step = max(1, len(dirs) // 5000)
+    cos = _CELLS @ dirs[::step].T
+    return float(np.mean(cos.max(axis=1) >= np.cos(np.deg2rad(radius_deg))))
+
+
+def pose_spread(x, label) -> dict:
+    """Largest per-axis standard deviation of each pose: {label: sd}."""
+    out = {}
+    for p in np.unique(label):
+        xs = x[label == p]
+        if len(xs) > 1:
+            out[int(p)] = float(xs.std(axis=0, ddof=1).max())
+    return out
+
+
+# ---------------------------------------------------------------------------
+# the decision
+# ---------------------------------------------------------------------------
+@dataclass
+class GateDecision:
+    accepted: bool
+    reasons: list                   # why refused (empty when accepted)
+    warnings: list
+    forced: bool = False
+
+    def to_json(self) -> dict:
+        return {"accepted": self.accepted, "forced": self.forced,
+                "reasons": list(self.reasons), "warnings": list(self.warnings)}
+
+    def summary(self) -> str:
+        if self.accepted:
+            return "accepted" + (f" ({len(self.warnings)} warning(s))" if self.warnings else "")
+        return "refused: " + "; ".join(self.reasons)
+
+
+def _check_sensor(name, sc, lim: GateLimits, reasons, warnings):
+    q = sc.quality or {}
+    unit_ = sc.unit
+    if "distinct_orientations" in q:
+        need = max(lim.min_orientations, int(q.get("identifiable_params", 0)))
+        if q["distinct_orientations"] < need:
+            reasons.append(f"{name}: too few distinct orientations: {q['distinct_orientations']} "
+                           f"(at least {need} for {sc.model}; poses closer than "
+                           f"{lim.distinct_deg:g} deg count once)")
+    if "hull_depth" in q and q["hull_depth"] < lim.min_hull_depth:
+        reasons.append(f"{name}: poses too clustered: the directions do not surround the "
+                       f"origin (hull depth {q['hull_depth']:.2f} < {lim.min_hull_depth:g}; "
+                       f"add poses on the opposite side)")
+    if q.get("not_still"):
+        bad = q["not_still"]
+        lab = ", ".join(str(p) for p in list(bad)[:8]) + (" ..." if len(bad) > 8 else "")
+        reasons.append(f"{name}: non-still data in static poses {lab} (per-axis sd above "
+                       f"{q.get('still_limit')} {unit_}; re-log those poses)")
+    if "coverage" in q and q["coverage"] < lim.min_mag_coverage:
+        reasons.append(f"{name}: the readings cover too little of the sphere "
+                       f"({100 * q['coverage']:.0f}% of directions, need "
+                       f"{100 * lim.min_mag_coverage:.0f}%)")
+    if "rms_rel" in q and name in lim.max_rms_rel and q["rms_rel"] > lim.max_rms_rel[name]:
+        what = "the field is not constant (disturbed place or moving magnets?)" \
+            if name == "mag" else "the board was not still or the model does not fit"
+        reasons.append(f"{name}: residual too large: rms magnitude error "
+                       f"{100 * q['rms_rel']:.1f}% of the target after calibration "
+                       f"(limit {100 * lim.max_rms_rel[name]:.0f}%): {what}")
+    for p in sc.params:
+        if not p.identifiable or not np.isfinite(p.std):
+            continue
+        if p.name.startswith(("o_", "b_")):
+            limit = lim.max_offset_std.get(name, np.inf)
+        elif p.name.startswith(("s_", "k_", "G_")):
+            limit = lim.max_gain_std
+        else:
+            continue
+        if p.std > limit:
+            reasons.append(f"{name}: parameter {p.name} poorly determined "
+                           f"(std {p.std:.3g} > {limit:g}): poses too few or too clustered")
+    if sc.not_identifiable:
+        warnings.append(f"{name}: not identifiable with this model: "
+                        f"{', '.join(sc.not_identifiable)}")
+    for w in q.get("warnings", []):
+        warnings.append(f"{name}: {w}")
+
+
+def decide(board, limits: GateLimits = LIMITS, force: bool = False) -> GateDecision:
+    """Accept or refuse a BoardCalibration; records the decision in board.gate."""
+    reasons, warnings = [], []
+    if not board.sensors():
+        reasons.append("no sensor could be calibrated from this session")
+    for name, sc in board.sensors():
+        _check_sensor(name, sc, limits, reasons, warnings)
+    for name in ("accel", "gyro", "mag"):
+        why = board.settings.get("skipped", {}).get(name)
+        if why:
+            warnings.append(f"{name}: not calibrated: {why}")
+        why = board.settings.get("insufficient", {}).get(name)
+        if why:
+            reasons.append(f"{name}: cannot be calibrated from this session: {why}")
+    d = GateDecision(not reasons, reasons, warnings, forced=bool(force and reasons))
+    board.gate = d.to_json()
+    return d

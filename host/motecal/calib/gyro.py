@@ -1,0 +1,217 @@
+"""Gyroscope calibration.
+
+Bias (the paper's way): the GA minimises eq. 6 over still data, then the
+exact minimiser of ``eq6.Eq6Table`` polishes it; the closed-form per-axis mean
+is reported next to it as a check (the two estimate the same bias for
+symmetric noise).
+
+Scale and misalignment (what the paper left open), imu_tk style: between two
+consecutive still poses the board turns; integrating the calibrated rate
+``G (w - b)`` over the move must turn the gravity direction measured by the
+calibrated accelerometer at the first pose into the one at the next pose.
+``G`` is a general 3x3 matrix (scales, cross-axis terms and the rotation of
+the gyro relative to the accelerometer frame), fitted by least squares over
+all moves.  Calibrated rate in deg/s = ``G (counts / LSB_PER_DPS - b)``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from . import eq6
+from . import ga as _ga
+
+PRIOR_BIAS_DPS = 40.0            # ITG3200 zero-rate offset, datasheet +-40 deg/s
+MAX_MOVE_S = 10.0                # longer gaps between still poses are not integrated
+MIN_MOVES = 6                    # fewer moves: no scale fit
+MAX_RMS_DEG = 1.0                # matrix fit used only below this rms gravity-direction error
+MAX_G_DEVIATION = 0.3            # ... and with every |G - I| entry below this
+GYRO_CLIP_COUNTS = 32000         # |raw| beyond this may be clipped: move not used
+
+
+@dataclass
+class BiasFit:
+    b: np.ndarray                 # deg/s, eq. 6 minimiser
+    e6: float                     # eq. 6 at b, (deg/s)^2
+    e6_before: float              # eq. 6 at b = 0
+    mean: np.ndarray              # closed-form mean, deg/s
+    sd: np.ndarray                # per-axis sample sd, deg/s
+    std: np.ndarray               # standard error of b (sd / sqrt(n))
+    n: int
+    trace: list = field(default_factory=list)
+    ga_generations: int = 0
+    ga_stop: str = ""
+    seed: int | None = None
+
+
+def bias_table(g: np.ndarray) -> eq6.Eq6Table:
+    return eq6.Eq6Table(g)
+
+
+def ga_bias(g: np.ndarray, *, seed=None, table: eq6.Eq6Table | None = None,
+            options: _ga.GAOptions = _ga.GAOptions()) -> BiasFit:
+    """Bias from still rates g (n, 3) in deg/s: GA on eq. 6 + exact minimiser."""
+    g = np.asarray(g, float)
+    T = table if table is not None else eq6.Eq6Table(g)
+    lo = np.full(3, -PRIOR_BIAS_DPS)
+    hi = np.full(3, PRIOR_BIAS_DPS)
+    res = _ga.minimize(T, lo, hi, seed=seed, x0=np.zeros(3), options=options)
+    b, e = T.exact_minimum(res.x)
+    return _bias_fit(g, T, b, e, trace=res.trace, ga_generations=res.generations,
+                     ga_stop=res.stop, seed=seed)
+
+
+def lm_bias(g: np.ndarray):
+    """Reference: Levenberg-Marquardt on the residuals of eq. 6 from b = 0."""
+    g = np.asarray(g, float)
+    r = least_squares(eq6.residuals, np.zeros(3), jac=eq6.jacobian, args=(g,), method="lm",
+                      xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    return r.x, float(np.mean(r.fun ** 2))
+
+
+def _bias_fit(g, T, b, e, **kw) -> BiasFit:
+    n = len(g)
+    sd = g.std(axis=0, ddof=1) if n > 1 else np.zeros(3)
+    return BiasFit(np.asarray(b, float), float(e), float(T(np.zeros(3))), g.mean(axis=0), sd,
+                   sd / np.sqrt(max(n, 1)), n, **kw)
+
+
+# ---------------------------------------------------------------------------
+# scale and misalignment from moves between still poses
+# ---------------------------------------------------------------------------
+@dataclass
+class Move:
+    """One move between consecutive still poses."""
+    a0: np.ndarray                # unit gravity direction (calibrated accel frame) before
+    a1: np.ndarray                # ... after
+    w: np.ndarray                 # (m, 3) raw rates in deg/s (nominal), first..last sample
+    dt: np.ndarray                # (m - 1,) seconds
+    pose0: int
+    pose1: int
+
+
+def find_moves(label, t, seq, w_dps, raw_gyro, gravity: dict, rate_hz: float,
+               part=None) -> list[Move]:
+    """Moves between consecutive still poses in time order (rows between the
+    last sample of one pose and the first of the next), when the rows are
+    contiguous (no lost samples), in the same recording (``part``: one id per
+    row, e.g. the file an imported row came from), short and not clipped.
+    ``gravity`` maps a pose label to its unit gravity direction in the
+    calibrated accel frame."""
+    label = np.asarray(label)
+    idx = np.flatnonzero(label >= 1)
+    if len(idx) < 2:
+        return []
+    moves = []
+    # runs of the same label
+    brk = np.flatnonzero(np.diff(label[idx]) != 0) + 1
+    starts = np.concatenate([[0], brk])
+    ends = np.concatenate([brk, [len(idx)]]) - 1
+    for k in range(len(starts) - 1):
+        i0 = idx[ends[k]]
+        i1 = idx[starts[k + 1]]
+        p0, p1 = int(label[i0]), int(label[i1])
+        if p0 == p1 or p0 not in gravity or p1 not in gravity:
+            continue
+        if part is not None and part[i0] != part[i1]:
+            continue
+        if np.any(label[i0 + 1:i1] >= 1) or np.any(label[i0 + 1:i1] < 0):
+            continue
+        s = seq[i0:i1 + 1]
+        if np.any(np.diff(s) != 1):
+            continue
+        tt = t[i0:i1 + 1]
+        dt = np.diff(tt) if np.all(np.isfinite(tt)) else np.full(i1 - i0, 1.0 / rate_hz)
+        if np.any(dt <= 0) or dt.sum() > MAX_MOVE_S:
+            continue
+        w = w_dps[i0:i1 + 1]
+        if np.isnan(w).any() or np.any(np.abs(raw_gyro[i0:i1 + 1]) >= GYRO_CLIP_COUNTS):
+            continue
+        moves.append(Move(gravity[p0], gravity[p1], w, dt, p0, p1))
+    return moves
+
+
+def _qmul(p, q):
+    w1, x1, y1, z1 = np.moveaxis(p, -1, 0)
+    w2, x2, y2, z2 = np.moveaxis(q, -1, 0)
+    return np.stack([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+                     w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+                     w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2], axis=-1)
+
+
+def _rotvec_quat(rv):
+    ang = np.linalg.norm(rv, axis=-1, keepdims=True)
+    half = 0.5 * ang
+    k = np.where(ang > 1e-12, np.sin(half) / np.where(ang > 0, ang, 1.0), 0.5)
+    return np.concatenate([np.cos(half), rv * k], axis=-1)
+
+
+class MoveSet:
+    """All moves padded to one array so a rotation is integrated for every
+    move at once (pairwise product tree over the samples)."""
+
+    def __init__(self, moves: list[Move]):
+        self.moves = moves
+        L = max(len(m.dt) for m in moves)
+        self.L = 1 << int(np.ceil(np.log2(max(L, 1))))
+        n = len(moves)
+        self.wm = np.zeros((n, self.L, 3))     # trapezoid mean raw rate per step
+        self.dt = np.zeros((n, self.L))
+        for i, m in enumerate(moves):
+            k = len(m.dt)
+            self.wm[i, :k] = 0.5 * (m.w[1:] + m.w[:-1])
+            self.dt[i, :k] = m.dt
+        self.a0 = np.array([m.a0 for m in moves])
+        self.a1 = np.array([m.a1 for m in moves])
+
+    def rotations(self, G, b):
+        """Body rotation over each move (quaternion, body_start -> body_end)."""
+        rate = (self.wm - b) @ G.T                           # deg/s, padded rows: ignored by dt=0
+        rv = np.deg2rad(rate) * self.dt[..., None]
+        q = _rotvec_quat(rv)                                 # (n, L, 4)
+        while q.shape[1] > 1:                                # ordered product q1 q2 ... qL
+            q = _qmul(q[:, 0::2], q[:, 1::2])
+        return q[:, 0]
+
+    def residuals(self, G, b):
+        q = self.rotations(G, b)
+        # gravity (fixed in the world) seen from the body after the move: R^T a0
+        w, v = q[:, :1], q[:, 1:]
+        a = self.a0
+        t = 2.0 * np.cross(v, a)
+        pred = a - w * t + np.cross(v, t)                    # rotate a0 by q^-1
+        return (pred - self.a1).ravel()
+
+
+@dataclass
+class MatrixFit:
+    G: np.ndarray                 # 3x3
+    std: np.ndarray               # (3, 3)
+    rms_before: float             # rms direction error (rad) with G = I
+    rms_after: float
+    n_moves: int
+    rank: int
+    nfev: int
+
+
+def fit_matrix(moves: list[Move], b: np.ndarray) -> MatrixFit:
+    """G (3x3) from the moves, bias b fixed; Gauss-Newton/LM from G = I."""
+    from .identify import analyse
+    ms = MoveSet(moves)
+
+    def fun(x):
+        return ms.residuals(x.reshape(3, 3), b)
+
+    x0 = np.eye(3).ravel()
+    r0 = fun(x0)
+    res = least_squares(fun, x0, method="lm", x_scale=1.0)
+    G = res.x.reshape(3, 3)
+    J = res.jac
+    ident = analyse(J, [f"G_{i}{j}" for i in "xyz" for j in "xyz"])
+    dof = max(1, len(res.fun) - ident.rank)
+    std = ident.std(float(res.fun @ res.fun) / dof).reshape(3, 3)
+    return MatrixFit(G, std, float(np.sqrt(np.mean(r0 ** 2) * 3)),
+                     float(np.sqrt(np.mean(res.fun ** 2) * 3)), len(moves), ident.rank, res.nfev)

@@ -1,0 +1,227 @@
+"""Calibration results: one ``SensorCalibration`` per sensor, one
+``BoardCalibration`` per board (mote), and their JSON form (``cal.json``).
+
+For every sensor ``calibrated = A @ raw_counts + c`` in the sensor's unit
+(g, deg/s, gauss).  Everything else (parameters with names, standard
+deviations and units, errors before/after, magnitude ranges, validation, GA
+trace, quality metrics) documents how that map was obtained.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError
+
+FORMAT_VERSION = 1
+SENSORS = ("accel", "gyro", "mag")
+
+
+def _num(x):
+    """JSON-safe float (NaN/inf -> None)."""
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _unnum(x):
+    return float("nan") if x is None else float(x)
+
+
+@dataclass
+class Param:
+    name: str
+    value: float
+    std: float                  # NaN when not identifiable
+    unit: str = ""
+    identifiable: bool = True
+
+    def to_json(self):
+        return {"name": self.name, "value": _num(self.value), "std": _num(self.std),
+                "unit": self.unit, "identifiable": bool(self.identifiable)}
+
+    @classmethod
+    def from_json(cls, d):
+        return cls(d["name"], _unnum(d["value"]), _unnum(d.get("std")), d.get("unit", ""),
+                   bool(d.get("identifiable", True)))
+
+
+@dataclass
+class SensorCalibration:
+    sensor: str                  # accel | gyro | mag
+    unit: str                    # g | deg/s | gauss
+    chip: str
+    lsb_per_unit: float          # nominal scale used for the parameters
+    model: str                   # e.g. "full", "paper(offsets+scales)", "bias", "bias+matrix"
+    params: list                 # [Param]
+    A: np.ndarray                # (3, 3): calibrated = A @ raw_counts + c
+    c: np.ndarray                # (3,)
+    mse_before: float            # the paper's error column (unit^2)
+    mse_after: float
+    min_before: float            # lowest / highest magnitude (paper's table columns)
+    max_before: float
+    min_after: float
+    max_after: float
+    n_samples: int = 0
+    n_poses: int = 0
+    dataset: str = ""            # "O" (static poses), "R" (rotation), "still"
+    rank: int = 0
+    notes: list = field(default_factory=list)
+    validation: dict = field(default_factory=dict)
+    quality: dict = field(default_factory=dict)
+    ga: dict = field(default_factory=dict)      # seed, generations, stop, trace
+    field_gauss: float | None = None            # mag: fitted (or given) field magnitude
+    field_std: float | None = None
+    gauge: str | None = None
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.A = np.asarray(self.A, float).reshape(3, 3)
+        self.c = np.asarray(self.c, float).reshape(3)
+
+    # -- use --------------------------------------------------------------------
+    def apply(self, raw_counts) -> np.ndarray:
+        """Calibrated vectors (n, 3) in ``unit`` from raw counts (n, 3)."""
+        return np.asarray(raw_counts, float) @ self.A.T + self.c
+
+    def param(self, name: str) -> Param:
+        for p in self.params:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+    @property
+    def not_identifiable(self) -> list:
+        return [p.name for p in self.params if not p.identifiable]
+
+    # -- JSON ---------------------------------------------------------------------
+    def to_json(self) -> dict:
+        d = {"sensor": self.sensor, "unit": self.unit, "chip": self.chip,
+             "lsb_per_unit": self.lsb_per_unit, "model": self.model,
+             "A": self.A.tolist(), "c": self.c.tolist(),
+             "params": [p.to_json() for p in self.params],
+             "mse_before": _num(self.mse_before), "mse_after": _num(self.mse_after),
+             "min_before": _num(self.min_before), "max_before": _num(self.max_before),
+             "min_after": _num(self.min_after), "max_after": _num(self.max_after),
+             "n_samples": int(self.n_samples), "n_poses": int(self.n_poses),
+             "dataset": self.dataset, "rank": int(self.rank), "notes": list(self.notes),
+             "validation": _jsonable(self.validation), "quality": _jsonable(self.quality),
+             "ga": _jsonable(self.ga)}
+        if self.sensor == "mag":
+            d["field_gauss"] = _num(self.field_gauss)
+            d["field_std"] = _num(self.field_std)
+            d["gauge"] = self.gauge
+        if self.extra:
+            d["extra"] = _jsonable(self.extra)
+        return d
+
+    @classmethod
+    def from_json(cls, d: dict) -> "SensorCalibration":
+        return cls(sensor=d["sensor"], unit=d["unit"], chip=d.get("chip", ""),
+                   lsb_per_unit=float(d["lsb_per_unit"]), model=d["model"],
+                   params=[Param.from_json(p) for p in d.get("params", [])],
+                   A=np.array(d["A"], float), c=np.array(d["c"], float),
+                   mse_before=_unnum(d.get("mse_before")), mse_after=_unnum(d.get("mse_after")),
+                   min_before=_unnum(d.get("min_before")), max_before=_unnum(d.get("max_before")),
+                   min_after=_unnum(d.get("min_after")), max_after=_unnum(d.get("max_after")),
+                   n_samples=int(d.get("n_samples", 0)), n_poses=int(d.get("n_poses", 0)),
+                   dataset=d.get("dataset", ""), rank=int(d.get("rank", 0)),
+                   notes=list(d.get("notes", [])), validation=d.get("validation", {}),
+                   quality=d.get("quality", {}), ga=d.get("ga", {}),
+                   field_gauss=d.get("field_gauss"), field_std=d.get("field_std"),
+                   gauge=d.get("gauge"), extra=d.get("extra", {}))
+
+
+@dataclass
+class BoardCalibration:
+    mote: int
+    session: str
+    created: str                                   # ISO 8601 UTC
+    accel: SensorCalibration | None = None
+    gyro: SensorCalibration | None = None
+    mag: SensorCalibration | None = None
+    mag_sets: dict = field(default_factory=dict)   # data set -> summary of its fit
+    gate: dict = field(default_factory=dict)       # accepted, forced, reasons, warnings
+    settings: dict = field(default_factory=dict)   # model, params, seed, gauge, ...
+    tool: str = ""
+    format_version: int = FORMAT_VERSION
+
+    def sensors(self):
+        return [(s, getattr(self, s)) for s in SENSORS if getattr(self, s) is not None]
+
+    def to_json(self) -> dict:
+        d = {"format_version": self.format_version, "mote": int(self.mote),
+             "session": self.session, "created": self.created, "tool": self.tool,
+             "settings": _jsonable(self.settings)}
+        for s in SENSORS:
+            v = getattr(self, s)
+            d[s] = v.to_json() if v is not None else None
+        d["mag_sets"] = _jsonable(self.mag_sets)
+        d["gate"] = _jsonable(self.gate)
+        return d
+
+    def dumps(self) -> str:
+        return json.dumps(self.to_json(), indent=1, allow_nan=False) + "\n"
+
+    @classmethod
+    def from_json(cls, d: dict) -> "BoardCalibration":
+        if not isinstance(d, dict) or "format_version" not in d:
+            raise UserError("not a motecal calibration (no format_version)")
+        if int(d["format_version"]) > FORMAT_VERSION:
+            raise UserError(f"calibration format_version {d['format_version']} is newer than "
+                            f"this motecal understands ({FORMAT_VERSION})")
+        kw = {s: SensorCalibration.from_json(d[s]) if d.get(s) else None for s in SENSORS}
+        return cls(mote=int(d["mote"]), session=d.get("session", ""), created=d.get("created", ""),
+                   mag_sets=d.get("mag_sets", {}), gate=d.get("gate", {}),
+                   settings=d.get("settings", {}), tool=d.get("tool", ""),
+                   format_version=int(d["format_version"]), **kw)
+
+    @classmethod
+    def loads(cls, text: str) -> "BoardCalibration":
+        try:
+            d = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise UserError(f"calibration file is not JSON: {e}") from None
+        try:
+            return cls.from_json(d)
+        except (KeyError, TypeError, ValueError) as e:
+            raise UserError(f"calibration file is malformed: {e!r}") from None
+
+    def save(self, path) -> Path:
+        path = Path(path)
+        try:
+            path.write_text(self.dumps(), encoding="utf-8")
+        except OSError as e:
+            raise UserError(f"cannot write {path}: {e.strerror or e}") from None
+        return path
+
+    @classmethod
+    def load(cls, path) -> "BoardCalibration":
+        try:
+            text = Path(path).read_text(encoding="utf-8")
+        except OSError as e:
+            raise UserError(f"cannot read {path}: {e.strerror or e}") from None
+        return cls.loads(text)
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.bool_, bool)):
+        return bool(x)
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        return _num(x)
+    if hasattr(x, "__dataclass_fields__"):
+        return _jsonable(asdict(x))
+    return x

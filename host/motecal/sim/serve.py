@@ -10,8 +10,11 @@ that the client does not take) are lost, as on a real line, and counted in
 BaseStation's UART at the simulated time they arrive.
 
 TCP: one client at a time; a new connection replaces the old one.  The
-simulated motes boot when the first client connects.  PTY: the motes boot at
-once; the path printed is the slave side, configured raw.
+simulated motes boot when the first client connects.  PTY: the path printed
+is the slave side, configured raw at a sentinel speed of 50 baud; the motes
+boot when a client configures the port (any termios change, which pyserial
+and every serial program make on open), so what pyserial's open flushes is
+nothing.
 """
 from __future__ import annotations
 
@@ -22,6 +25,7 @@ import select
 import socket
 import threading
 import time
+import termios
 import tty
 
 from ..errors import UserError
@@ -31,8 +35,8 @@ AFAP_HIGH_WATER = 1 << 16    # do not run ahead of a slow reader by more than th
 PACED_BACKLOG = 1 << 20      # paced bytes kept for a client that does not read
 IDLE_WAIT = 0.05
 PACED_TICK = 0.005
-TCP_GRACE = 0.05             # s after the first accept before the motes boot: pyserial's
-                             # socket:// open discards what arrives while it opens
+TCP_GRACE = 0.05             # s after a client appears before the motes boot: pyserial's
+                             # open discards what arrives while it opens
 
 
 class Pump:
@@ -269,9 +273,22 @@ class PtyLine(_Endpoint):
         except OSError as e:
             raise UserError(f"cannot create a pseudo-terminal: {e.strerror or e}") from None
         tty.setraw(self._slave)
+        attr = termios.tcgetattr(self._slave)
+        attr[4] = attr[5] = termios.B50            # sentinel: no client has set it up
+        termios.tcsetattr(self._slave, termios.TCSANOW, attr)
+        self._attr0 = termios.tcgetattr(self._slave)
         os.set_blocking(self._master, False)
         self.path = os.ttyname(self._slave)
-        self.pump.start()
+
+    def step(self) -> None:
+        if not self.pump.started:
+            try:
+                changed = termios.tcgetattr(self._slave) != self._attr0
+            except termios.error:
+                changed = False
+            if changed:
+                self.pump.start(TCP_GRACE)
+        super().step()
 
     def _read_fds(self):
         return [self._master]

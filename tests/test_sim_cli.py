@@ -303,3 +303,28 @@ def test_serve_in_thread_fast_equals_file_and_reconnect_loses_counted():
     assert len(first) + len(second) + line["unread_bytes"] <= line["bytes_out"]
     assert len(first) + len(second) + line["unread_bytes"] > 0.9 * line["bytes_out"]
     assert len(P.decode_stream(bytes(second))) > 10        # resynchronised after the gap
+
+
+def test_pty_in_thread_waits_for_the_client_and_loses_nothing():
+    from motecal.sim.serve import pty_in_thread
+    from motecal.sim.world import World
+
+    ref = World(motes=1, session="idle", seed=5, duration=2)
+    want = bytearray()
+    while not ref.done:
+        want += ref.run_until(ref.now + 1)
+    w = World(motes=1, session="idle", seed=5, duration=2)
+    line, path = pty_in_thread(w)
+    try:
+        time.sleep(0.2)
+        assert w.now == 0.0, "the motes boot only when a client opens the port"
+        ser = serial.Serial(path, 250000, timeout=0.05)
+        got = bytearray()
+        t = time.monotonic()
+        while len(got) < len(want) and time.monotonic() - t < 20:
+            got += ser.read(ser.in_waiting or 1)
+        ser.close()
+    finally:
+        line.stop()
+        line.close()
+    assert bytes(got) == bytes(want)

@@ -320,11 +320,13 @@ class PtyLine(_Endpoint):
             raise
 
     def _close(self) -> None:
-        for fd in (self._master, self._slave):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
+        fds, self._master, self._slave = (self._master, self._slave), -1, -1
+        for fd in fds:
+            if fd >= 0:
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
 
 
 def serve_in_thread(world, host: str = "127.0.0.1", port: int = 0,

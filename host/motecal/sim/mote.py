@@ -91,6 +91,7 @@ class SimMote:
         self.duration = duration
         self.status_period = STATUS_PERIOD / scale
         self.cal = cal
+        self._flags = int(cal.flags()) if cal is not None else 0   # changes only in handle()
         self.mac = Mac(self.id, net.channel, rng, max_retries=MAX_RETRIES)
         net.channel.attach(self.id, self)
         self.queue: deque[Message] = deque()
@@ -145,10 +146,9 @@ class SimMote:
     def _emit(self, k0: int, k1: int) -> None:
         self.next_k = k1
         raw = self._raw(k0, k1)
-        flags = 0
+        flags = self._flags
         rec = raw
         if self.cal is not None:
-            flags = int(self.cal.flags())
             if flags & P.FLAG_CORRECTED:
                 rec = np.asarray(self.cal.correct(raw), np.int16)
         if len(self.queue) >= QUEUE_LEN:
@@ -186,6 +186,9 @@ class SimMote:
         if f.dest != self.id or self.cal is None:
             return
         reply = self.cal.handle(f.am_type, bytes(f.payload))
+        self._flags = int(self.cal.flags())
+        if getattr(self.cal, "dirty", False):     # the EEPROM writer's job, instant here
+            self.cal.mark_persisted()
         if reply:
             rtype, rpayload = reply
             if self._enqueue_other(rtype, bytes(rpayload)):

@@ -153,19 +153,21 @@ class Channel:
             self.barrier_until = max(self.barrier_until, f.end + BARRIER)
         will_ack = False
         if not f.corrupt:
-            if f.dest == BROADCAST:
-                targets = [n for a, n in self.nodes.items() if a != mac.addr]
+            loss = self.loss
+            if f.dest != BROADCAST:
+                node = self.nodes.get(f.dest)
+                if node is not None:
+                    if loss <= 0.0 or self.rng.random() >= loss:
+                        if f.ack_req:
+                            will_ack = True
+                            self._send_ack(f)
+                        node.on_frame(f)
+                    else:
+                        mac.stats_lost += 1
             else:
-                n = self.nodes.get(f.dest)
-                targets = [n] if n is not None else []
-            for node in targets:
-                if self._received():
-                    if f.ack_req and f.dest != BROADCAST:
-                        will_ack = True
-                        self._send_ack(f)
-                    node.on_frame(f)
-                elif f.dest != BROADCAST:
-                    mac.stats_lost += 1
+                for a, node in list(self.nodes.items()):
+                    if a != mac.addr and (loss <= 0.0 or self.rng.random() >= loss):
+                        node.on_frame(f)
         mac.tx_end(f, will_ack)
 
     def _send_ack(self, data: Frame) -> None:
@@ -178,8 +180,9 @@ class Mac:
     """A node's sending side: CSMA rounds, link retries, ack wait.
 
     ``send(dest, group, am_type, payload, ack_req, msg, done, src=None)`` sends
-    one message (``src``: AM source if not this node's address); ``done(msg, ok)`` is called once, from the event loop.  One
-    message at a time (the caller queues).
+    one message (``src``: AM source if not this node's address);
+    ``done(msg, ok)`` is called once, from the event loop.  One message at a
+    time (the caller queues).
     """
 
     def __init__(self, addr: int, channel: Channel, rng, max_retries: int = 2):

@@ -8,7 +8,7 @@ SHELL := /bin/bash
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-$(shell cat host/requirements.txt host/pyproject.toml | md5sum | cut -c1-8)
-APT_PACKAGES := gcc make gcc-avr avr-libc simavr
+APT_PACKAGES := gcc make gcc-avr avr-libc simavr postgresql
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 DEMO_DIR ?= demo-out
@@ -30,7 +30,8 @@ $(STAMP): host/requirements.txt host/pyproject.toml
 
 venv: $(STAMP)
 
-# Debian packages the C tests need (gcc, avr-gcc, simavr), installed when missing.
+# Debian packages the tests need (gcc, avr-gcc, simavr; postgresql for the store's
+# server test), installed when missing.
 sysdeps:
 	@missing=""; for p in $(APT_PACKAGES); do \
 	  dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \

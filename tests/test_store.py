@@ -285,3 +285,132 @@ def test_export_and_sessions_commands(tmp_path):
         assert r.returncode == 2, (args, r.stderr)
         assert msg in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
         assert "Traceback" not in r.stderr
+
+
+# --------------------------------------------------------------------------
+# PostgreSQL: a real server (Debian's postgresql package), started here in a
+# temporary folder, reachable only through its unix socket.
+# --------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def pg_url():
+    import glob
+    import pwd
+    import shutil
+    import time
+    bins = sorted(glob.glob("/usr/lib/postgresql/*/bin/initdb"))
+    if not bins:
+        pytest.fail("PostgreSQL server not installed (Debian package postgresql; make sysdeps)")
+    bindir = os.path.dirname(bins[-1])
+    import pathlib
+    import tempfile
+    # not under pytest's private (0700) folders: the server's user must reach it
+    root = pathlib.Path(tempfile.mkdtemp(prefix="motecal-pg-"))
+    user = None
+    if os.geteuid() == 0:                      # initdb refuses to run as root
+        user = "postgres" if _has_user("postgres") else "nobody"
+        os.chown(root, pwd.getpwnam(user).pw_uid, pwd.getpwnam(user).pw_gid)
+    data = root / "data"
+    subprocess.run([f"{bindir}/initdb", "-D", str(data), "-U", "motecal", "--auth=trust",
+                    "-E", "UTF8", "--no-sync"], check=True, capture_output=True, user=user,
+                   cwd=root)
+    server = subprocess.Popen([f"{bindir}/postgres", "-D", str(data), "-k", str(root),
+                               "-c", "listen_addresses=", "-c", "fsync=off"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, user=user,
+                              cwd=root)
+    import psycopg
+    base = f"postgresql://motecal@/postgres?host={root}"
+    deadline = time.monotonic() + 30
+    while True:
+        try:
+            with psycopg.connect(base, autocommit=True) as con:
+                con.execute("CREATE DATABASE motecal")
+            break
+        except psycopg.OperationalError:
+            if time.monotonic() > deadline or server.poll() is not None:
+                server.kill()
+                pytest.fail("PostgreSQL server did not start")
+            time.sleep(0.1)
+    yield f"postgresql://motecal@/motecal?host={root}"
+    server.terminate()
+    server.wait(20)
+    shutil.rmtree(root, ignore_errors=True)
+
+
+def _has_user(name):
+    import pwd
+    try:
+        pwd.getpwnam(name)
+        return True
+    except KeyError:
+        return False
+
+
+def test_postgres_sessions_calibrations_atomic(pg_url, monkeypatch):
+    data = _session("pg1", n=3000, motes=(1, 2, 3))
+    with open_store(pg_url) as st:
+        assert st.schema_version == SCHEMA_VERSION
+        st.save_session(data)
+        _same(data, st.load_session("pg1"))
+        assert st.sessions()[0]["samples"] == 3000 and st.sessions()[0]["motes"] == [1, 2, 3]
+        cid = st.save_calibration("pg1", 2, {"mag": {"A": np.eye(3)}})
+        assert st.load_calibration("pg1") == {"mag": {"A": np.eye(3).tolist()}} and cid >= 1
+        real = st._b_insert
+
+        def failing(cur, rows):
+            real(cur, rows)
+            raise RuntimeError("connection lost")
+
+        monkeypatch.setattr(st, "_b_insert", failing)
+        with pytest.raises(RuntimeError):
+            st.save_session(_session("pg2"))
+        monkeypatch.undo()
+        assert [s["name"] for s in st.sessions()] == ["pg1"]
+        with pytest.raises(UserError, match="unknown session 'pg2'.*known: pg1"):
+            st.load_session("pg2")
+    with pytest.raises(UserError, match="cannot connect"):
+        open_store(pg_url.replace("/motecal?", "/nosuchdb?"))
+
+
+def test_postgres_two_base_stations_log_into_one_server(pg_url, tmp_path):
+    from motecal import sources as S
+    from motecal.guide import GuidedFlow
+    from motecal.logger import LinkTracker, Logger
+    from test_logger_streams import pose_trajectory, sample_frames
+    recs, sent = {}, {}
+    for k, motes in enumerate(((1, 2), (7,))):
+        raws = {m: pose_trajectory(n_poses=3, seed=m)[0] for m in motes}
+        frames, sent[k] = sample_frames(raws, seq0={m: 65400 for m in motes})
+        recs[k] = tmp_path / f"bs{k}.bin"
+        recs[k].write_bytes(b"".join(frames))
+    import threading
+    errors = []
+
+    def station(k):
+        try:
+            with open_store(pg_url) as st:
+                w = st.open_session(f"bs{k}", kind="static80", meta={"source": f"bs{k}"})
+                Logger(S.parse_port(str(recs[k])), w, LinkTracker(),
+                       guide=GuidedFlow("static80", options=dict(poses=3))).run()
+        except Exception as e:          # surfaced below
+            errors.append(e)
+
+    threads = [threading.Thread(target=station, args=(k,)) for k in sent]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(60)
+    assert not errors
+    with open_store(pg_url) as st:
+        for k in sent:
+            d = st.load_session(f"bs{k}")
+            for m, (seq, raw) in sent[k].items():
+                dm = d.for_mote(m)
+                np.testing.assert_array_equal(dm.seq, seq)
+                np.testing.assert_array_equal(dm.raw, raw)
+                assert dm.poses() == [1, 2, 3]
+            assert st.link_stats(f"bs{k}")["motes"].keys() == sent[k].keys()
+            assert [e["kind"] for e in st.events(f"bs{k}")].count("accepted") == 3 * len(sent[k])
+    out = tmp_path / "bs0.csv"
+    r = _motecal("export", "--db", pg_url, "--session", "bs0", "--csv", str(out))
+    assert r.returncode == 0, r.stderr
+    assert len(out.read_text().splitlines()) == 1 + sum(len(s) for s, _ in sent[0].values())

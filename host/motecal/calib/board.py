@@ -95,15 +95,7 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
                                   ga_options, kfold, gyro_matrix, still)
 
     # magnetometer ----------------------------------------------------------------
-    has_mag = data.has("mag") & ~(data.sensor("mag") == HMC5883L_OVERFLOW).any(axis=1)
-    sets = {}
-    if (data.label == LABEL_ROT).any():
-        sets["R"] = has_mag & (data.label == LABEL_ROT)
-    elif not ((data.label >= 1).any()):
-        sets["R"] = has_mag & (data.label == LABEL_NONE)
-    if (data.label >= 1).any():
-        sets["O"] = has_mag & (data.label >= 1)
-    sets = {k: v for k, v in sets.items() if v.sum() >= 10}
+    sets = mag_sets(data)
     if not data.has("mag").any():
         board.settings["skipped"]["mag"] = "no magnetometer data in the session"
     elif not sets:
@@ -128,6 +120,20 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
             if name == main:
                 board.mag = sc
     return board
+
+
+def mag_sets(data: SessionData) -> dict:
+    """Rows of each magnetometer data set, ``{"O": mask, "R": mask}`` (see the
+    module doc); overflowed readings left out, sets under 10 rows dropped."""
+    ok = data.has("mag") & ~(data.sensor("mag") == HMC5883L_OVERFLOW).any(axis=1)
+    sets = {}
+    if (data.label == LABEL_ROT).any():
+        sets["R"] = ok & (data.label == LABEL_ROT)
+    elif not (data.label >= 1).any():
+        sets["R"] = ok & (data.label == LABEL_NONE)
+    if (data.label >= 1).any():
+        sets["O"] = ok & (data.label >= 1)
+    return {k: v for k, v in sets.items() if v.sum() >= 10}
 
 
 # ---------------------------------------------------------------------------

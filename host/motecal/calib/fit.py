@@ -19,7 +19,7 @@ from . import ga as _ga
 from .identify import Identifiability, analyse
 from .models import MagnitudeModel
 
-MAX_SWEEP_POINTS = 400      # surrogate size for unlabelled (rotation) data
+MAX_SWEEP_POINTS = 250      # surrogate size for unlabelled (rotation) data
 
 
 @dataclass

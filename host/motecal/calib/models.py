@@ -205,8 +205,10 @@ class MagnitudeModel:
     def population_mse(self, pop, u, w=None):
         """Weighted mean squared residual for each row of pop (P, d) on points u (m, 3)."""
         A, c, H = self.affine(pop)
-        v = np.matmul(A, u.T) + c[:, :, None]                 # (P, 3, m)
-        r = np.sqrt((v * v).sum(axis=1)) - np.asarray(H)[:, None]
+        P = len(A)
+        v = (A.reshape(P * 3, 3) @ u.T).reshape(P, 3, -1)   # one matrix product
+        v += c[:, :, None]
+        r = np.sqrt(np.einsum("pim,pim->pm", v, v)) - np.asarray(H)[:, None]
         r2 = r * r
         if w is None:
             return r2.mean(axis=1)

@@ -13,6 +13,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 TINYOS = REPO / "tinyos"
+BASESTATION = REPO / "basestation"
 CSRC = REPO / "tests" / "c"
 MCU = "atmega1281"
 F_CPU = 8_000_000

@@ -151,7 +151,7 @@ def test_receiver_replies_are_identical_on_the_avr(avr_run):
 # --------------------------------------------------------------------------
 # The rest of the firmware's plain C logic, on the host and on the AVR
 # --------------------------------------------------------------------------
-LOGIC_SOURCES = [avrsim.CSRC / "logic_tests.c"] + [
+LOGIC_SOURCES = [avrsim.CSRC / "logic_tests.c", avrsim.BASESTATION / "ninedof_bs.c"] + [
     avrsim.TINYOS / f for f in ("ninedof_board.c", "ninedof_cal.c", "ninedof_sampling.c")]
 
 
@@ -160,12 +160,12 @@ def logic_outputs(tmp_path_factory):
     d = tmp_path_factory.mktemp("logic")
     exe = d / "logic_host"
     subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror",
-                    f"-I{avrsim.TINYOS}"] + [str(s) for s in LOGIC_SOURCES] + ["-o", str(exe)],
-                   check=True)
+                    f"-I{avrsim.TINYOS}", f"-I{avrsim.BASESTATION}"]
+                   + [str(s) for s in LOGIC_SOURCES] + ["-o", str(exe)], check=True)
     host = subprocess.run([str(exe)], capture_output=True, text=True).stdout.replace("\n", "")
     if avrsim.missing_tools():
         pytest.fail(f"missing {avrsim.missing_tools()}: run `make sysdeps`")
-    elf = avrsim.build(LOGIC_SOURCES, d / "logic.elf")
+    elf = avrsim.build(LOGIC_SOURCES, d / "logic.elf", include=[avrsim.BASESTATION])
     avr = avrsim.run(elf)
     return host, avr
 
@@ -204,6 +204,9 @@ def test_logic_outputs_identical_and_readable_by_the_host(logic_outputs):
     ee = digests[3]
     assert M.image_check(ee[:P.CALSET_SIZE + 6], 3) == 1
     assert M.image_check(ee[0x80:0x80 + P.CALSET_SIZE + 6], 3) == 2
+    assert P.BS_STATUS.unpack(digests[4]) == dict(radio_rx=1, radio_drops=2, serial_rx=3,
+                                                  serial_drops=4, radio_fail=5,
+                                                  serial_fail=0xFFFF)
 
 
 def test_board_register_table_matches_the_datasheet_goals():

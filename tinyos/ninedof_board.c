@@ -55,6 +55,13 @@ const ninedof_reg_write_t NINEDOF_HMC5883L_CONFIG[NINEDOF_HMC5883L_CONFIG_LEN] =
   { HMC5883L_MODE, 0x01 },
 };
 
+/* POWER_CTL: Measure=0 (standby, 0.1 uA) */
+const ninedof_reg_write_t NINEDOF_ADXL345_SLEEP = { ADXL345_POWER_CTL, 0x00 };
+/* PWR_MGM: SLEEP=1 (low-power sleep), CLK_SEL=000 (internal oscillator) */
+const ninedof_reg_write_t NINEDOF_ITG3200_SLEEP = { ITG3200_PWR_MGM, 0x40 };
+/* MODE: MD=11 (idle) */
+const ninedof_reg_write_t NINEDOF_HMC5883L_SLEEP = { HMC5883L_MODE, 0x03 };
+
 /* MODE register (0x02) = MD 01: one single measurement */
 const uint8_t NINEDOF_HMC5883L_TRIGGER[2] = { HMC5883L_MODE, 0x01 };
 

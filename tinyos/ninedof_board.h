@@ -68,6 +68,11 @@ enum {
   NINEDOF_HMC5883L_CONFIG_LEN = 3,
 };
 
+/* The write that puts each chip in its low-power state (SplitControl.stop) */
+extern const ninedof_reg_write_t NINEDOF_ADXL345_SLEEP;
+extern const ninedof_reg_write_t NINEDOF_ITG3200_SLEEP;
+extern const ninedof_reg_write_t NINEDOF_HMC5883L_SLEEP;
+
 /* The write that starts one HMC5883L single measurement: MODE = single.
  * Its register pointer then auto-increments to 0x03 (DATA_X_MSB), and
  * wraps from 0x08 back to 0x03 after the six data bytes, so the data are

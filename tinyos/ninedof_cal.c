@@ -187,7 +187,7 @@ static NINEDOF_ALWAYS_INLINE int16_t sat_q14(int32_t acc)
     uint8_t b1 = (uint8_t)((uint32_t)acc >> 8);
     return (int16_t)(uint16_t)((uint16_t)(hi << 2) | (uint8_t)(b1 >> 6));
   }
-  return (top & 0x80) ? (int16_t)-32768 : (int16_t)32767;
+  return (top & 0x80) ? (int16_t)INT16_MIN : (int16_t)INT16_MAX;
 }
 
 #if defined(__AVR__) && !defined(NINEDOF_PORTABLE_KERNEL)
@@ -200,9 +200,11 @@ static NINEDOF_ALWAYS_INLINE int16_t sat_q14(int32_t acc)
  * MULSU needs its operands in r16..r23 ("a" constraint).
  */
 #include <stddef.h>
+#ifndef NESC   /* nesC's output of offsetof is no constant expression */
 typedef char ninedof_kernel_layout_check[
   (offsetof(ninedof_cal_sensor_native_t, a) == 0 &&
    offsetof(ninedof_cal_sensor_native_t, c) == 18) ? 1 : -1];
+#endif
 
 #define K_LDM(LO, HI) "ldd %A[m], Z+" #LO "\n\tldd %B[m], Z+" #HI "\n\t"
 #define K_LDX "ld %A[x], X+\n\tld %B[x], X+\n\t"
@@ -316,10 +318,10 @@ static NINEDOF_ALWAYS_INLINE void sensor_q14(const ninedof_cal_sensor_native_t *
 
 static int16_t sat16(int32_t v)
 {
-  if (v > 32767)
-    return 32767;
-  if (v < -32768)
-    return -32768;
+  if (v > INT16_MAX)
+    return INT16_MAX;
+  if (v < INT16_MIN)
+    return INT16_MIN;
   return (int16_t)v;
 }
 

@@ -23,6 +23,17 @@
 #endif
 #define NINEDOF_PERIOD_TICKS ((uint16_t)(NINEDOF_ALARM_HZ / NINEDOF_RATE_HZ))
 
+/* Where samples and status go, and how they are sent */
+#ifndef NINEDOF_BASESTATION_ADDR
+#define NINEDOF_BASESTATION_ADDR 0      /* TOS_NODE_ID of the BaseStation */
+#endif
+#ifndef NINEDOF_RETRIES
+#define NINEDOF_RETRIES 2               /* resends of an unacknowledged message */
+#endif
+#ifndef NINEDOF_SEND_QUEUE
+#define NINEDOF_SEND_QUEUE 4            /* sample messages waiting for the radio */
+#endif
+
 /* Whole periods between two alarm times (wrap-safe, 32-bit ticks) */
 uint16_t ninedof_periods_between(uint32_t from, uint32_t to);
 

@@ -1,6 +1,7 @@
 /*
  * logic_tests.c -- behaviour of the firmware's plain C logic (board data
- * conversion, I2C rate, 125 Hz period, batching, status, EEPROM writer),
+ * conversion, I2C rate, 125 Hz period, batching, status, EEPROM writer, the
+ * BaseStation's serial divisor and status),
  * built twice by tests/test_avr.py: with gcc on the host and with avr-gcc
  * for the ATmega1281 in simavr.  Prints "CHECKS <n> FAILED <m>" and, for the
  * host-vs-AVR comparison, a digest of every packed message ("D<hex>").
@@ -9,6 +10,7 @@
 #include <string.h>
 
 #include "ninedof_board.h"
+#include "ninedof_bs.h"
 #include "ninedof_cal.h"
 #include "ninedof_sampling.h"
 
@@ -318,6 +320,29 @@ static void test_eeprom(void)
   out_c(';');
 }
 
+/* ---------------------------------------------------------------------- */
+static void test_basestation(void)
+{
+  ninedof_bs_counters_t c = { 1, 2, 3, 4, 5, 0xFFFF };
+  ninedof_bs_status_msg_t st;
+
+  /* 8 MHz iris: MeasureClockC finds 244 cycles per 1/32768 s */
+  CHECK(ninedof_bs_ubrr(244, 250000UL) == 3);              /* TinyOS: 2 */
+  CHECK((244UL << 12) / 250000UL - 1 == 2);                 /* = 333 kbaud */
+  CHECK(ninedof_bs_ubrr(244, 500000UL) == 1);
+  CHECK(ninedof_bs_ubrr(244, 76800UL) == 12);
+  CHECK(ninedof_bs_ubrr(244, 57600UL) == 16);
+  CHECK(ninedof_bs_ubrr(245, 250000UL) == 3);               /* a slightly fast clock */
+  /* error of the rounded divisor at the nominal clock (8 MHz / 8 / (UBRR+1)) */
+  CHECK(8000000UL / 8 / (ninedof_bs_ubrr(244, 250000UL) + 1) == 250000UL);
+  CHECK(ninedof_bs_baud(244, 3) == 249856UL);
+  ninedof_bs_status_pack(&c, &st);
+  CHECK(nxp_get_u16(&st.radio_rx) == 1 && nxp_get_u16(&st.serial_fail) == 0xFFFF);
+  out_c('D');
+  out_hex((const uint8_t *)&st, sizeof(st));
+  out_c(';');
+}
+
 int main(void)
 {
   out_init();
@@ -326,6 +351,7 @@ int main(void)
   test_batching();
   test_status();
   test_eeprom();
+  test_basestation();
   out_s("CHECKS ");
   out_u16(checks);
   out_s(" FAILED ");

@@ -1,0 +1,24 @@
+/*
+ * Hmc5883lC -- public component of one HMC5883L magnetometer (always 0x1E):
+ * SplitControl configures it (or puts it to sleep), ReadNow<ninedof_xyz_t>
+ * reads its three axes in counts from any context (async).  Each instance
+ * is its own client of the arbitrated I2C bus (HplNineDofI2CC, 400 kHz).
+ *
+ * @author motecal
+ */
+#include "NineDofBoard.h"
+
+generic configuration Hmc5883lC(uint8_t addr)
+{
+  provides interface SplitControl;
+  provides interface ReadNow<ninedof_xyz_t>;
+}
+implementation
+{
+  components new Hmc5883lLogicP(addr) as Logic, new HplNineDofI2CC() as Bus;
+
+  SplitControl = Logic;
+  ReadNow = Logic;
+  Logic.Resource -> Bus;
+  Logic.I2CPacket -> Bus;
+}

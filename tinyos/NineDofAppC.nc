@@ -1,0 +1,55 @@
+/*
+ * NineDofAppC -- the sensor mote: 9DOF board sampled at exactly 125 Hz,
+ * batched, corrected with the uploaded calibration, sent to the BaseStation.
+ * See NineDofAppP for the behaviour and the LEDs.
+ *
+ * @author motecal
+ */
+#include "NineDofApp.h"
+#include "NineDofBoard.h"
+
+configuration NineDofAppC
+{
+}
+implementation
+{
+  components MainC, LedsC, NineDofAppP as App;
+  components NineDofBoardC as Board;
+  components new Alarm32khz32C() as Alarm;
+  components ActiveMessageC as Radio;
+  components new AMSenderC(AM_NINEDOF_SAMPLES_MSG) as SampleSend;
+  components new AMSenderC(AM_NINEDOF_MOTE_STATUS_MSG) as StatusSend;
+  components new AMSenderC(AM_NINEDOF_CAL_FRAG_ACK_MSG) as FragAckSend;
+  components new AMSenderC(AM_NINEDOF_CAL_COMMIT_ACK_MSG) as CommitAckSend;
+  components new AMSenderC(AM_NINEDOF_CAL_REPORT_MSG) as ReportSend;
+  components new AMReceiverC(AM_NINEDOF_CAL_FRAG_MSG) as FragReceive;
+  components new AMReceiverC(AM_NINEDOF_CAL_COMMIT_MSG) as CommitReceive;
+  components new AMReceiverC(AM_NINEDOF_CAL_QUERY_MSG) as QueryReceive;
+  components new PoolC(message_t, NINEDOF_SEND_QUEUE) as SamplePool;
+  components new QueueC(message_t*, NINEDOF_SEND_QUEUE) as SendQueue;
+  components new TimerMilliC() as StatusTimer;
+  components new TimerMilliC() as RetryTimer;
+  components new TimerMilliC() as EepromTimer;
+
+  App.Boot -> MainC;
+  App.Leds -> LedsC;
+  App.BoardControl -> Board;
+  App.Board -> Board;
+  App.Alarm -> Alarm;
+  App.RadioControl -> Radio;
+  App.SampleSend -> SampleSend;
+  App.StatusSend -> StatusSend;
+  App.FragAckSend -> FragAckSend;
+  App.CommitAckSend -> CommitAckSend;
+  App.ReportSend -> ReportSend;
+  App.FragReceive -> FragReceive;
+  App.CommitReceive -> CommitReceive;
+  App.QueryReceive -> QueryReceive;
+  App.AMPacket -> Radio;
+  App.Acks -> SampleSend;
+  App.SamplePool -> SamplePool;
+  App.SendQueue -> SendQueue;
+  App.StatusTimer -> StatusTimer;
+  App.RetryTimer -> RetryTimer;
+  App.EepromTimer -> EepromTimer;
+}

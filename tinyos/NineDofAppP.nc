@@ -1,0 +1,379 @@
+/*
+ * NineDofAppP -- 125 Hz 9DOF sampling mote.
+ *
+ * Every 250 ticks of a 31.25 kHz alarm (exactly 8 ms, re-armed from its own
+ * previous expiry so no error accumulates) the board reads the nine axes of
+ * that instant; each period has a sequence number.  Records of consecutive
+ * periods are batched NINEDOF_BATCH to a message, corrected with the
+ * calibration in force and flagged (ninedof_sampling.c, ninedof_cal.c) and
+ * sent to the BaseStation (address 0) with an acknowledgement requested and
+ * up to NINEDOF_RETRIES retries, through a queue of NINEDOF_SEND_QUEUE
+ * messages; when the queue is full the batch is dropped and counted.  A
+ * ninedof_mote_status_msg goes out every 2 s.  Calibration messages are
+ * answered by the shared receiver (ninedof_calrx_handle); an accepted set
+ * is written to the internal EEPROM in the background, one byte per 4 ms,
+ * while sampling continues.
+ *
+ * LEDs: red    on   = sensor board not answering (retried every second);
+ *              flash = a failed sensor read
+ *       green  toggles every 125 samples (one second) while sampling
+ *       yellow on   = a new calibration is being written to EEPROM (~0.4 s)
+ *
+ * @author motecal
+ */
+#include <avr/eeprom.h>
+#include "NineDofApp.h"
+#include "NineDofBoard.h"
+
+module NineDofAppP @safe()
+{
+  uses {
+    interface Boot;
+    interface Leds;
+    interface SplitControl as BoardControl;
+    interface ReadNow<ninedof_raw_t> as Board;
+    interface Alarm<T32khz, uint32_t> as Alarm;
+    interface SplitControl as RadioControl;
+    interface AMSend as SampleSend;
+    interface AMSend as StatusSend;
+    interface AMSend as FragAckSend;
+    interface AMSend as CommitAckSend;
+    interface AMSend as ReportSend;
+    interface Receive as FragReceive;
+    interface Receive as CommitReceive;
+    interface Receive as QueryReceive;
+    interface AMPacket;
+    interface PacketAcknowledgements as Acks;
+    interface Pool<message_t> as SamplePool;
+    interface Queue<message_t*> as SendQueue;
+    interface Timer<TMilli> as StatusTimer;
+    interface Timer<TMilli> as RetryTimer;
+    interface Timer<TMilli> as EepromTimer;
+  }
+}
+implementation
+{
+  enum {
+    BASESTATION = NINEDOF_BASESTATION_ADDR,
+    /* binary milliseconds: 2000 ms = 2048 TMilli ticks */
+    STATUS_TICKS = (uint32_t)NINEDOF_STATUS_PERIOD_MS * 1024UL / 1000UL,
+    RETRY_TICKS = 1024,
+    EEPROM_TICKS = 4,            /* an EEPROM byte write takes 3.3 ms */
+    PENDING = 4,                 /* samples read, not yet batched */
+  };
+
+  /* calibration in force, batch being filled, EEPROM writer: tasks only */
+  ninedof_calrx_t rx;
+  ninedof_batch_t batch;
+  ninedof_eewriter_t eewriter;
+  uint8_t bootImage[2][NINEDOF_IMAGE_SIZE];
+
+  /* shared with the alarm and I2C interrupts */
+  ninedof_counters_t counters;
+  bool sampling = FALSE;
+  bool reading = FALSE;
+  uint16_t readSeq;
+  ninedof_raw_t pending[PENDING];
+  uint16_t pendingSeq[PENDING];
+  uint8_t pendingHead, pendingCount;
+
+  /* radio: tasks only */
+  bool radioOn = FALSE, boardOn = FALSE, sending = FALSE;
+  uint8_t attempts;
+  uint16_t heartbeat;
+  message_t statusMsg, replyMsg;
+  bool statusBusy = FALSE, replyBusy = FALSE;
+
+  task void processSamples();
+  task void sendNext();
+  task void readFailed();
+
+  /* ---------------------------------------------------------------- boot */
+  event void Boot.booted() {
+    uint8_t slot;
+    uint16_t generation;
+
+    ninedof_counters_init(&counters);
+    ninedof_batch_init(&batch);
+    ninedof_calrx_init(&rx, TOS_NODE_ID);
+    eeprom_read_block(bootImage[0], (const void *)NINEDOF_EEPROM_SLOT0, NINEDOF_IMAGE_SIZE);
+    eeprom_read_block(bootImage[1], (const void *)NINEDOF_EEPROM_SLOT1, NINEDOF_IMAGE_SIZE);
+    ninedof_calrx_restore(&rx, bootImage[0], bootImage[1], &slot, &generation);
+    ninedof_eewriter_init(&eewriter, slot, generation);
+
+    call RadioControl.start();
+    call BoardControl.start();
+  }
+
+  void startSampling() {
+    if (!radioOn || !boardOn)
+      return;
+    atomic {
+      if (sampling)
+        return;
+      sampling = TRUE;
+      call Alarm.startAt(call Alarm.getNow(), NINEDOF_PERIOD_TICKS);
+    }
+    call StatusTimer.startPeriodic(STATUS_TICKS);
+  }
+
+  event void RadioControl.startDone(error_t err) {
+    if (err != SUCCESS) {
+      call RadioControl.start();
+      return;
+    }
+    radioOn = TRUE;
+    startSampling();
+  }
+
+  event void RadioControl.stopDone(error_t err) { }
+
+  event void BoardControl.startDone(error_t err) {
+    if (err != SUCCESS) {
+      call Leds.led0On();                     /* board not answering */
+      call RetryTimer.startOneShot(RETRY_TICKS);
+      return;
+    }
+    call Leds.led0Off();
+    boardOn = TRUE;
+    startSampling();
+  }
+
+  event void BoardControl.stopDone(error_t err) { }
+
+  event void RetryTimer.fired() {
+    if (call BoardControl.start() != SUCCESS)
+      call RetryTimer.startOneShot(RETRY_TICKS);
+  }
+
+  /* ------------------------------------------------------ 125 Hz period */
+  async event void Alarm.fired() {
+    uint16_t seq;
+    bool busy;
+
+    /* next period from this one's expiry: exactly 250 ticks, no drift */
+    call Alarm.startAt(call Alarm.getAlarm(), NINEDOF_PERIOD_TICKS);
+    atomic {
+      seq = counters.seq++;
+      busy = reading;
+      if (busy)
+        counters.late++;                      /* previous read still running */
+      else {
+        reading = TRUE;
+        readSeq = seq;
+      }
+    }
+    if (busy)
+      return;
+    if (call Board.read() != SUCCESS) {
+      atomic {
+        reading = FALSE;
+        counters.i2c_errors++;
+      }
+      post readFailed();
+    }
+  }
+
+  async event void Board.readDone(error_t err, ninedof_raw_t val) {
+    atomic {
+      reading = FALSE;
+      if (err != SUCCESS) {
+        counters.i2c_errors++;
+      } else if (pendingCount == PENDING) {
+        counters.dropped++;                   /* tasks did not run for 32 ms */
+      } else {
+        uint8_t i = (uint8_t)((pendingHead + pendingCount) % PENDING);
+        pending[i] = val;
+        pendingSeq[i] = readSeq;
+        pendingCount++;
+      }
+    }
+    if (err != SUCCESS)
+      post readFailed();
+    else
+      post processSamples();
+  }
+
+  task void readFailed() {
+    call Leds.led0Toggle();                   /* flash: a failed read */
+  }
+
+  /* ------------------------------------------------------------ batching */
+  /* Queue the batch as one message, or drop it if the queue is full. */
+  void flush() {
+    message_t *m;
+    ninedof_samples_msg_t *p;
+
+    if (batch.count == 0)
+      return;
+    if (call SamplePool.empty()) {
+      atomic counters.dropped += batch.count;
+      ninedof_batch_init(&batch);
+      return;
+    }
+    m = call SamplePool.get();
+    p = (ninedof_samples_msg_t *)call SampleSend.getPayload(m, sizeof(ninedof_samples_msg_t));
+    if (p == NULL) {
+      call SamplePool.put(m);
+      atomic counters.dropped += batch.count;
+      ninedof_batch_init(&batch);
+      return;
+    }
+    ninedof_batch_pack(&batch, &rx, p);
+    call SendQueue.enqueue(m);
+    post sendNext();
+  }
+
+  task void processSamples() {
+    for (;;) {
+      ninedof_raw_t v;
+      uint16_t seq;
+      atomic {
+        if (pendingCount == 0)
+          return;
+        v = pending[pendingHead];
+        seq = pendingSeq[pendingHead];
+        pendingHead = (uint8_t)((pendingHead + 1) % PENDING);
+        pendingCount--;
+      }
+      if (!ninedof_batch_fits(&batch, seq))
+        flush();                              /* a period is missing: new message */
+      if (ninedof_batch_add(&batch, seq, v.axis))
+        flush();
+      if (++heartbeat >= NINEDOF_RATE_HZ) {
+        heartbeat = 0;
+        call Leds.led1Toggle();
+      }
+    }
+  }
+
+  /* --------------------------------------------------------------- radio */
+  uint8_t sampleLength(message_t *m) {
+    ninedof_samples_msg_t *p =
+      (ninedof_samples_msg_t *)call SampleSend.getPayload(m, sizeof(ninedof_samples_msg_t));
+    return (uint8_t)(sizeof(ninedof_samples_msg_t) -
+                     (NINEDOF_BATCH - p->count) * sizeof(ninedof_record_t));
+  }
+
+  void sendFinished(bool delivered) {
+    message_t *m = call SendQueue.dequeue();
+    if (!delivered)
+      atomic counters.send_fail++;
+    call SamplePool.put(m);
+    attempts = 0;
+  }
+
+  task void sendNext() {
+    message_t *m;
+    if (sending || call SendQueue.empty())
+      return;
+    m = call SendQueue.head();
+    call Acks.requestAck(m);
+    if (call SampleSend.send(BASESTATION, m, sampleLength(m)) == SUCCESS) {
+      sending = TRUE;
+    } else if (++attempts > NINEDOF_RETRIES) {
+      sendFinished(FALSE);
+      post sendNext();
+    } else {
+      post sendNext();
+    }
+  }
+
+  event void SampleSend.sendDone(message_t *m, error_t err) {
+    sending = FALSE;
+    if (err == SUCCESS && call Acks.wasAcked(m))
+      sendFinished(TRUE);
+    else if (++attempts > NINEDOF_RETRIES)
+      sendFinished(FALSE);
+    post sendNext();
+  }
+
+  event void StatusTimer.fired() {
+    ninedof_mote_status_msg_t *p;
+    ninedof_counters_t c;
+    if (statusBusy)
+      return;
+    p = (ninedof_mote_status_msg_t *)call StatusSend.getPayload(
+      &statusMsg, sizeof(ninedof_mote_status_msg_t));
+    if (p == NULL)
+      return;
+    atomic c = counters;
+    ninedof_status_pack(&c, &rx, p);
+    if (call StatusSend.send(BASESTATION, &statusMsg, sizeof(ninedof_mote_status_msg_t))
+        == SUCCESS)
+      statusBusy = TRUE;
+  }
+
+  event void StatusSend.sendDone(message_t *m, error_t err) {
+    statusBusy = FALSE;
+  }
+
+  /* --------------------------------------------------------- calibration */
+  void persist() {
+    if (ninedof_eewriter_poll(&eewriter, &rx)) {
+      call Leds.led2On();
+      call EepromTimer.startPeriodic(EEPROM_TICKS);
+    }
+  }
+
+  /* One EEPROM byte per tick; bytes already equal are skipped. */
+  event void EepromTimer.fired() {
+    uint16_t addr;
+    uint8_t value;
+    if (!eeprom_is_ready())
+      return;
+    while (ninedof_eewriter_next(&eewriter, &addr, &value)) {
+      if (eeprom_read_byte((const uint8_t *)addr) != value) {
+        eeprom_write_byte((uint8_t *)addr, value);   /* 3.3 ms, in hardware */
+        return;
+      }
+    }
+    call EepromTimer.stop();
+    call Leds.led2Off();
+  }
+
+  /* Every calibration message goes to the shared receiver; its reply goes
+   * back to the sender unless the previous reply is still on its way (the
+   * host then repeats the message, which the receiver handles idempotently). */
+  void calibration(uint8_t type, message_t *m, void *payload, uint8_t len) {
+    uint8_t reply[sizeof(ninedof_cal_report_msg_t)];
+    uint8_t rtype = 0, n, *out;
+    am_addr_t to = call AMPacket.source(m);
+    error_t err = FAIL;
+
+    n = ninedof_calrx_handle(&rx, type, (const uint8_t *)payload, len, reply, &rtype);
+    persist();
+    if (n == 0 || replyBusy)
+      return;
+    out = (uint8_t *)call FragAckSend.getPayload(&replyMsg, n);
+    if (out == NULL)
+      return;
+    memcpy(out, reply, n);
+    if (rtype == AM_NINEDOF_CAL_FRAG_ACK_MSG)
+      err = call FragAckSend.send(to, &replyMsg, n);
+    else if (rtype == AM_NINEDOF_CAL_COMMIT_ACK_MSG)
+      err = call CommitAckSend.send(to, &replyMsg, n);
+    else if (rtype == AM_NINEDOF_CAL_REPORT_MSG)
+      err = call ReportSend.send(to, &replyMsg, n);
+    replyBusy = (err == SUCCESS);
+  }
+
+  event message_t *FragReceive.receive(message_t *m, void *payload, uint8_t len) {
+    calibration(AM_NINEDOF_CAL_FRAG_MSG, m, payload, len);
+    return m;
+  }
+
+  event message_t *CommitReceive.receive(message_t *m, void *payload, uint8_t len) {
+    calibration(AM_NINEDOF_CAL_COMMIT_MSG, m, payload, len);
+    return m;
+  }
+
+  event message_t *QueryReceive.receive(message_t *m, void *payload, uint8_t len) {
+    calibration(AM_NINEDOF_CAL_QUERY_MSG, m, payload, len);
+    return m;
+  }
+
+  event void FragAckSend.sendDone(message_t *m, error_t err) { replyBusy = FALSE; }
+  event void CommitAckSend.sendDone(message_t *m, error_t err) { replyBusy = FALSE; }
+  event void ReportSend.sendDone(message_t *m, error_t err) { replyBusy = FALSE; }
+}

@@ -188,7 +188,7 @@ def _read_frames(port_obj, want, timeout=20.0):
     frames = []
     t = time.monotonic()
     while time.monotonic() - t < timeout:
-        frames += dec.feed(port_obj.read(port_obj.in_waiting or 1))
+        frames += dec.feed(port_obj.read(65536))         # returns after the read timeout
         if want(frames):
             break
     return frames
@@ -262,7 +262,7 @@ def test_serve_in_thread_fast_equals_file_and_reconnect_loses_counted():
         got = bytearray()
         t = time.monotonic()
         while time.monotonic() - t < 20 and len(got) < len(want):
-            got += ser.read(ser.in_waiting or 1)
+            got += ser.read(65536)
         ser.close()
     finally:
         srv.stop()
@@ -322,7 +322,7 @@ def test_pty_in_thread_waits_for_the_client_and_loses_nothing():
         got = bytearray()
         t = time.monotonic()
         while len(got) < len(want) and time.monotonic() - t < 20:
-            got += ser.read(ser.in_waiting or 1)
+            got += ser.read(65536)
         ser.close()
     finally:
         line.stop()

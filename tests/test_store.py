@@ -269,22 +269,27 @@ def test_export_and_sessions_commands(tmp_path):
     with open_store(db, create=True) as st:
         st.save_session(_session("alpha"))
     out = tmp_path / "a.csv"
-    r = _motecal("export", "--db", db, "--session", "alpha", "--csv", str(out), "--mote", "2")
-    assert r.returncode == 0, r.stderr
+    good = [("export", "--db", db, "--session", "alpha", "--csv", str(out), "--mote", "2"),
+            ("sessions", "--db", db)]
+    bad = [(("export", "--db", db, "--session", "nope", "--csv", str(out)), "unknown session"),
+           (("export", "--db", str(tmp_path / "x.db"), "--session", "a", "--csv", str(out)),
+            "no database"),
+           (("export", "--db", db, "--session", "alpha", "--csv",
+             str(tmp_path / "no" / "a.csv")), "does not exist"),
+           (("export", "--db", db, "--session", "alpha"), "required")]
+    procs = [subprocess.Popen([sys.executable, "-m", "motecal", *args], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True)
+             for args in good + [b[0] for b in bad]]
+    outs = [p.communicate(timeout=60) for p in procs]
+    res = [(p.returncode, o, e) for p, (o, e) in zip(procs, outs)]
+    (rc, _, err), (rc2, listing, _) = res[:2]
+    assert rc == 0, err
     assert len(out.read_text().splitlines()) == 1 + 6
-    r = _motecal("sessions", "--db", db)
-    assert r.returncode == 0 and "alpha" in r.stdout and "static80" in r.stdout
-    for args, msg in (
-            (("export", "--db", db, "--session", "nope", "--csv", str(out)), "unknown session"),
-            (("export", "--db", str(tmp_path / "x.db"), "--session", "a", "--csv", str(out)),
-             "no database"),
-            (("export", "--db", db, "--session", "alpha", "--csv", str(tmp_path / "no" / "a.csv")),
-             "does not exist"),
-            (("export", "--db", db, "--session", "alpha"), "required")):
-        r = _motecal(*args)
-        assert r.returncode == 2, (args, r.stderr)
-        assert msg in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
-        assert "Traceback" not in r.stderr
+    assert rc2 == 0 and "alpha" in listing and "static80" in listing
+    for (args, msg), (rc, _, err) in zip(bad, res[2:]):
+        assert rc == 2, (args, err)
+        assert msg in err and len(err.strip().splitlines()) == 1, err
+        assert "Traceback" not in err
 
 
 # --------------------------------------------------------------------------

@@ -158,9 +158,9 @@ def sketch_up(d: np.ndarray) -> list[str]:
         a = math.atan2(y, x)
         q = (round(math.cos(a) * 1.2), round(math.sin(a) * 1.2))
         arrow = arrows.get((max(-1, min(1, q[0])), max(-1, min(1, q[1]))), " ")
-    return [f"   {upv[0]}     ",
-            f" +-----+ tilt {arrow}",
-            f" | {name} | {right[0]}",
+    return [f"    {upv[0]}",
+            f" +-----+  tilt {arrow}",
+            f" | {name:^3} | {right[0]}",
             " +-----+"]
 
 
@@ -360,7 +360,10 @@ class PoseCapture:
             self.phase = Phase.MOVE
 
     def status(self) -> dict:
-        return dict(kind=self.kind, mote=self.mote, phase=self.phase.value,
+        phase = self.phase.value
+        if self.phase is Phase.WAIT_STILL and not self.armed:
+            phase = "place the board, then press Enter"
+        return dict(kind=self.kind, mote=self.mote, phase=phase,
                     pose=self.next_pose, poses=self.poses, captured=self.captured,
                     samples=self.samples, armed=self.armed, warning=self.warning,
                     coverage=self.coverage.fraction,

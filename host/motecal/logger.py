@@ -17,6 +17,7 @@ marked ended.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import signal
 import sys
@@ -677,8 +678,7 @@ def _guide_text(st: dict):
                      f" - {st['phase']}"
                      + (f" ({st['captured']}/{st['samples']})" if st["captured"] else ""))
         if st["target"]:
-            lines.append(f"  suggested: {st['target']}"
-                         + ("" if st["armed"] else "  -- place it, then press Enter"))
+            lines.append(f"  suggested: {st['target']}")
         sketch = st["sketch"]
         cov = [f"coverage {st['coverage']:.0%} (o = suggested)"] + st["map"]
         for k in range(max(len(sketch), len(cov))):
@@ -694,6 +694,24 @@ def _guide_text(st: dict):
                      + ("" if st["armed"] else "  -- press Enter to start"))
         lines += ["  " + r for r in st["map"]]
     return Text("\n".join(lines))
+
+
+@contextlib.contextmanager
+def _no_echo(active: bool):
+    """Keys typed for the guide (Enter) are not echoed into the live display."""
+    if not active:
+        yield
+        return
+    import termios
+    fd = sys.stdin.fileno()
+    old = termios.tcgetattr(fd)
+    new = list(old)
+    new[3] &= ~termios.ECHO
+    termios.tcsetattr(fd, termios.TCSADRAIN, new)
+    try:
+        yield
+    finally:
+        termios.tcsetattr(fd, termios.TCSADRAIN, old)
 
 
 class _KeyReader(threading.Thread):
@@ -834,9 +852,10 @@ def run(args) -> int:
         for sig in (signal.SIGINT, signal.SIGTERM):
             old[sig] = signal.signal(sig, on_signal)
         try:
-            if interactive:
-                _KeyReader(logger).start()
-            logger.run()
+            with _no_echo(interactive):
+                if interactive:
+                    _KeyReader(logger).start()
+                logger.run()
         finally:
             for sig, h in old.items():
                 signal.signal(sig, h)

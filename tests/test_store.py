@@ -13,7 +13,7 @@ from motecal import store as store_mod
 from motecal.errors import UserError
 from motecal.session import LABEL_ROT, SessionData
 from motecal.store import SCHEMA_VERSION, open_store
-from motecal.store_cli import CSV_HEADER, write_csv
+from motecal.store_cli import CSV_HEADER, export_csv
 
 
 def _session(name="s1", n=12, motes=(1, 2), seed=0):
@@ -232,7 +232,7 @@ def test_live_writer_batches_labels_stats_and_end(tmp_path):
 def test_export_csv_format_and_atomic(tmp_path, monkeypatch):
     data = _session()
     out = tmp_path / "out.csv"
-    assert write_csv(data, str(out)) == 12
+    assert export_csv(data, str(out)) == 12
     rows = list(csv.reader(out.open()))
     assert tuple(rows[0]) == CSV_HEADER
     assert rows[0] == "mote,seq,t,label,ax,ay,az,gx,gy,gz,mx,my,mz".split(",")
@@ -244,17 +244,19 @@ def test_export_csv_format_and_atomic(tmp_path, monkeypatch):
         assert x[4:] == ["" if np.isnan(v) else str(int(v)) for v in data.raw[i]]
     # a failure while writing leaves the old file untouched and no temp file
     out.write_text("previous\n")
-    import motecal.store_cli as sc
+    import motecal.importer
 
     class Boom(Exception):
         pass
 
-    def bad_writer(*a, **k):
+    def half_then_fail(d, path):           # dies after writing part of the file
+        with open(path, "w") as f:
+            f.write("mote,seq\n1,2\n")
         raise Boom()
 
-    monkeypatch.setattr(sc.csv, "writer", bad_writer)
+    monkeypatch.setattr(motecal.importer, "write_csv", half_then_fail)
     with pytest.raises(Boom):
-        write_csv(data, str(out))
+        export_csv(data, str(out))
     assert out.read_text() == "previous\n"
     assert sorted(os.listdir(tmp_path)) == ["out.csv"]
 

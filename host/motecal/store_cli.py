@@ -2,27 +2,22 @@
 (what a database holds)."""
 from __future__ import annotations
 
-import csv
 import json
 import os
 import sys
 import tempfile
 
-import numpy as np
-
+from . import importer
 from .errors import UserError
-from .session import COLUMNS, label_to_text
 from .store import open_store
 
-CSV_HEADER = ("mote", "seq", "t", "label") + COLUMNS
+CSV_HEADER = importer.CSV_HEADER
 
 
-def write_csv(data, path: str) -> int:
-    """Write a SessionData as the project CSV, atomically (temp file + rename).
-
-    Columns ``mote,seq,t,label,ax..mz``: t in seconds (empty if unknown), label
-    as ``session.label_to_text``, counts as integers, empty where missing.
-    Returns the number of rows.
+def export_csv(data, path: str) -> int:
+    """Write a SessionData as the project CSV (``importer.write_csv``, the one
+    writer of that format) atomically: into a temporary file in the same
+    folder, renamed over ``path`` only when complete.  Returns the rows written.
     """
     path = os.path.abspath(path)
     folder = os.path.dirname(path)
@@ -30,26 +25,13 @@ def write_csv(data, path: str) -> int:
         raise UserError(f"cannot write {path}: folder {folder} does not exist")
     if os.path.isdir(path):
         raise UserError(f"cannot write {path}: it is a directory")
-    n = len(data)
-    uniq, inv = np.unique(data.label, return_inverse=True)
-    labels = np.array([label_to_text(int(u)) for u in uniq], dtype=object)[inv] if n else []
-    t = [("" if not np.isfinite(v) else f"{v:.6f}") for v in data.t.tolist()]
-    raw = data.raw
-    cols = []
-    for j in range(9):
-        col = raw[:, j]
-        ok = np.isfinite(col)
-        txt = np.where(ok, np.where(ok, col, 0).astype(np.int64).astype(str), "")
-        cols.append(txt.tolist())
     try:
         fd, tmp = tempfile.mkstemp(prefix=".export-", suffix=".csv", dir=folder)
+        os.close(fd)
     except OSError as e:
         raise UserError(f"cannot write {path}: {e.strerror}") from None
     try:
-        with os.fdopen(fd, "w", newline="") as f:
-            w = csv.writer(f, lineterminator="\n")
-            w.writerow(CSV_HEADER)
-            w.writerows(zip(data.mote.tolist(), data.seq.tolist(), t, labels, *cols))
+        importer.write_csv(data, tmp)
         os.replace(tmp, path)
     except BaseException as e:
         try:
@@ -59,13 +41,13 @@ def write_csv(data, path: str) -> int:
         if isinstance(e, OSError):
             raise UserError(f"cannot write {path}: {e.strerror or e}") from None
         raise
-    return n
+    return len(data)
 
 
 def export(args) -> int:
     with open_store(args.db) as store:
         data = store.load_session(args.session, args.mote)
-    n = write_csv(data, args.csv)
+    n = export_csv(data, args.csv)
     print(f"wrote {n} samples of session {args.session} "
           f"(motes {', '.join(map(str, data.motes)) or 'none'}) to {args.csv}")
     return 0

@@ -66,7 +66,6 @@ implementation
   ninedof_calrx_t rx;
   ninedof_batch_t batch;
   ninedof_eewriter_t eewriter;
-  uint8_t bootImage[2][NINEDOF_IMAGE_SIZE];
 
   /* shared with the alarm and I2C interrupts */
   ninedof_counters_t counters;
@@ -90,6 +89,7 @@ implementation
 
   /* ---------------------------------------------------------------- boot */
   event void Boot.booted() {
+    uint8_t bootImage[2][NINEDOF_IMAGE_SIZE];   /* the two EEPROM slots */
     uint8_t slot;
     uint16_t generation;
 

@@ -7,7 +7,8 @@ import pytest
 from motecal import protocol as P
 from motecal import sources as S
 from motecal.guide import (GuidedFlow, PoseCapture, RotationCapture, SphereCoverage,
-                           describe_up, even_directions, sketch_up)
+                           describe_up, sketch_up)
+from motecal.sim.trajectory import fibonacci_sphere
 from motecal.logger import LinkTracker, Logger, MoteLink, decode_sample_frames
 from motecal.session import LABEL_ROT
 from motecal.store import open_store
@@ -149,7 +150,7 @@ def test_sphere_cells_are_equal_area_and_targets_spread():
     v = np.random.default_rng(1).normal(size=(200_000, 3))
     counts = np.bincount(cov.cell_of(v), minlength=100)
     assert counts.min() > 0.9 * 2000 and counts.max() < 1.1 * 2000
-    d = even_directions(80)
+    d = fibonacci_sphere(80)
     np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0)
     ang = np.degrees(np.arccos(np.clip(d @ d.T, -1, 1))) + np.eye(80) * 999
     assert ang.min(axis=1).min() > 15.0          # no two targets closer than the warning
@@ -181,7 +182,7 @@ def test_static_poses_labelled_inside_true_still_stretches():
     assert events[-1].kind == "done"
     assert [p.index for p in cap.accepted] == [1, 2, 3, 4, 5, 6]
     # the accepted gravity directions are the true ones
-    for p, d in zip(cap.accepted, even_directions(6)):
+    for p, d in zip(cap.accepted, fibonacci_sphere(6)):
         assert np.degrees(np.arccos(np.clip(p.direction @ d, -1, 1))) < 1.0
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from motecal import protocol as P
-from motecal.guide import even_directions
+from motecal.sim.trajectory import fibonacci_sphere
 
 G = 256.0            # ADXL345 counts per g
 GYRO = 14.375        # ITG3200 counts per deg/s
@@ -16,7 +16,7 @@ def pose_trajectory(n_poses=6, still=250, move=120, seed=0, lead=60):
     spread directions) with smooth turns in between; ``truth`` is the pose index
     of rows well inside a still stretch, 0 while moving."""
     rng = np.random.default_rng(seed)
-    dirs = even_directions(n_poses)
+    dirs = fibonacci_sphere(n_poses)
     earth = np.array([0.2, 0.0, -0.43]) * 1090.0
     rows, truth = [], []
 

@@ -32,6 +32,7 @@ from enum import Enum
 import numpy as np
 
 from .session import LABEL_ROT, NOMINAL_SCALES
+from .sim.trajectory import fibonacci_sphere     # the suggested poses: the simulator's lattice
 from .still import StillDetector, StillThresholds
 
 DEFAULT_POSES = 80
@@ -47,19 +48,6 @@ MAG_OVERFLOW = -4096
 # --------------------------------------------------------------------------
 # Directions and coverage
 # --------------------------------------------------------------------------
-def even_directions(n: int) -> np.ndarray:
-    """n unit vectors spread evenly over the sphere (Fibonacci lattice), (n, 3).
-
-    The first points are near +Z (board flat, face up), so the guided order
-    starts from the natural pose and spirals down to face down.
-    """
-    k = np.arange(n) + 0.5
-    z = 1.0 - 2.0 * k / n
-    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
-    phi = k * math.pi * (3.0 - math.sqrt(5.0))
-    return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
-
-
 def unit(v: np.ndarray) -> np.ndarray:
     v = np.asarray(v, float)
     n = np.linalg.norm(v, axis=-1, keepdims=True)
@@ -219,7 +207,7 @@ class PoseCapture:
             raise ValueError("settle_s must be shorter than the still window")
         if samples < self.det.w - self.settle:
             raise ValueError(f"a pose needs at least {self.det.w - self.settle} samples")
-        self.targets = even_directions(poses)
+        self.targets = fibonacci_sphere(poses)   # first near +Z (flat), spiralling to -Z
         self.accepted: list[Pose] = []
         self.coverage = SphereCoverage(4, 5)
         self.phase = Phase.WAIT_STILL

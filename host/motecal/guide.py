@@ -31,6 +31,7 @@ from enum import Enum
 
 import numpy as np
 
+from .calib.gate import unit
 from .session import LABEL_ROT, NOMINAL_SCALES
 from .sim.trajectory import fibonacci_sphere     # the suggested poses: the simulator's lattice
 from .still import StillDetector, StillThresholds
@@ -48,12 +49,6 @@ MAG_OVERFLOW = -4096
 # --------------------------------------------------------------------------
 # Directions and coverage
 # --------------------------------------------------------------------------
-def unit(v: np.ndarray) -> np.ndarray:
-    v = np.asarray(v, float)
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.where(n > 0, n, 1.0)
-
-
 def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angles between unit vectors a (..., 3) and b (..., 3), degrees."""
     return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1.0, 1.0)))

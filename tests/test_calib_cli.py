@@ -1,0 +1,110 @@
+"""``motecal calibrate`` end to end through the sqlite store."""
+import json
+
+import numpy as np
+import pytest
+
+from motecal import importer
+from motecal.calib.cli import out_path
+from motecal.calib.synthetic import paper_sized_session
+from motecal.cli import main
+from motecal.session import SessionData
+from motecal.store import open_store
+
+
+def _concat(name, parts):
+    return SessionData(name, np.vstack([p.raw for p in parts]),
+                       np.concatenate([p.mote for p in parts]),
+                       np.concatenate([p.seq for p in parts]),
+                       np.concatenate([p.t for p in parts]),
+                       np.concatenate([p.label for p in parts]),
+                       np.concatenate([p.flags for p in parts]), "static80",
+                       meta={"rate_hz": 125.0, "source": "sim"})
+
+
+@pytest.fixture(scope="module")
+def db(tmp_path_factory, request):
+    from conftest import MEASURED
+    path = tmp_path_factory.mktemp("calcli") / "t.db"
+    with open_store(str(path), create=True) as st:
+        st.save_session(_concat("two", [paper_sized_session(3, mote=1, rotation=False,
+                                                            n_poses=30, per_pose=100),
+                                        paper_sized_session(3, mote=2, rotation=False,
+                                                            n_poses=30, per_pose=100)]))
+        bad = importer.read_razor_float(MEASURED / "hmc5843-disturbed-sweep" / "magnetom.float",
+                                        chip="hmc5843")
+        bad.name = "disturbed"
+        st.save_session(bad)
+    return str(path)
+
+
+def test_two_motes_two_files_and_the_database(db, tmp_path, capsys):
+    out = tmp_path / "cal.json"
+    rc = main(["calibrate", "--db", db, "--session", "two", "--out", str(out), "--seed", "5"])
+    text = capsys.readouterr().out
+    assert rc == 0, text
+    for m in (1, 2):
+        f = tmp_path / f"cal-mote{m}.json"
+        d = json.loads(f.read_text())
+        assert d["mote"] == m and d["session"] == "two" and d["format_version"] == 1
+        assert d["gate"]["accepted"] and d["settings"]["seed"] == 5
+        assert f"wrote {f}" in text
+        with open_store(db) as st:
+            assert st.load_calibration("two", m) == d
+    assert "mote 1" in text and "mote 2" in text and "gate: accepted" in text
+    assert not out.exists()
+
+
+def test_one_mote_exact_name_and_paper_model(db, tmp_path, capsys):
+    out = tmp_path / "one.json"
+    rc = main(["calibrate", "--db", db, "--session", "two", "--mote", "2", "--out", str(out),
+               "--model", "paper", "--params", "offsets,scales,angles", "--seed", "1",
+               "--kfold", "0", "--no-gyro-matrix"])
+    text = capsys.readouterr().out
+    assert rc == 0
+    d = json.loads(out.read_text())
+    assert d["mote"] == 2 and d["accel"]["model"] == "paper(offsets+scales+angles)"
+    assert d["gyro"]["model"] == "bias"
+    names = [p["name"] for p in d["accel"]["params"] if not p["identifiable"]]
+    assert {"a_zy", "a_xz", "a_yz"} <= set(names)
+    assert "re-parametrisation" in text and "rank 6 of 9" in text
+
+
+def test_refused_board_exit_3_and_force(db, tmp_path, capsys):
+    out = tmp_path / "bad.json"
+    rc = main(["calibrate", "--db", db, "--session", "disturbed", "--out", str(out),
+               "--seed", "0"])
+    cap = capsys.readouterr()
+    assert rc == 3 and not out.exists()
+    assert "residual too large" in cap.err and "calibration refused" in cap.err
+    rc = main(["calibrate", "--db", db, "--session", "disturbed", "--out", str(out),
+               "--seed", "0", "--force"])
+    assert rc == 0
+    d = json.loads(out.read_text())
+    assert d["gate"]["forced"] and not d["gate"]["accepted"] and d["gate"]["reasons"]
+
+
+@pytest.mark.parametrize("args,msg", [
+    (["--model", "full", "--params", "offsets"], "--params"),
+    (["--params", "tilt", "--model", "paper"], "--params"),
+    (["--mag-field", "-1"], "--mag-field"),
+    (["--kfold", "1"], "--kfold"),
+    (["--session", "nope"], "nope"),
+    (["--mote", "9"], "mote 9"),
+])
+def test_user_errors_exit_2(db, tmp_path, capsys, args, msg):
+    base = {"--db": db, "--session": "two", "--out": str(tmp_path / "x.json")}
+    for k in list(base):
+        if k in args:
+            base.pop(k)
+    argv = ["calibrate"] + [x for kv in base.items() for x in kv] + args
+    rc = main(argv)
+    err = capsys.readouterr().err
+    assert rc == 2 and msg in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_out_path_naming():
+    assert str(out_path("cal.json", 3, several=False)) == "cal.json"
+    assert str(out_path("d/cal.json", 3, several=True)) == "d/cal-mote3.json"
+    assert str(out_path("cal_{mote}.json", 3, several=False)) == "cal_3.json"

@@ -1,0 +1,95 @@
+"""Real measured data (../shared/data/measured): the Sensor Stick sweep against
+its published ellipsoid calibration, the disturbed HMC5843 sweep refused, and
+the two Razor boards' accelerometer and gyroscope."""
+import json
+
+import numpy as np
+import pytest
+
+from motecal import importer
+from motecal.calib import gate
+from motecal.calib.board import calibrate_board
+
+
+@pytest.fixture(scope="module")
+def sweep_board(request):
+    from conftest import MEASURED
+    d = importer.read_razor_float(MEASURED / "sensorstick-mag-sweep" / "magnetom.float")
+    b = calibrate_board(d, seed=0)
+    gate.decide(b)
+    return b, json.loads((MEASURED / "sensorstick-mag-sweep" /
+                          "published_calibration.json").read_text())["magnetom.float"]
+
+
+def test_sensor_stick_hard_iron_centre(sweep_board):
+    b, pub = sweep_board
+    assert b.gate["accepted"], b.gate
+    centre = -np.linalg.solve(b.mag.A, b.mag.c)        # raw counts where calibrated = 0
+    assert np.abs(centre - pub["magn_ellipsoid_center"]).max() < 1.0, centre
+
+
+def test_sensor_stick_soft_iron_shape(sweep_board):
+    """Razor's T = V diag(min(r)/r) V^T is symmetric and scaled so its smallest
+    axis is 1; ours is lower-triangular with det 1.  Both map the ellipsoid to a
+    sphere, so their symmetric parts (sqrt(A^T A)) agree up to one overall scale."""
+    b, pub = sweep_board
+    T = np.array(pub["magn_ellipsoid_transform"])
+
+    def shape(M):
+        w, V = np.linalg.eigh(M.T @ M)
+        S = V @ np.diag(np.sqrt(w)) @ V.T
+        return S / np.linalg.det(S) ** (1 / 3)
+
+    ours, theirs = shape(b.mag.A), shape(T)
+    assert np.abs(ours - theirs).max() < 2e-3, (ours.round(4), theirs.round(4))
+    # ... a test with teeth: the anisotropy (0.981-1.029) is 20x that tolerance
+    assert np.ptp(np.diag(theirs)) > 0.04
+
+
+def test_sensor_stick_field_and_residual(sweep_board):
+    b, _ = sweep_board
+    assert 0.5 < b.mag.field_gauss < 0.6               # ~0.54 gauss (Montreal ~0.53)
+    assert b.mag.quality["rms_rel"] < 0.02
+    assert b.mag.quality["coverage"] > 0.9
+
+
+def test_disturbed_hmc5843_sweep_refused(measured):
+    d = importer.read_razor_float(measured / "hmc5843-disturbed-sweep" / "magnetom.float",
+                                  chip="hmc5843")
+    assert d.scales["mag"] == 1300.0
+    b = calibrate_board(d, seed=0)
+    dec = gate.decide(b)
+    assert not dec.accepted
+    assert any(r.startswith("mag: residual too large") for r in dec.reasons), dec.reasons
+    assert b.mag.quality["rms_rel"] > 3 * gate.LIMITS.max_rms_rel["mag"]
+
+
+@pytest.mark.parametrize("board", ["razor1", "razor2"])
+def test_razor_accel_and_gyro_sane(measured, board):
+    files = sorted((measured / "sensorstick-boards" / board).glob("*.raw"))
+    d = importer.read_razor_text(files)
+    # six +-axis poses: the paper's offsets + scales (6 parameters) are identifiable
+    b = calibrate_board(d, seed=0, model="paper", groups=("offsets", "scales"))
+    dec = gate.decide(b)
+    acc = b.accel
+    assert not any(r.startswith(("accel", "gyro")) for r in dec.reasons), dec.reasons
+    o = np.array([acc.param(f"o_{a}").value for a in "xyz"])
+    s = np.array([acc.param(f"s_{a}").value for a in "xyz"])
+    assert np.all(np.abs(o) < 0.1) and np.all(np.abs(s - 1) < 0.03)
+    assert acc.mse_after < acc.mse_before / 100
+    assert 0.98 < acc.min_after and acc.max_after < 1.02
+    # each pose's calibrated magnitude is 1 g within 2 mg
+    rows = (d.label >= 1) & d.has("accel")
+    v = acc.apply(d.sensor("accel")[rows])
+    for p in np.unique(d.label[rows]):
+        assert abs(np.linalg.norm(v[d.label[rows] == p].mean(axis=0)) - 1) < 2e-3
+    gy = b.gyro
+    bias = np.array([gy.param(f"b_{a}").value for a in "xyz"])
+    assert gy.model == "bias"                           # files are separate: no moves
+    assert np.all(np.abs(bias) < 10) and np.abs(bias).max() > 0.1
+    assert np.all(np.abs(bias - gy.extra["bias_mean"]) < 0.05)
+    assert gy.mse_after < gy.mse_before / 10
+    # the full model needs more orientations than six: refused with that reason
+    full = calibrate_board(d, seed=0, gyro_matrix=False, kfold=0)
+    assert any("accel: too few distinct orientations: 6" in r
+               for r in gate.decide(full).reasons)

@@ -308,3 +308,22 @@ def test_logger_run_from_recorded_file(tmp_path):
         assert st.sessions()[0]["ended"] is not None
         kinds = [e["kind"] for e in st.events("r")]
         assert kinds.count("accepted") == 4 and kinds[-1] == "done"
+
+
+def test_push_many_decides_like_push_row_by_row():
+    from motecal.still import StillDetector
+    rng = np.random.default_rng(12)
+    rows = rng.normal(0, 1, (2500, 9)) + [0, 0, 256, 20, -10, 5, 200, 0, -400]
+    rows[400:600, :3] += rng.normal(0, 25, (200, 3))          # shaking
+    rows[900:1000, 3:6] += np.linspace(0, 400, 100)[:, None]  # a turn the gyro sees
+    rows[1500:1510, 6:] = np.nan                               # magnetometer gaps
+    rows[2000:2300, 3:6] = np.nan
+    one = StillDetector(125.0)
+    ref = np.array([one.push(r) for r in rows])
+    assert 0.3 < ref.mean() < 0.95
+    for chunk in (1, 7, 50, 333, 2500):
+        many = StillDetector(125.0)
+        got = np.concatenate([many.push_many(rows[i:i + chunk])
+                              for i in range(0, len(rows), chunk)])
+        np.testing.assert_array_equal(got, ref)
+        assert many.still == one.still

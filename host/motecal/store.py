@@ -769,28 +769,25 @@ class SessionWriter:
             if events:
                 cur.executemany(b.sql("INSERT INTO events (session, t, kind, mote, detail) "
                                       "VALUES (?, ?, ?, ?, ?)"), events)
-            now = time.time()
             for mote_id, c in link.items():
-                names = list(c)
-                cur.execute(b.sql(
-                    f"INSERT INTO link_stats (session, mote, {', '.join(names)}, updated) "
-                    f"VALUES (?, ?, {', '.join('?' * len(names))}, ?) "
-                    f"ON CONFLICT (session, mote) DO UPDATE SET "
-                    + ", ".join(f"{k} = excluded.{k}" for k in names + ["updated"])),
-                    (self.id, mote_id, *c.values(), now))
+                self._upsert(cur, "link_stats", {"session": self.id, "mote": mote_id}, c)
             if line is not None:
-                names = list(line)
-                cur.execute(b.sql(
-                    f"INSERT INTO line_stats (session, {', '.join(names)}, updated) "
-                    f"VALUES (?, {', '.join('?' * len(names))}, ?) "
-                    f"ON CONFLICT (session) DO UPDATE SET "
-                    + ", ".join(f"{k} = excluded.{k}" for k in names + ["updated"])),
-                    (self.id, *line.values(), now))
+                self._upsert(cur, "line_stats", {"session": self.id}, line)
         self._rows, self._labels, self._events = [], [], []
         self._link, self._line = {}, None
         self.committed_samples += n
         self.commits += 1
         self._last_commit = time.monotonic()
+
+    def _upsert(self, cur, table: str, key: dict, counters: dict) -> None:
+        """Set a row of counters (link_stats / line_stats) to these values."""
+        values = {**key, **counters, "updated": time.time()}
+        names = list(values)
+        cur.execute(self.store._b.sql(
+            f"INSERT INTO {table} ({', '.join(names)}) VALUES ({', '.join('?' * len(names))}) "
+            f"ON CONFLICT ({', '.join(key)}) DO UPDATE SET "
+            + ", ".join(f"{k} = excluded.{k}" for k in names if k not in key)),
+            tuple(values.values()))
 
     def end(self) -> None:
         """Commit what is queued and mark the session ended."""

@@ -61,6 +61,11 @@ def test_batch_decoding_equals_decode_message():
     assert batch.flags.tolist() == [e[1].flags for e in expect]
     np.testing.assert_array_equal(batch.records, np.vstack([e[1].records for e in expect]))
     assert batch.records.dtype == np.int16
+    tr = LinkTracker()
+    tr.other(others)
+    n_status = sum(1 for f in others if f.am() and f.am().am_type == P.AM_NINEDOF_MOTE_STATUS_MSG)
+    assert tr.motes[3].c["status_msgs"] == n_status > 0 and tr.motes[3].c["mote_dropped"] == 2
+    assert tr.line["unknown_msgs"] == len(others) - n_status > 0
     empty, rest = decode_sample_frames([])
     assert len(empty) == 0 and len(empty.records) == 0 and rest == []
 

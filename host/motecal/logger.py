@@ -331,35 +331,25 @@ class LinkTracker:
         return rows
 
     def other(self, frames: list[P.Frame]) -> None:
+        """Frames that are not sample messages: status into the counters,
+        calibration replies (the uploader's business) checked only."""
         line = self.line
         for f in frames:
             if f.protocol == P.PROTO_ACK:
                 line["acks"] += 1
                 continue
             am = f.am()
-            if am is None:
+            if am is None or am.am_type not in P.FIXED_MESSAGES:
                 line["unknown_msgs"] += 1
                 continue
-            if am.am_type == P.AM_NINEDOF_MOTE_STATUS_MSG:
-                msg = P.decode_message(am)
-                if msg is None:
-                    line["bad_msgs"] += 1
-                else:
-                    self.mote(am.src).status(msg)
+            msg = P.decode_message(am)
+            if msg is None:
+                line["bad_msgs"] += 1
+            elif am.am_type == P.AM_NINEDOF_MOTE_STATUS_MSG:
+                self.mote(am.src).status(msg)
             elif am.am_type == P.AM_NINEDOF_BS_STATUS_MSG:
-                msg = P.decode_message(am)
-                if msg is None:
-                    line["bad_msgs"] += 1
-                else:
-                    line["bs_status_msgs"] += 1
-                    for k, v in msg.items():
-                        line["bs_" + k] = v
-            elif am.am_type in P.FIXED_MESSAGES:
-                if P.decode_message(am) is None:
-                    line["bad_msgs"] += 1
-                # calibration replies: the uploader's business, not the logger's
-            else:
-                line["unknown_msgs"] += 1
+                line["bs_status_msgs"] += 1
+                line.update({"bs_" + k: v for k, v in msg.items()})
 
     def decoder(self, stats: P.DecoderStats, closed: bool = False) -> None:
         """Take the current source's decoder counters (``closed``: it is done)."""

@@ -40,7 +40,7 @@ def test_batch_decoding_equals_decode_message():
         elif kind == 8:
             stream.append(P.message_frame(P.MOTE_STATUS, dest=0xFFFF, src=3, seq=9, dropped=2))
         else:
-            stream.append(P.encode_frame(bytes((P.PROTO_PACKET_NOACK, 0x42)) + b"abc"))
+            stream.append(P.encode_frame(bytes((P.PROTO_PACKET_NOACK, 0x42)) + b"not an AM packet"))
     frames = _frames(b"".join(stream))
     batch, others = decode_sample_frames(frames)
     expect = []

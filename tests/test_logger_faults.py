@@ -277,3 +277,4 @@ def test_bad_command_lines(tmp_path):
     # nothing was created by the failed runs
     with open_store(db) as st:
         assert [s["name"] for s in st.sessions()] == ["taken"]
+    assert sorted(os.listdir(tmp_path)) == ["junk.txt", "ok.db", "rec.bin"]

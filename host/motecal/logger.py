@@ -808,28 +808,23 @@ def run(args) -> int:
     spec = S.parse_port(args.port, args.baud)
     interactive = bool(args.guided) and not args.yes and sys.stdin.isatty()
     guide = _guide(args, interactive)
-    store = open_store(args.db, create=True)
-    try:
-        if store.session_exists(args.session) and not args.append:
-            raise UserError(f"session {args.session!r} already exists in {store.target} "
-                            "(choose another name, or --append to add to it)")
+    with contextlib.ExitStack() as stack:
+        # the port first: if it cannot be opened, no database file is made
         source = S.open_source(spec)
-        try:
-            meta = {"source": str(spec), "rate_hz": P.NINEDOF_RATE_HZ, "notes": args.notes,
-                    "baud": spec.baud}
-            if args.board:
-                meta["boards"] = {str(m): b for m, b in args.board}
-            kind = args.guided or args.kind or "free"
-            link = line = last = None
-            if args.append and store.session_exists(args.session):
-                stats = store.link_stats(args.session)
-                link, line = stats["motes"], stats["line"]
-                last = store.last_seqs(args.session)
-            writer = store.open_session(args.session, kind=kind, meta=meta, append=args.append,
-                                        commit_every=args.commit_every)
-        except BaseException:
-            source.close()
-            raise
+        stack.callback(source.close)
+        store = stack.enter_context(open_store(args.db, create=True))
+        meta = {"source": str(spec), "rate_hz": P.NINEDOF_RATE_HZ, "notes": args.notes,
+                "baud": spec.baud}
+        if args.board:
+            meta["boards"] = {str(m): b for m, b in args.board}
+        link = line = last = None
+        if args.append and store.session_exists(args.session):
+            stats = store.link_stats(args.session)
+            link, line = stats["motes"], stats["line"]
+            last = store.last_seqs(args.session)
+        writer = store.open_session(args.session, kind=args.guided or args.kind or "free",
+                                    meta=meta, append=args.append,
+                                    commit_every=args.commit_every)
         tracker = LinkTracker(link, line, last)
         display = RichDisplay() if sys.stdout.isatty() else PlainDisplay()
         logger = Logger(spec, writer, tracker, guide=guide, display=display,
@@ -849,6 +844,4 @@ def run(args) -> int:
         finally:
             for sig, h in old.items():
                 signal.signal(sig, h)
-    finally:
-        store.close()
     return 0

@@ -46,6 +46,14 @@ class FixedSensor:
     c: np.ndarray       # (3,) int, counts in Q(shift)
     shift: int
 
+    def __post_init__(self):
+        a = np.array(self.a, dtype=np.int64).reshape(3, 3)
+        c = np.array(self.c, dtype=np.int64).reshape(3)
+        a.flags.writeable = c.flags.writeable = False
+        object.__setattr__(self, "a", a)
+        object.__setattr__(self, "c", c)
+        object.__setattr__(self, "shift", int(self.shift))
+
     @property
     def matrix(self) -> np.ndarray:
         """Counts-domain matrix the mote applies (float64, exact)."""

@@ -273,6 +273,22 @@ def test_world_api_matches_physics():
     assert truth["truth"]["seed"] == 3 and set(truth["truth"]["physical_truth"]) == {"1", "2"}
 
 
+def test_world_sequence_samples_through_every_part():
+    from motecal.sim.world import World, WorldPort
+
+    w = World(motes=1, session="idle,idle", seed=2, duration=70.0)
+    port = WorldPort(w, step=0.5)
+    frames = []
+    while not w.done:
+        frames += port.read()
+    assert port.clock() == w.now >= 70.0
+    seqs, recs = per_sample(samples_by_mote(frames)[1])
+    assert np.array_equal(seqs, w.sent[1].seq) and np.array_equal(recs, w.sent[1].records)
+    lab = w.trajectory.label_at(w.sent[1].t)
+    assert set(lab.tolist()) == {0, 1, 2}                 # both idle poses and the move
+    assert abs(len(seqs) - 70.0 * 125) <= 1
+
+
 def _calset(mote, version, accel_offset):
     """A calibration set: identity everywhere, accel x offset in counts."""
     eye = [16384, 0, 0, 0, 16384, 0, 0, 0, 16384]

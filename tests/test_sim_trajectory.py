@@ -154,3 +154,34 @@ def test_deterministic_in_seed():
     a, b, c = (make_trajectory("static80", s) for s in (5, 5, 6))
     assert np.array_equal(a.poses, b.poses)
     assert not np.allclose(a.poses[1], c.poses[1])
+
+
+def test_sequence_runs_its_parts_one_after_the_other():
+    first, second = make_trajectory("static80", 3), make_trajectory("static80", 4)
+    seq = make_trajectory("static80,static80", 3)
+    assert seq.n_poses == 160 and seq.start[0] == 0.0
+    assert seq.start[1] - first.duration == pytest.approx(seq.moves[0][1])      # one move
+    assert seq.duration == pytest.approx(seq.start[1] + second.duration)
+    t1 = np.arange(0, first.duration, 1 / RATE)
+    a, s = first.at(t1), seq.at(t1)
+    assert np.array_equal(a.R, s.R) and np.array_equal(a.label, s.label)        # part 1 as is
+    t2 = np.arange(0, second.duration, 1 / RATE)
+    b, s = second.at(t2), seq.at(seq.start[1] + t2)
+    assert np.allclose(b.R, s.R) and np.allclose(b.omega, s.omega)
+    assert np.array_equal(s.label, np.where(b.label > 0, b.label + 80, 0))      # 81..160
+    # the move between them is smooth: omega from R, no jumps, label 0
+    tm = np.linspace(first.duration, seq.start[1], 200)[1:-1]
+    w, _ = omega_from_R(seq, tm)
+    assert np.abs(w - seq.at(tm).omega).max() < 0.05
+    assert np.all(seq.label_at(tm) == 0)
+    m = seq.at([seq.duration + 1.0])
+    assert np.all(m.omega == 0) and m.label[0] == 160
+    back = Trajectory.from_json(json.loads(json.dumps(seq.to_json())))
+    t = np.linspace(0, seq.duration, 3000)
+    assert np.array_equal(back.at(t).R, seq.at(t).R)
+    assert np.array_equal(back.label_at(t), seq.label_at(t))
+    rot = make_trajectory("idle,rotation", 2, duration=200)
+    assert rot.duration == 200 and rot.at([rot.start[1] + 5]).label[0] == LABEL_ROT
+    assert rot.at([150.0]).label[0] == LABEL_NONE                   # the rotation is over
+    with pytest.raises(UserError):
+        make_trajectory("static80,spin", 0)

@@ -49,7 +49,8 @@ def register(subparsers) -> None:
                      help="create a pseudo-terminal; prints its path on stdout")
     p.add_argument("--motes", type=int, default=3, help="number of motes, ids 1..N (3)")
     p.add_argument("--session", default="static80", metavar="KIND",
-                   help="static80 | rotation | idle | free (static80)")
+                   help="static80 | rotation | idle | free, or several in a row separated "
+                        "by commas, e.g. static80,static80 (static80)")
     p.add_argument("--seed", type=int, default=1, help="random seed (1)")
     p.add_argument("--duration", type=_positive_float, default=None, metavar="S",
                    help="simulated seconds (default: the session's natural length)")

@@ -30,6 +30,10 @@ Kinds (``make_trajectory``)
   labelled 1.
 * ``free``: random smooth motion (sums of random sinusoids on yaw, pitch and
   roll), default 60 s, label 0.
+* a sequence ``"static80,static80"`` (``SequenceTrajectory``): the kinds one
+  after the other on the same rig, part i made with seed ``seed + i``, a
+  minimum-jerk move (``move_duration``) between consecutive parts.  Pose
+  labels continue (the second static80's poses are 81..160).
 
 Outside ``[0, duration]`` the rig holds its first/last orientation and is
 still (omega = 0); labels keep the label of the clamped time, except that a
@@ -192,7 +196,8 @@ class Trajectory:
         try:
             if d.get("format") != TRAJECTORY_FORMAT:
                 raise ValueError(f"format is not {TRAJECTORY_FORMAT!r}")
-            cls = {c.type_name: c for c in (PiecewiseTrajectory, EulerTrajectory)}[d["type"]]
+            cls = {c.type_name: c for c in (PiecewiseTrajectory, EulerTrajectory,
+                                            SequenceTrajectory)}[d["type"]]
             return cls._from_json(d)
         except (KeyError, ValueError, TypeError, AttributeError) as e:
             raise UserError(f"invalid trajectory JSON: {e}") from None
@@ -318,9 +323,139 @@ class EulerTrajectory(Trajectory):
                    label=d["label"], lever_m=d["lever_m"], poses=d["poses"])
 
 
+class SequenceTrajectory(Trajectory):
+    """Parts (trajectories of their own) one after the other on the same rig;
+    ``duration`` None = their natural length plus the moves.
+
+    Part i runs from ``start[i]`` for its own duration; between part i and
+    i + 1 the rig turns from the last orientation of i to the first of i + 1
+    along a minimum-jerk move of ``move_duration`` (label 0).  Pose labels and
+    the pose coordinate of part i are shifted by the poses of the parts before
+    it, so labels stay unique.  A rotation or free part ends while turning:
+    the move after it starts from rest (a step in omega, as a hand stopping).
+    Past the last part the rig holds still.
+    """
+
+    type_name = "sequence"
+
+    def __init__(self, kind, seed, duration, rate_hz, *, parts, lever_m=DEFAULT_LEVER_M,
+                 poses=None):
+        parts = list(parts)
+        if not parts:
+            raise ValueError("a sequence needs at least one part")
+        if poses is None:
+            poses = [P for part in parts for P in part.poses]
+        starts, moves, t = [], [], 0.0
+        for i, part in enumerate(parts):
+            starts.append(t)
+            t += part.duration
+            if i + 1 < len(parts):
+                R_end = part._kin(np.array([part.duration]))[0][0]
+                R_next = parts[i + 1]._kin(np.array([0.0]))[0][0]
+                v = Rotation.from_matrix(R_end.T @ R_next).as_rotvec()
+                T = move_duration(float(np.linalg.norm(v)))
+                moves.append((t, T, R_end, v))
+                t += T
+        super().__init__(kind, seed, t if duration is None else duration, rate_hz, lever_m,
+                         poses)
+        self.parts = parts
+        self.pose_offset = np.cumsum([0] + [p.n_poses for p in parts[:-1]])
+        self.start = np.array(starts)
+        self.moves = moves
+        # segment table: part i, then move i, ...; kind 0 = part, 1 = move
+        bounds, kinds, index = [], [], []
+        for i in range(len(parts)):
+            bounds.append(self.start[i]); kinds.append(0); index.append(i)
+            if i < len(moves):
+                bounds.append(moves[i][0]); kinds.append(1); index.append(i)
+        self._bounds = np.array(bounds)
+        self._seg_kind = np.array(kinds)
+        self._seg_index = np.array(index)
+
+    def _segments(self, t):
+        j = np.clip(np.searchsorted(self._bounds, t, side="right") - 1, 0, len(self._bounds) - 1)
+        return self._seg_kind[j], self._seg_index[j]
+
+    def _pose_coord(self, i, pose):
+        pose = np.asarray(pose, float)
+        return np.where(pose > 0, pose + self.pose_offset[i], pose)
+
+    def _label(self, t):
+        kind, idx = self._segments(t)
+        out = np.full(len(t), LABEL_NONE, np.int32)
+        for i, part in enumerate(self.parts):
+            sel = (kind == 0) & (idx == i)
+            if sel.any():
+                lab = part._label(np.clip(t[sel] - self.start[i], 0.0, part.duration))
+                out[sel] = np.where(lab >= 1, lab + self.pose_offset[i], lab)
+        return out
+
+    def _kin(self, t):
+        n = len(t)
+        R = np.empty((n, 3, 3))
+        w = np.zeros((n, 3))
+        dw = np.zeros((n, 3))
+        pose = np.zeros(n)
+        kind, idx = self._segments(t)
+        last = len(self.parts) - 1
+        for i, part in enumerate(self.parts):
+            sel = np.flatnonzero((kind == 0) & (idx == i))
+            if not len(sel):
+                continue
+            local = t[sel] - self.start[i]
+            Ri, wi, dwi, pi = part._kin(np.clip(local, 0.0, part.duration))
+            R[sel], w[sel], dw[sel], pose[sel] = Ri, wi, dwi, self._pose_coord(i, pi)
+            if i == last:                     # holding still after the last part
+                after = local > part.duration
+                w[sel[after]] = 0.0
+                dw[sel[after]] = 0.0
+        for i, (t0, T, R_end, v) in enumerate(self.moves):
+            sel = np.flatnonzero((kind == 1) & (idx == i))
+            if not len(sel):
+                continue
+            s, ds, dds = _min_jerk((t[sel] - t0) / T)
+            R[sel] = R_end @ _rodrigues(s[:, None] * v)
+            w[sel] = (ds / T)[:, None] * v
+            dw[sel] = (dds / (T * T))[:, None] * v
+            a = self._pose_coord(i, self.parts[i]._kin(np.array([self.parts[i].duration]))[3])[0]
+            b = self._pose_coord(i + 1, self.parts[i + 1]._kin(np.array([0.0]))[3])[0]
+            if a > 0 and b > 0:
+                pose[sel] = a + s * (b - a)
+            else:
+                pose[sel] = np.where(s < 0.5, a, b)
+        return R, w, dw, pose
+
+    def at(self, t, gravity_g: float = 1.0) -> Motion:
+        m = super().at(t, gravity_g)
+        if self.parts[-1].kind == "rotation":     # not rotating once the rotation is over
+            t = np.atleast_1d(_as_f(t))
+            end = self.start[-1] + self.parts[-1].duration
+            m.label[t > end] = LABEL_NONE
+        return m
+
+    def _params_json(self):
+        return {"parts": [p.to_json() for p in self.parts]}
+
+    @classmethod
+    def _from_json(cls, d):
+        parts = [Trajectory.from_json(p) for p in d["parts"]]
+        return cls(d["kind"], d["seed"], d["duration"], d["rate_hz"], parts=parts,
+                   lever_m=d["lever_m"], poses=d["poses"])
+
+
 # --------------------------------------------------------------------------
 # factory
 # --------------------------------------------------------------------------
+def session_kinds(session: str) -> list[str]:
+    """The kinds of a session: ``"static80"`` or a sequence ``"static80,idle"``."""
+    kinds = [k.strip() for k in str(session).split(",")]
+    for k in kinds:
+        if k not in KINDS:
+            raise UserError(f"unknown trajectory kind {k!r} (expected one of "
+                            f"{', '.join(KINDS)}, or several separated by commas)")
+    return kinds
+
+
 def _rng(kind: str, seed: int) -> np.random.Generator:
     return np.random.default_rng([_SALT, KINDS.index(kind), int(seed) & (2**64 - 1)])
 
@@ -370,12 +505,16 @@ def make_trajectory(kind: str, seed: int, *, duration: float | None = None, n_po
     ``duration`` (s) sets the length of idle/free/rotation and truncates (or,
     if longer, extends with a final hold) static80.
     """
-    if kind not in KINDS:
-        raise UserError(f"unknown trajectory kind {kind!r} (expected one of {', '.join(KINDS)})")
+    kinds = session_kinds(kind)
     if duration is not None and not duration > 0:
         raise UserError(f"duration must be > 0 s, not {duration}")
     if n_poses < 1 or still_s <= 0:
         raise UserError("n_poses must be >= 1 and still_s > 0")
+    if len(kinds) > 1:
+        parts = [make_trajectory(k, int(seed) + i, n_poses=n_poses, still_s=still_s,
+                                 rate_hz=rate_hz, lever_m=lever_m)
+                 for i, k in enumerate(kinds)]
+        return SequenceTrajectory(kind, seed, duration, rate_hz, parts=parts, lever_m=lever_m)
     rng = _rng(kind, seed)
     if kind == "static80":
         poses = _static_poses(rng, int(n_poses))

@@ -5,11 +5,13 @@ BaseStation and serial line (network), in one object other code can drive.
     data = w.run_until(10.0)        # serial bytes up to simulated t = 10 s
     w.write(frame)                  # PC -> BaseStation bytes, at w.now
     w.done, w.stats, w.sent[1].seq, w.sent[1].raw, w.truth()
+    port = WorldPort(w)             # a motecal.sources.Source in simulated time
 
 Mote ids are 1..N; the BaseStation is 0.  The session lasts the trajectory's
 duration (or ``duration``); ``done`` is True once it is over and every queue
 has drained onto the line.  The motes keep answering calibration messages
-after that.
+after that.  A sequence of kinds (``session="static80,static80"``) samples
+through all of them: log the first, calibrate, upload, log the second.
 """
 from __future__ import annotations
 
@@ -20,6 +22,7 @@ from pathlib import Path
 
 from .. import protocol as P
 from ..errors import UserError
+from ..sources import PortSpec, Source
 from .model import load_model, write_truth
 from .network import Network
 from .trajectory import KINDS, make_trajectory
@@ -32,8 +35,9 @@ def check_options(motes, session, baud, loss, batch, duration) -> None:
     """UserError (one line) for any option out of range."""
     if isinstance(motes, bool) or not isinstance(motes, int) or not 1 <= motes <= MAX_MOTES:
         raise UserError(f"--motes must be an integer 1..{MAX_MOTES}, not {motes}")
-    if session not in KINDS:
-        raise UserError(f"unknown session {session!r} (expected one of {', '.join(KINDS)})")
+    if not isinstance(session, str) or not all(k.strip() in KINDS for k in session.split(",")):
+        raise UserError(f"unknown session {session!r} (expected one of {', '.join(KINDS)}, "
+                        "or a sequence such as static80,static80)")
     if not isinstance(baud, int) or not 300 <= baud <= 4_000_000:
         raise UserError(f"--baud must be an integer 300..4000000, not {baud}")
     if not (isinstance(loss, (int, float)) and 0.0 <= loss <= 1.0):
@@ -88,3 +92,31 @@ class World(Network):
         except OSError as e:
             raise UserError(f"cannot write truth file {path}: {e.strerror or e}") from None
         return d
+
+
+class WorldPort(Source):
+    """The world's serial line as a ``motecal.sources.Source``, in process and
+    in simulated time: every ``read()`` runs the world ``step`` simulated
+    seconds further and returns the frames completed meanwhile; ``send()``
+    puts a frame into the BaseStation's UART.  ``clock()`` is the simulated
+    time, for code that waits (the uploader's timeouts then count simulated
+    seconds, and a run is deterministic in the seed)."""
+
+    def __init__(self, world: World, step: float = 0.005):
+        super().__init__(PortSpec("serial", "world", world.baud, 0, "<simulated world>"))
+        self.world = world
+        self.step = float(step)
+        self.decoder = P.FrameDecoder()
+        self.stats = self.decoder.stats
+
+    def clock(self) -> float:
+        return self.world.now
+
+    def read(self) -> list:
+        return self.decoder.feed(self.world.run_until(self.world.now + self.step))
+
+    def send(self, am: P.AMPacket, ack_seq: int | None = None) -> None:
+        self.world.write(P.encode_am(am, ack_seq=ack_seq))
+
+    def close(self) -> None:
+        pass

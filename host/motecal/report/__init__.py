@@ -1,0 +1,145 @@
+"""``motecal report``: the seed paper's tables and figures for one session.
+
+    motecal report --db FILE --session NAME --out DIR [--mote ID] [--cal cal.json] [--seed N]
+
+writes into ``DIR``:
+
+* ``table1_accel.{csv,md}``, ``table2_gyro.{csv,md}``, ``table3_mag.{csv,md}``
+  -- the paper's Tables I-III computed from the session through the
+  calibration engine (``motecal.calib``), our identifiable full model's rows
+  beside the paper model's;
+* PNG figures per mote (magnitude per sample, 3D and three-plane scatter,
+  residual against direction, coverage of directions, gyroscope Allan
+  deviation, GA convergence);
+* ``index.html`` tying them together (relative links only; opens from disk).
+
+The report is built in a temporary directory beside ``DIR`` and renamed into
+place at the end, so a failure leaves nothing half-written; an existing
+``DIR`` is replaced only when it is empty or holds an earlier report.
+
+``write_report(store, session, out_dir, mote=None)`` is the same as a
+function (for ``make demo``); it returns the path of ``index.html``.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from ..errors import UserError
+
+INDEX = "index.html"
+
+
+def _is_report_dir(path: Path) -> bool:
+    """An empty directory, or one holding an earlier motecal report."""
+    try:
+        entries = list(path.iterdir())
+    except OSError:
+        return False
+    if not entries:
+        return True
+    idx = path / INDEX
+    if not idx.is_file():
+        return False
+    try:
+        head = idx.read_text(encoding="utf-8", errors="replace")[:2000]
+    except OSError:
+        return False
+    from .html import GENERATOR
+    return f'content="{GENERATOR}"' in head
+
+
+def _prepare_out(out_dir) -> tuple[Path, Path]:
+    """Check ``out_dir`` can take a report; returns (final path, temporary dir)."""
+    out = Path(out_dir).expanduser()
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out}: exists and is not a directory")
+    if out.is_dir() and not _is_report_dir(out):
+        raise UserError(f"--out {out}: directory is not empty and holds no earlier motecal "
+                        f"report; choose a new or empty directory")
+    parent = out.resolve().parent
+    if not parent.is_dir():
+        raise UserError(f"--out {out}: parent directory {parent} does not exist")
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=parent))
+    except OSError as e:
+        raise UserError(f"--out {out}: cannot write in {parent}: {e.strerror or e}") from None
+    return out, tmp
+
+
+def _commit_out(tmp: Path, out: Path) -> None:
+    """Rename the finished temporary directory to ``out`` (replacing an earlier
+    report: old moved aside, new renamed in, old removed)."""
+    os.chmod(tmp, 0o755)
+    old = None
+    try:
+        if out.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.resolve().parent))
+            os.rmdir(old)
+            os.rename(out, old)
+        os.rename(tmp, out)
+    except OSError as e:
+        if old is not None and old.exists() and not out.exists():
+            os.rename(old, out)
+        raise UserError(f"--out {out}: cannot move the report into place: "
+                        f"{e.strerror or e}") from None
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def write_report(store, session, out_dir, mote: int | None = None, *, cal=None,
+                 seed: int = 0, log=None) -> Path:
+    """Write the report of ``session`` (a name in ``store``, or a SessionData
+    with ``store`` None) into ``out_dir``; returns the path of index.html.
+
+    ``cal`` is a calibration to show (a ``BoardCalibration``, its JSON dict or
+    a cal.json path); without it the latest calibration stored for the mote is
+    used, and without that the board is calibrated now (full model, ``seed``).
+    ``log`` is called with one-line progress messages.
+    """
+    from .build import build_report
+    out, tmp = _prepare_out(out_dir)
+    try:
+        build_report(store, session, tmp, mote=mote, cal=cal, seed=seed, log=log)
+        _commit_out(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out / INDEX
+
+
+def run(args) -> int:
+    from ..store import open_store
+    store = open_store(args.db)
+    try:
+        def log(msg):
+            if not args.quiet:
+                print(msg, flush=True)
+        index = write_report(store, args.session, args.out, mote=args.mote, cal=args.cal,
+                             seed=args.seed, log=log)
+    finally:
+        store.close()
+    print(f"report written: {index}")
+    return 0
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "report", help="the paper's tables and figures for a session (HTML, PNG, CSV, Markdown)",
+        description="Write the seed paper's Tables I-III (Markdown and CSV), figures (PNG) "
+                    "and an index.html for one session of the database.")
+    p.add_argument("--db", required=True, metavar="FILE", help="session database")
+    p.add_argument("--session", required=True, metavar="NAME", help="session to report on")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output directory (new, empty, or an earlier report to replace)")
+    p.add_argument("--mote", type=int, default=None, metavar="ID",
+                   help="only this mote (default: every mote of the session)")
+    p.add_argument("--cal", default=None, metavar="cal.json",
+                   help="calibration to show (default: the latest stored for the session, "
+                        "else calibrate now with the full model)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the GA runs made for the tables (default 0)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    p.set_defaults(func=run)

@@ -1,0 +1,335 @@
+"""The report's PNG figures (matplotlib, Agg canvas, no pyplot state).
+
+Every function takes plain numpy arrays and a path, draws one figure and
+writes it as PNG.  Nothing here fits anything: calibrated vectors come from
+the calibration engine's ``A`` and ``c`` (``calibrated = raw @ A.T + c``).
+
+Directions on the sphere are drawn in the Mollweide projection (equal-area),
+longitude ``atan2(y, x)`` and latitude ``asin(z / |v|)`` of the vector in the
+sensor frame.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+DPI = 100
+MAX_POINTS = 6000                 # scatter plots draw at most this many points
+MAX_POINTS_3D = 4000
+SET_COLORS = {"O": "tab:blue", "R": "tab:orange", "all": "tab:blue"}
+
+# equal-area coverage grid: COVER_LON longitude bins x COVER_LAT bins in sin(latitude)
+COVER_LON = 36
+COVER_LAT = 18
+
+
+# ------------------------------------------------------------------ helpers
+
+def _figure(w: float, h: float) -> Figure:
+    fig = Figure(figsize=(w, h), dpi=DPI)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig: Figure, path) -> Path:
+    path = Path(path)
+    fig.savefig(path, format="png", dpi=DPI)
+    return path
+
+
+def _thin(n: int, limit: int = MAX_POINTS) -> np.ndarray:
+    """Evenly spread row indices, at most ``limit`` of ``n``."""
+    if n <= limit:
+        return np.arange(n)
+    return np.unique(np.linspace(0, n - 1, limit).astype(int))
+
+
+def directions(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Longitude and latitude (radians) of vectors v (n, 3)."""
+    v = np.asarray(v, float)
+    r = np.linalg.norm(v, axis=1)
+    r = np.where(r > 0, r, 1.0)
+    lon = np.arctan2(v[:, 1], v[:, 0])
+    lat = np.arcsin(np.clip(v[:, 2] / r, -1.0, 1.0))
+    return lon, lat
+
+
+def coverage_counts(v: np.ndarray) -> np.ndarray:
+    """Samples per cell of the equal-area grid (COVER_LAT, COVER_LON)."""
+    lon, lat = directions(v)
+    i = np.clip(((np.sin(lat) + 1) / 2 * COVER_LAT).astype(int), 0, COVER_LAT - 1)
+    j = np.clip(((lon + np.pi) / (2 * np.pi) * COVER_LON).astype(int), 0, COVER_LON - 1)
+    counts = np.zeros((COVER_LAT, COVER_LON), int)
+    np.add.at(counts, (i, j), 1)
+    return counts
+
+
+def coverage_fraction(v: np.ndarray) -> float:
+    """Fraction of the sphere's equal-area cells holding at least one direction."""
+    if len(v) == 0:
+        return 0.0
+    return float((coverage_counts(v) > 0).mean())
+
+
+def _groups(sets: np.ndarray | None, idx: np.ndarray):
+    """(colour, indices) of the rows ``idx`` of each data set (one colour per
+    set; drawing each set in one call is much faster than a colour per point)."""
+    if sets is None:
+        return [(SET_COLORS["all"], idx)]
+    out = []
+    for name in np.unique(sets[idx]):
+        out.append((SET_COLORS.get(str(name), "tab:gray"), idx[sets[idx] == name]))
+    return out
+
+
+def _legend_sets(ax, sets):
+    if sets is None:
+        return
+    from matplotlib.lines import Line2D
+    present = [s for s in ("O", "R") if (sets == s).any()]
+    if len(present) > 1:
+        ax.legend(handles=[Line2D([], [], ls="", marker="o", ms=4, color=SET_COLORS[s],
+                                  label=f"{s} set") for s in present],
+                  loc="upper right", fontsize=8)
+
+
+# ------------------------------------------------------------------ magnitude per sample
+
+def magnitude_per_sample(path, before: np.ndarray, after: np.ndarray, ref_before: float,
+                         ref_after: float, unit: str, title: str,
+                         sets: np.ndarray | None = None) -> Path:
+    """The paper's Fig. 3 / 4: |v| of every sample before and after calibration."""
+    nb = np.linalg.norm(before, axis=1)
+    na = np.linalg.norm(after, axis=1)
+    x = np.arange(len(nb))
+    fig = _figure(9, 5.5)
+    axes = fig.subplots(2, 1, sharex=True)
+    for ax, mag, ref, what in ((axes[0], nb, ref_before, "before (datasheet scale)"),
+                               (axes[1], na, ref_after, "after calibration")):
+        for col, ii in _groups(sets, _thin(len(mag), 20000)):
+            ax.scatter(x[ii], mag[ii], s=1.5, c=col, linewidths=0, rasterized=True)
+        ax.axhline(ref, color="k", lw=0.8, ls="--")
+        ax.set_ylabel(f"|v| ({unit})")
+        ax.set_title(f"{what}: min {mag.min():.4f}, max {mag.max():.4f}, "
+                     f"MSE {np.mean((mag - ref) ** 2):.3e} {unit}\u00b2 about {ref:.4f}",
+                     fontsize=9)
+        ax.grid(alpha=0.3)
+        _legend_sets(ax, sets)
+    lo = min(nb.min(), na.min())
+    hi = max(nb.max(), na.max())
+    pad = 0.05 * (hi - lo) + 1e-6
+    for ax in axes:
+        ax.set_ylim(lo - pad, hi + pad)
+    axes[1].set_xlabel("sample")
+    fig.suptitle(title)
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.09, top=0.88, hspace=0.3)
+    return _save(fig, path)
+
+
+# ------------------------------------------------------------------ scatter
+
+def _sphere_wire(ax, r: float):
+    u = np.linspace(0, 2 * np.pi, 25)
+    w = np.linspace(0, np.pi, 13)
+    ax.plot_wireframe(r * np.outer(np.cos(u), np.sin(w)), r * np.outer(np.sin(u), np.sin(w)),
+                      r * np.outer(np.ones_like(u), np.cos(w)), color="0.6", lw=0.3)
+
+
+def scatter_3d(path, before: np.ndarray, after: np.ndarray, ref_before: float,
+               ref_after: float, unit: str, title: str, sets: np.ndarray | None = None) -> Path:
+    """The paper's Fig. 5 / 6 in 3D: samples before and after, with the sphere
+    of the expected magnitude."""
+    fig = _figure(11, 5.5)
+    groups = _groups(sets, _thin(len(before), MAX_POINTS_3D))
+    for k, (v, ref, what) in enumerate(((before, ref_before, "before"),
+                                        (after, ref_after, "after"))):
+        ax = fig.add_subplot(1, 2, k + 1, projection="3d")
+        _sphere_wire(ax, ref)
+        for col, ii in groups:
+            p = v[ii]
+            ax.scatter(p[:, 0], p[:, 1], p[:, 2], s=2, c=col, depthshade=False, linewidths=0)
+        lim = max(float(np.abs(v).max()), ref) * 1.05
+        ax.set_xlim(-lim, lim)
+        ax.set_ylim(-lim, lim)
+        ax.set_zlim(-lim, lim)
+        ax.set_box_aspect((1, 1, 1))
+        ax.set_xlabel(f"x ({unit})")
+        ax.set_ylabel(f"y ({unit})")
+        ax.set_zlabel(f"z ({unit})")
+        ax.set_title(f"{what} (sphere: {ref:.4f} {unit})", fontsize=10)
+    fig.suptitle(title)
+    fig.subplots_adjust(left=0.02, right=0.96, bottom=0.04, top=0.9, wspace=0.1)
+    return _save(fig, path)
+
+
+PLANES = (("x", "y", 0, 1), ("x", "z", 0, 2), ("y", "z", 1, 2))
+
+
+def scatter_planes(path, before: np.ndarray, after: np.ndarray, ref_before: float,
+                   ref_after: float, unit: str, title: str,
+                   sets: np.ndarray | None = None) -> Path:
+    """The paper's Fig. 5 / 6 as three planes (xy, xz, yz), before (top) and after
+    (bottom), with the circle of the expected magnitude."""
+    fig = _figure(12, 8)
+    axes = fig.subplots(2, 3)
+    groups = _groups(sets, _thin(len(before)))
+    phi = np.linspace(0, 2 * np.pi, 200)
+    lim = max(float(np.abs(before).max()), float(np.abs(after).max()),
+              ref_before, ref_after) * 1.05
+    for row, (v, ref, what) in enumerate(((before, ref_before, "before"),
+                                          (after, ref_after, "after"))):
+        for col, (a, b, i, j) in enumerate(PLANES):
+            ax = axes[row, col]
+            ax.plot(ref * np.cos(phi), ref * np.sin(phi), color="k", lw=0.7, ls="--")
+            for colour, ii in groups:
+                ax.scatter(v[ii, i], v[ii, j], s=1.5, c=colour, linewidths=0)
+            ax.set_xlim(-lim, lim)
+            ax.set_ylim(-lim, lim)
+            ax.set_aspect("equal")
+            ax.set_xlabel(f"{a} ({unit})")
+            ax.set_ylabel(f"{b} ({unit})")
+            ax.set_title(f"{what}: {a}{b} plane", fontsize=10)
+            ax.grid(alpha=0.3)
+    _legend_sets(axes[0, 2], sets)
+    fig.suptitle(title)
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.07, top=0.91, wspace=0.35, hspace=0.3)
+    return _save(fig, path)
+
+
+# ------------------------------------------------------------------ sphere maps
+
+def residual_sphere(path, before: np.ndarray, after: np.ndarray, ref_before: float,
+                    ref_after: float, unit: str, title: str) -> Path:
+    """Magnitude residual |v| - H against the direction of v (Mollweide map),
+    before and after: systematic errors show as smooth patterns."""
+    fig = _figure(12, 4.8)
+    idx = _thin(len(before))
+    for k, (v, ref, what) in enumerate(((before, ref_before, "before"),
+                                        (after, ref_after, "after"))):
+        ax = fig.add_subplot(1, 2, k + 1, projection="mollweide")
+        p = v[idx]
+        lon, lat = directions(p)
+        res = np.linalg.norm(p, axis=1) - ref
+        lim = float(np.max(np.abs(res))) or 1e-9
+        sc = ax.scatter(lon, lat, c=res, s=4, cmap="coolwarm", vmin=-lim, vmax=lim,
+                        linewidths=0)
+        ax.grid(alpha=0.4)
+        ax.tick_params(labelsize=7)
+        ax.set_title(f"{what}: residual rms {np.sqrt(np.mean(res ** 2)):.2e} {unit}",
+                     fontsize=10, pad=12)
+        cb = fig.colorbar(sc, ax=ax, orientation="horizontal", shrink=0.7, pad=0.08)
+        cb.set_label(f"|v| - {ref:.4f} ({unit})", fontsize=8)
+        cb.ax.tick_params(labelsize=7)
+    fig.suptitle(title)
+    return _save(fig, path)
+
+
+def coverage(path, sets: list[tuple[str, np.ndarray]], title: str) -> Path:
+    """Samples per equal-area cell of the sphere of directions, one map per set;
+    the title of each gives the fraction of cells with at least one sample."""
+    fig = _figure(6 * len(sets), 4.6)
+    lon_e = np.linspace(-np.pi, np.pi, COVER_LON + 1)
+    lat_e = np.arcsin(np.linspace(-1, 1, COVER_LAT + 1))
+    for k, (name, v) in enumerate(sets):
+        ax = fig.add_subplot(1, len(sets), k + 1, projection="mollweide")
+        counts = coverage_counts(v)
+        masked = np.ma.masked_equal(counts, 0)
+        mesh = ax.pcolormesh(lon_e, lat_e, masked, cmap="viridis", shading="flat")
+        ax.grid(alpha=0.4)
+        ax.tick_params(labelsize=7)
+        ax.set_title(f"{name}: {len(v)} samples, {(counts > 0).mean():.0%} of "
+                     f"{COVER_LAT * COVER_LON} cells", fontsize=10, pad=12)
+        cb = fig.colorbar(mesh, ax=ax, orientation="horizontal", shrink=0.7, pad=0.08)
+        cb.set_label("samples per cell", fontsize=8)
+        cb.ax.tick_params(labelsize=7)
+    fig.suptitle(title)
+    return _save(fig, path)
+
+
+# ------------------------------------------------------------------ gyroscope noise
+
+def still_runs(label: np.ndarray, seq: np.ndarray, ok: np.ndarray,
+               min_len: int = 8) -> list[np.ndarray]:
+    """Row indices of contiguous runs (same static label >= 1, consecutive seq,
+    rows where ``ok``), each at least ``min_len`` rows long."""
+    good = (np.asarray(label) >= 1) & np.asarray(ok)
+    idx = np.flatnonzero(good)
+    if len(idx) == 0:
+        return []
+    brk = (np.diff(idx) != 1) | (np.diff(label[idx]) != 0) | (np.diff(seq[idx]) != 1)
+    runs = np.split(idx, np.flatnonzero(brk) + 1)
+    return [r for r in runs if len(r) >= min_len]
+
+
+def allan_deviation(runs: list[np.ndarray], rate_hz: float, n_tau: int = 30):
+    """Overlapping Allan deviation pooled over still runs.
+
+    ``runs`` is a list of (n_i, k) rate arrays sampled at ``rate_hz``; for each
+    averaging time tau = m / rate the squared second differences of the
+    integrated signal are summed over every run long enough for m and divided
+    by their total number.  Returns ``(tau (T,), adev (T, k), terms (T,))``.
+    """
+    runs = [np.asarray(r, float) for r in runs if len(r) >= 3]
+    if not runs:
+        return np.zeros(0), np.zeros((0, 3)), np.zeros(0, int)
+    k = runs[0].shape[1]
+    longest = max(len(r) for r in runs)
+    m_max = (longest - 1) // 2
+    ms = np.unique(np.round(np.logspace(0, np.log10(max(m_max, 1)), n_tau)).astype(int))
+    ms = ms[ms >= 1]
+    thetas = [np.vstack([np.zeros((1, k)), np.cumsum(r, axis=0)]) / rate_hz for r in runs]
+    taus, adev, terms = [], [], []
+    for m in ms:
+        tau = m / rate_hz
+        s = np.zeros(k)
+        cnt = 0
+        for th in thetas:
+            if len(th) < 2 * m + 1:
+                continue
+            d = th[2 * m:] - 2 * th[m:-m] + th[:-2 * m]
+            s += (d * d).sum(axis=0)
+            cnt += len(d)
+        if cnt == 0:
+            continue
+        taus.append(tau)
+        adev.append(np.sqrt(s / (2 * tau * tau * cnt)))
+        terms.append(cnt)
+    return np.array(taus), np.array(adev), np.array(terms)
+
+
+def allan(path, tau: np.ndarray, adev: np.ndarray, unit: str, title: str,
+          note: str = "") -> Path:
+    fig = _figure(7, 5)
+    ax = fig.subplots()
+    for j, (axis, col) in enumerate(zip("xyz", ("tab:red", "tab:green", "tab:blue"))):
+        ax.loglog(tau, adev[:, j], "o-", ms=3, color=col, label=f"{axis}")
+    ax.set_xlabel("averaging time tau (s)")
+    ax.set_ylabel(f"Allan deviation ({unit})")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    ax.set_title(note, fontsize=9)
+    fig.suptitle(title)
+    fig.subplots_adjust(left=0.14, right=0.97, bottom=0.11, top=0.88)
+    return _save(fig, path)
+
+
+# ------------------------------------------------------------------ GA convergence
+
+def convergence(path, traces: list[tuple[str, list]], title: str) -> Path:
+    """Best fitness per generation of every GA run named in ``traces``."""
+    fig = _figure(8, 5)
+    ax = fig.subplots()
+    for name, tr in traces:
+        tr = np.asarray(tr, float)
+        tr = np.where(tr > 0, tr, np.nan)
+        ax.semilogy(np.arange(len(tr)), tr, lw=1.2, label=f"{name} ({len(tr) - 1} gen.)")
+    ax.set_xlabel("generation")
+    ax.set_ylabel("best fitness (GA objective)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.suptitle(title)
+    fig.subplots_adjust(left=0.12, right=0.97, bottom=0.11, top=0.9)
+    return _save(fig, path)

@@ -1,0 +1,405 @@
+"""motecal report: files, images, index.html links, tables equal to the
+calibration engine's results, CSV == Markdown, bad input.  Budget ~60 s."""
+import re
+import subprocess
+import sys
+from html.parser import HTMLParser
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from motecal.calib import BoardCalibration, calibrate_board
+from motecal.calib import tables as CT
+from motecal.cli import main
+from motecal.errors import UserError
+from motecal.importer import read_razor_float, read_razor_text
+from motecal.report import build as B
+from motecal.report import figures as F
+from motecal.report import tables as T
+from motecal.report import write_report
+from motecal.session import LABEL_ROT, SessionData
+from motecal.sim import simulate_session
+from motecal.store import open_store
+
+SEED = 7
+
+
+def _concat(name, parts, motes=None):
+    """One session from several SessionData (seq kept increasing per mote)."""
+    raws, mote, seq, t, label, flags = [], [], [], [], [], []
+    last = {}
+    for i, d in enumerate(parts):
+        m = np.full(len(d), motes[i] if motes else d.mote[0], np.int32)
+        off = last.get(int(m[0]), -1) + 1000
+        raws.append(d.raw)
+        mote.append(m)
+        seq.append(d.seq + off)
+        t.append(d.t)
+        label.append(d.label)
+        flags.append(d.flags)
+        last[int(m[0])] = int(seq[-1].max())
+    first = parts[0]
+    return SessionData(name, np.vstack(raws), np.concatenate(mote), np.concatenate(seq),
+                       np.concatenate(t), np.concatenate(label), np.concatenate(flags),
+                       kind=first.kind, scales=dict(first.scales), chips=dict(first.chips),
+                       meta={"rate_hz": first.meta.get("rate_hz"), "source": "test"})
+
+
+class _Links(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.refs, self.external = [], []
+
+    def handle_starttag(self, tag, attrs):
+        for k, v in attrs:
+            if k in ("href", "src") and v:
+                if re.match(r"^[a-z]+:", v) or v.startswith("//"):
+                    self.external.append(v)
+                elif not v.startswith("#"):
+                    self.refs.append(v)
+            if tag in ("script", "link", "iframe"):
+                self.external.append(tag)
+
+
+def _links(index: Path):
+    p = _Links()
+    p.feed(index.read_text(encoding="utf-8"))
+    return p
+
+
+# ------------------------------------------------------------------ fixtures
+
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory):
+    """Simulated static80 + rotation capture of one mote in a database, and its report."""
+    d = simulate_session("static80", motes=(1,), seed=SEED)[1]
+    r = simulate_session("rotation", motes=(1,), seed=SEED)[1]
+    r.t = r.t + d.t[-1] + 5.0
+    data = _concat("simrep", [d, r])
+    base = tmp_path_factory.mktemp("sim")
+    db = base / "s.db"
+    with open_store(str(db), create=True) as st:
+        st.save_session(data)
+        index = write_report(st, "simrep", base / "report", seed=SEED)
+    return {"db": db, "data": data, "index": index, "out": index.parent, "base": base}
+
+
+@pytest.fixture(scope="module")
+def measured_db(tmp_path_factory, measured_path=None):
+    from conftest import MEASURED
+    razor = read_razor_text(sorted((MEASURED / "sensorstick-boards" / "razor1")
+                                   .glob("razor1_acc_*.raw")))
+    sweep = read_razor_float(MEASURED / "sensorstick-mag-sweep" / "magnetom.float")
+    both = _concat("razor_sweep", [razor, sweep], motes=[1, 2])
+    db = tmp_path_factory.mktemp("measured") / "m.db"
+    with open_store(str(db), create=True) as st:
+        st.save_session(both)
+        razor.name = "razor1"
+        st.save_session(razor)
+    return db
+
+
+# ------------------------------------------------------------------ the simulated report
+
+def test_files_exist_images_decode_and_are_not_blank(sim):
+    out = sim["out"]
+    pngs = sorted(out.glob("*.png"))
+    names = {p.name for p in pngs}
+    for sensor in ("accel", "mag"):
+        for kind in ("magnitude", "scatter3d", "planes", "residual_sphere"):
+            assert f"mote1_{sensor}_{kind}.png" in names
+    for other in ("coverage", "gyro_allan", "ga_convergence"):
+        assert f"mote1_{other}.png" in names
+    for p in pngs:
+        img = imread(p)
+        assert img.ndim == 3 and img.shape[0] > 200 and img.shape[1] > 300, p.name
+        rgb = img[..., :3]
+        assert rgb.var() > 1e-3, f"{p.name} is blank"
+        # more than background and one colour
+        q = (rgb * 15).round().astype(int)
+        assert len(np.unique(q[..., 0] * 256 + q[..., 1] * 16 + q[..., 2])) > 20, p.name
+    for t in ("table1_accel", "table2_gyro", "table3_mag", "calibration"):
+        assert (out / f"{t}.csv").is_file() and (out / f"{t}.md").is_file()
+    # nothing left behind by the temporary directory
+    assert not [p for p in out.parent.iterdir() if p.name.startswith(".report.")]
+
+
+def test_index_references_every_file_and_nothing_external(sim):
+    out = sim["out"]
+    links = _links(sim["index"])
+    assert links.external == []
+    refs = set(links.refs)
+    for r in refs:
+        assert (out / r).is_file(), f"index.html links to missing {r}"
+        assert "/" not in r and ".." not in r
+    on_disk = {p.name for p in out.iterdir() if p.name != "index.html"}
+    assert on_disk <= refs, f"not referenced from index.html: {on_disk - refs}"
+    html = sim["index"].read_text()
+    assert html.count("<img ") == len(list(out.glob("*.png")))
+    assert html.count("<table>") == 4        # Tables I-III and the calibration shown
+
+
+def _num(s):
+    return float(s) if s not in ("", "nan") else None
+
+
+def test_tables_equal_the_calibration_engine(sim):
+    """Recomputed through calib.tables with the report's seed.  Equal up to the
+    optimiser's convergence: sums over differently aligned copies of the same
+    data differ in the last bits, and the polished optimum by ~1e-9."""
+    data, out = sim["data"], sim["out"]
+    t1 = T.read_csv(out / "table1_accel.csv")
+    ref1 = CT.table1(data, seed=SEED)
+    before = ref1[0]
+    assert [r["parameters"] for r in t1] == [r["parameters"] for r in ref1[1:]]
+    assert [r["parameters"] for r in t1] == ["offsets", "scales", "offsets + scales",
+                                             "offsets + scales + angles", "full model"]
+    for row, ref in zip(t1, ref1[1:]):
+        assert row["mote"] == "1"
+        assert _num(row["error_after"]) == pytest.approx(ref["error"], rel=1e-9)
+        assert _num(row["min_after"]) == pytest.approx(ref["min"], rel=1e-6)
+        assert _num(row["max_after"]) == pytest.approx(ref["max"], rel=1e-6)
+        assert _num(row["error_before"]) == before["error"]
+        assert _num(row["min_before"]) == before["min"]
+        assert _num(row["max_before"]) == before["max"]
+    # the paper's findings hold in the table: offsets+scales >> scales only, angles
+    # change nothing, the full model beats the paper model (simulated cross-axis error)
+    err = {r["parameters"]: _num(r["error_after"]) for r in t1}
+    assert err["offsets + scales"] < 0.2 * err["scales"]
+    assert err["offsets + scales + angles"] == pytest.approx(err["offsets + scales"], rel=1e-6)
+    assert err["full model"] < 0.9 * err["offsets + scales"]
+
+    t2 = T.read_csv(out / "table2_gyro.csv")
+    ref2 = CT.table2(data, seed=SEED)
+    assert len(t2) == 1
+    for k in ("error_before", "error_after", "b_x", "b_y", "b_z"):
+        assert _num(t2[0][k]) == pytest.approx(ref2[0][k], rel=1e-9, abs=1e-12)
+    assert int(t2[0]["samples"]) == int(((data.label >= 1) & data.has("gyro")).sum())
+
+    t3 = T.read_csv(out / "table3_mag.csv")
+    ref3 = CT.table3(data, seed=SEED)
+    assert sorted(r["set"] for r in t3) == ["O", "R"]
+    for row, ref in zip(t3, ref3):
+        assert row["set"] == ref["set"] and int(row["samples"]) == ref["n"]
+        for k in ("field_offsets", "error_offsets", "field_all", "error_all",
+                  "field_full", "error_full"):
+            assert _num(row[k]) == pytest.approx(ref[k], rel=1e-6), k
+        assert _num(row["error_full"]) < _num(row["error_offsets"])
+    assert int(next(r for r in t3 if r["set"] == "R")["samples"]) == \
+        int((data.label == LABEL_ROT).sum())
+
+
+def test_calibration_shown_is_calibrate_board(sim):
+    """No calibration stored: the board is calibrated with the report's seed and
+    the calibration table holds its numbers; its full-model rows agree with
+    Table I/III (same objective, same optimum)."""
+    board = calibrate_board(sim["data"], seed=SEED)
+    rows = {r["sensor"]: r for r in T.read_csv(sim["out"] / "calibration.csv")}
+    assert set(rows) == {"accel", "gyro", "mag"}
+    for name, sc in board.sensors():
+        r = rows[name]
+        assert r["model"] == sc.model and r["dataset"] == sc.dataset
+        assert int(r["samples"]) == sc.n_samples
+        for k in ("mse_before", "mse_after", "min_before", "max_before", "min_after",
+                  "max_after"):
+            assert _num(r[k]) == pytest.approx(getattr(sc, k), rel=1e-6), (name, k)
+    t1 = {r["parameters"]: r for r in T.read_csv(sim["out"] / "table1_accel.csv")}
+    assert _num(t1["full model"]["error_after"]) == pytest.approx(board.accel.mse_after,
+                                                                   rel=1e-6)
+    t2 = T.read_csv(sim["out"] / "table2_gyro.csv")[0]
+    for axis in "xyz":
+        assert _num(t2[f"b_{axis}"]) == pytest.approx(board.gyro.param(f"b_{axis}").value,
+                                                      abs=1e-9)
+    t3 = {r["set"]: r for r in T.read_csv(sim["out"] / "table3_mag.csv")}
+    assert _num(t3["R"]["field_full"]) == pytest.approx(board.mag_sets["R"]["field_gauss"],
+                                                        rel=1e-6)
+
+
+def test_csv_and_markdown_agree(sim):
+    tables = {"table1_accel": B.TABLE1_COLUMNS, "table2_gyro": B.TABLE2_COLUMNS,
+              "table3_mag": B.TABLE3_COLUMNS, "calibration": B.CAL_COLUMNS}
+    for name, cols in tables.items():
+        csv_rows = T.read_csv(sim["out"] / f"{name}.csv")
+        md_rows = T.read_markdown(sim["out"] / f"{name}.md")
+        assert len(csv_rows) == len(md_rows) > 0, name
+        assert list(md_rows[0]) == [c.header for c in cols]
+        for c_row, m_row in zip(csv_rows, md_rows):
+            for c in cols:
+                cv, mv = c_row[c.key], m_row[c.header]
+                if c.fmt and cv not in ("", "nan"):
+                    assert mv == format(float(cv), c.fmt), (name, c.key)
+                    assert float(mv) == pytest.approx(float(cv), rel=1e-2, abs=1e-3)
+                elif cv == "":
+                    assert mv == "", (name, c.key)
+                else:
+                    assert mv == cv, (name, c.key)
+
+
+# ------------------------------------------------------------------ measured data, CLI
+
+def test_cli_measured_two_motes_tables_per_mote(measured_db, tmp_path, capsys):
+    out = tmp_path / "rep"
+    assert main(["report", "--db", str(measured_db), "--session", "razor_sweep",
+                 "--out", str(out), "--seed", "3"]) == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    assert f"report written: {out / 'index.html'}" in captured.out
+    # mote 1: the six razor1 accel poses (all tables); mote 2: the sweep (Table III only)
+    t1 = T.read_csv(out / "table1_accel.csv")
+    assert {r["mote"] for r in t1} == {"1"} and len(t1) == 5
+    t3 = T.read_csv(out / "table3_mag.csv")
+    assert sorted((r["mote"], r["set"]) for r in t3) == [("1", "O"), ("2", "R")]
+    with open_store(str(measured_db)) as st:
+        sweep = st.load_session("razor_sweep", 2)
+    ref = CT.table3(sweep, seed=3)[0]
+    row = next(r for r in t3 if r["mote"] == "2")
+    assert _num(row["field_full"]) == pytest.approx(ref["field_full"], rel=1e-6)
+    assert _num(row["error_all"]) == pytest.approx(ref["error_all"], rel=1e-6)
+    # measured sweep (HMC5883L, Sensor Stick): a field of roughly half a gauss
+    assert 0.3 < _num(row["field_full"]) < 0.7
+    names = {p.name for p in out.glob("*.png")}
+    assert "mote2_mag_magnitude.png" in names and "mote2_accel_magnitude.png" not in names
+    assert "mote1_accel_magnitude.png" in names
+    links = _links(out / "index.html")
+    assert {p.name for p in out.iterdir()} - {"index.html"} <= set(links.refs)
+    # a second run replaces the earlier report
+    assert main(["report", "--db", str(measured_db), "--session", "razor_sweep",
+                 "--mote", "2", "--out", str(out), "-q"]) == 0
+    assert not (out / "table1_accel.csv").exists()
+    assert [p for p in tmp_path.iterdir() if p.name.startswith(".rep.")] == []
+
+
+def test_given_and_stored_calibration_are_shown(measured_db, tmp_path):
+    with open_store(str(measured_db)) as st:
+        data = st.load_session("razor_sweep", 2)
+        board = calibrate_board(data, model="paper", groups=("offsets", "scales"), seed=1)
+        cal = tmp_path / "cal.json"
+        board.save(cal)
+        out = tmp_path / "given"
+        write_report(st, "razor_sweep", out, mote=2, cal=str(cal))
+        rows = {r["sensor"]: r for r in T.read_csv(out / "calibration.csv")}
+        assert set(rows) == {"mag"}
+        assert rows["mag"]["model"] == "paper(offsets+scales)"
+        assert _num(rows["mag"]["mse_after"]) == board.mag.mse_after
+        assert _num(rows["mag"]["field_gauss"]) == board.mag.field_gauss
+        assert "given calibration" in (out / "calibration.md").read_text()
+        # the magnitude figure's 'after' panel is that calibration applied to the sweep
+        m = np.linalg.norm(board.mag.apply(data.sensor("mag")), axis=1)
+        assert m.min() == pytest.approx(board.mag.min_after)
+        # a calibration for another mote is refused
+        with pytest.raises(UserError, match="mote 2"):
+            write_report(st, "razor_sweep", tmp_path / "x", mote=1, cal=str(cal))
+        # stored in the database: used without --cal
+        st.save_calibration("razor_sweep", 2, BoardCalibration.loads(cal.read_text()).to_json())
+        out2 = tmp_path / "stored"
+        write_report(st, "razor_sweep", out2, mote=2)
+        rows2 = {r["sensor"]: r for r in T.read_csv(out2 / "calibration.csv")}
+        assert rows2["mag"]["model"] == "paper(offsets+scales)"
+        assert _num(rows2["mag"]["mse_after"]) == board.mag.mse_after
+        assert "stored in the database" in (out2 / "calibration.md").read_text()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cal.json", "given", "stored"]
+
+
+# ------------------------------------------------------------------ bad input
+
+def _err(capsys, argv, code):
+    rc = main(argv)
+    cap = capsys.readouterr()
+    assert rc == code, cap
+    lines = cap.err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in cap.err, cap.err
+    return lines[0]
+
+
+def test_bad_input_one_line_nonzero_nothing_written(measured_db, tmp_path, capsys):
+    db = str(measured_db)
+    out = tmp_path / "r"
+    line = _err(capsys, ["report", "--db", db, "--session", "nope", "--out", str(out)], 2)
+    assert "nope" in line
+    assert not out.exists()
+    assert _err(capsys, ["report", "--db", str(tmp_path / "missing.db"), "--session", "x",
+                         "--out", str(out)], 2)
+    # unwritable output: a file where the parent directory should be, and /proc
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert "parent" in _err(capsys, ["report", "--db", db, "--session", "razor1",
+                                     "--out", str(blocker / "r")], 2)
+    assert "cannot write" in _err(capsys, ["report", "--db", db, "--session", "razor1",
+                                           "--out", "/proc/motecal-report"], 2)
+    # a directory that is not an earlier report is not replaced
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "keep.txt").write_text("mine")
+    assert "not empty" in _err(capsys, ["report", "--db", db, "--session", "razor1",
+                                        "--out", str(other)], 2)
+    assert (other / "keep.txt").read_text() == "mine"
+    # unknown mote, wrong --cal
+    assert "mote 9" in _err(capsys, ["report", "--db", db, "--session", "razor1",
+                                     "--mote", "9", "--out", str(out)], 2)
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    assert "JSON" in _err(capsys, ["report", "--db", db, "--session", "razor1",
+                                   "--cal", str(bad), "--out", str(out)], 2)
+    assert not out.exists()
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+def test_session_with_no_usable_data_is_refused(tmp_path, capsys):
+    """Accelerometer only, never still (free motion, no labels): no table."""
+    d = simulate_session("free", motes=(1,), seed=1, duration=5.0)[1]
+    d.raw[:, 3:9] = np.nan
+    d.label[:] = 0
+    d.name = "moving"
+    db = tmp_path / "f.db"
+    with open_store(str(db), create=True) as st:
+        st.save_session(d)
+    out = tmp_path / "r"
+    line = _err(capsys, ["report", "--db", str(db), "--session", "moving", "--out", str(out)],
+                3)
+    assert "no usable data" in line and "Table I" in line
+    assert not out.exists() and [p for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+def test_failure_midway_leaves_nothing(measured_db, tmp_path, monkeypatch):
+    def boom(*a, **k):               # after the tables and some figures are written
+        raise RuntimeError("disk full")
+    monkeypatch.setattr(F, "convergence", boom)
+    out = tmp_path / "r"
+    with open_store(str(measured_db)) as st:
+        with pytest.raises(RuntimeError):
+            write_report(st, "razor_sweep", out, mote=2)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_no_traceback_through_the_command(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "motecal", "report", "--db",
+                        str(tmp_path / "none.db"), "--session", "s", "--out",
+                        str(tmp_path / "o")], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2
+    assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+# ------------------------------------------------------------------ pure helpers
+
+def test_allan_deviation_of_white_noise():
+    rng = np.random.default_rng(0)
+    sigma, rate = 0.5, 100.0
+    runs = [rng.normal(0.0, sigma, (4000, 3)) for _ in range(3)]
+    tau, adev, terms = F.allan_deviation(runs, rate)
+    # white rate noise: sigma(tau) = sigma / sqrt(tau * rate)
+    expect = sigma / np.sqrt(tau * rate)
+    sel = tau < 2.0
+    assert np.allclose(adev[sel], expect[sel, None], rtol=0.1)
+    assert terms[0] == 3 * (4000 - 1)
+
+
+def test_still_runs_split_on_label_and_gaps():
+    label = np.array([1] * 10 + [0] * 3 + [2] * 10 + [2] * 10)
+    seq = np.arange(len(label))
+    seq[23:] += 5                       # lost packets inside pose 2
+    ok = np.ones(len(label), bool)
+    runs = F.still_runs(label, seq, ok)
+    assert [len(r) for r in runs] == [10, 10, 10]
+    assert F.coverage_fraction(np.eye(3)) == pytest.approx(3 / (F.COVER_LAT * F.COVER_LON))

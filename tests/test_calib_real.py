@@ -93,3 +93,13 @@ def test_razor_accel_and_gyro_sane(measured, board):
     full = calibrate_board(d, seed=0, gyro_matrix=False, kfold=0)
     assert any("accel: too few distinct orientations: 6" in r
                for r in gate.decide(full).reasons)
+
+
+def test_rotation_session_calibrates_the_magnetometer_only(measured):
+    d = importer.read_timestamped(measured / "mpu6050-hmc5883l-timestamped" / "full-sphere")
+    b = calibrate_board(d, seed=0, kfold=0)
+    dec = gate.decide(b)
+    assert dec.accepted, dec.reasons
+    assert b.accel is None and b.gyro is None and b.mag.dataset == "R"
+    assert any("accel: not calibrated: no static poses" in w for w in dec.warnings)
+    assert 0.45 < b.mag.field_gauss < 0.6 and b.mag.quality["rms_rel"] < 0.02

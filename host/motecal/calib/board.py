@@ -75,8 +75,11 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
     acc_rows = (data.label >= 1) & data.has("accel")
     if not data.has("accel").any():
         board.settings["skipped"]["accel"] = "no accelerometer data in the session"
+    elif not acc_rows.any():
+        board.settings["skipped"]["accel"] = "no static poses in the session"
     elif len(np.unique(data.label[acc_rows])) < 2:
-        board.settings["insufficient"]["accel"] = "needs labelled static poses"
+        board.settings["insufficient"]["accel"] = ("too few distinct orientations: a single "
+                                                   "static pose")
     else:
         mdl = make_model("accel", model, groups)
         board.accel = _magnitude_sensor(
@@ -88,8 +91,10 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
     gyr_rows = (data.label >= 1) & data.has("gyro")
     if not data.has("gyro").any():
         board.settings["skipped"]["gyro"] = "no gyroscope data in the session"
+    elif not gyr_rows.any():
+        board.settings["skipped"]["gyro"] = "no still (static pose) data in the session"
     elif gyr_rows.sum() < 10:
-        board.settings["insufficient"]["gyro"] = "needs still (labelled) data"
+        board.settings["insufficient"]["gyro"] = "fewer than 10 still samples"
     else:
         board.gyro = _gyro_sensor(data, gyr_rows, board.accel, chips["gyro"], s_gyr, seed,
                                   ga_options, kfold, gyro_matrix, still)

@@ -3,12 +3,13 @@
     motecal calibrate --db FILE --session NAME --out cal.json [--mote ID]
                       [--model paper|full] [--params offsets,scales,angles]
                       [--seed N] [--mag-field GAUSS] [--no-gyro-matrix]
-                      [--kfold K] [--force]
+                      [--kfold K] [--force] [--upload --port URL [--baud B]]
 
 Per board (mote): ``calibrate`` (board.calibrate_board) -> ``gate``
 (gate.decide) -> ``deliver`` (cal.json + the database).  A further step that
-needs the result (e.g. ``--upload``) is a function ``step(board, args)``
-called after ``deliver`` in ``run``.
+needs the result is a function ``step(board, path)`` called after
+``deliver`` in ``run``: ``--upload`` (``motecal.upload.calibrate_step``) sends
+each delivered calibration to its mote and verifies it.
 
 Files: one per board.  With one mote the file is ``--out`` itself; with
 several, ``-mote<ID>`` goes before the extension (``cal.json`` ->
@@ -52,6 +53,8 @@ def register(subparsers):
     p.add_argument("--kfold", type=int, default=5, help="held-out validation folds (default 5)")
     p.add_argument("--force", action="store_true",
                    help="save boards the quality gate refuses (the reasons stay in cal.json)")
+    from ..upload import add_calibrate_options
+    add_calibrate_options(p)             # --upload --port --baud: the one-step form
     p.set_defaults(func=run)
     return p
 
@@ -127,6 +130,8 @@ def summary(board: BoardCalibration) -> str:
 
 def run(args) -> int:
     from ..store import open_store
+    from ..upload import calibrate_step
+    step = calibrate_step(args)          # None without --upload; checks the port first
     with open_store(args.db) as store:
         data = store.load_session(args.session, args.mote)
         motes = [args.mote] if args.mote is not None else data.motes
@@ -145,6 +150,8 @@ def run(args) -> int:
             path = out_path(args.out, m, several)
             cid = deliver(board, args, store, path)
             print(f"  wrote {path} (database calibration {cid})")
+            if step is not None:
+                step(board, path)
     sys.stdout.flush()
     if refused:
         raise QualityError("calibration refused: " + " | ".join(refused))

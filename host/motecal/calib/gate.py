@@ -25,7 +25,11 @@ Reasons (and the metric behind each):
   a fixed field / gravity (disturbed place, moving board, wrong model);
 * parameter poorly determined -- an identifiable parameter whose standard
   deviation exceeds ``max_offset_std`` (offsets, in the sensor unit) or
-  ``max_gain_std`` (scales, cross terms).
+  ``max_gain_std`` (scales, cross terms);
+* a sensor with some static data but too little to fit (a single pose).
+
+A sensor the session cannot calibrate at all (missing, or no static poses in
+a rotation session) is a warning: it is simply left out of the result.
 """
 from __future__ import annotations
 
@@ -198,7 +202,7 @@ def decide(board, limits: GateLimits = LIMITS, force: bool = False) -> GateDecis
             warnings.append(f"{name}: not calibrated: {why}")
         why = board.settings.get("insufficient", {}).get(name)
         if why:
-            reasons.append(f"{name}: cannot be calibrated from this session: {why}")
+            reasons.append(f"{name}: {why}")
     d = GateDecision(not reasons, reasons, warnings, forced=bool(force and reasons))
     board.gate = d.to_json()
     return d

@@ -332,3 +332,23 @@ def test_push_many_decides_like_push_row_by_row():
                               for i in range(0, len(rows), chunk)])
         np.testing.assert_array_equal(got, ref)
         assert many.still == one.still
+
+
+def test_argument_mistakes_are_one_line(tmp_path, capsys):
+    from motecal import cli
+    rec = tmp_path / "rec.bin"
+    rec.write_bytes(b"")
+    base = ["log", "--db", str(tmp_path / "x.db"), "--session", "s", "--port", str(rec)]
+    cases = [(["log"], "required"),
+             (base + ["--duration", "-3"], "must be > 0"),
+             (base + ["--duration", "soon"], "not a number"),
+             (base + ["--guided", "dance"], "invalid choice"),
+             (base + ["--mote", "70000"], "0..65535"),
+             (base + ["--board", "7"], "MOTE=BOARD"),
+             (base + ["--guided", "rotation", "--coverage", "1.5"], "fraction"),
+             (base + ["--baud", "0"], "must be > 0")]
+    for argv, msg in cases:
+        assert cli.main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert msg in err and len(err.strip().splitlines()) == 1, (argv, err)
+    assert not (tmp_path / "x.db").exists()

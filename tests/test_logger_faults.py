@@ -255,13 +255,11 @@ def test_bad_command_lines(tmp_path):
     rec.write_bytes(b"")
     env_nomote = {k: v for k, v in os.environ.items() if k != "MOTECOM"}
     cases = [
-        ((), "required"),
         (("--db", db, "--session", "x", "--port", "/dev/does-not-exist"), "cannot open port"),
         (("--db", db, "--session", "taken", "--port", str(rec)), "already exists"),
         (("--db", "/proc/motecal.db", "--session", "x", "--port", str(rec)), "database"),
         (("--db", str(junk), "--session", "x", "--port", str(rec)), "not a motecal database"),
         (("--db", db, "--session", "x"), "no port"),
-        (("--db", db, "--session", "x", "--port", str(rec), "--duration", "-3"), "must be > 0"),
         (("--db", db, "--session", "x", "--port", str(rec), "--guided", "static80",
           "--pose-samples", "10"), "at least 50"),
     ]

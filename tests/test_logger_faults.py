@@ -127,12 +127,14 @@ def test_sigkill_keeps_an_intact_database(tmp_path, pace):
             proc.kill()
         server.stop.set()
     stored = _check_prefix(db, raws, "k")
-    # everything sent more than a second before the kill is there
-    for (m, row), at in zip(index, server.sent_at):
-        if at < t_kill - 1.0:
-            assert stored[m] >= row + 5, (m, row, stored[m])
+    assert min(stored.values()) >= 100
     if pace:
-        # and at most one second of samples (125 per mote) is missing
+        # at the line's pace: everything sent more than a second before the kill
+        # is there (flat out, the socket buffers hold more than a second) ...
+        for (m, row), at in zip(index, server.sent_at):
+            if at < t_kill - 1.0:
+                assert stored[m] >= row + 5, (m, row, stored[m])
+        # ... and at most one second of samples (125 per mote) is missing
         sent = {m: max([r + 5 for (mm, r), at in zip(index, server.sent_at)
                         if mm == m and at <= t_kill] + [0]) for m in raws}
         for m in raws:

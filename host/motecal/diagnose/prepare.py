@@ -1,0 +1,291 @@
+"""What the diagnosis works on: per sensor, its rows, still segments (poses),
+time blocks and noise level.  Pure functions on a ``SessionData``.
+
+* A **segment** is one still orientation: a static pose (label >= 1) or, in
+  data without pose labels, a still stretch found by ``motecal.still``.
+  Calibration-type questions (does the magnitude depend on direction?) use
+  one mean per segment.
+* A **block** is a stretch of ``BLOCK_S`` seconds inside a segment (a
+  segment shorter than two blocks is one block).  Time-type questions (does
+  the bias move?) and held-out time blocks use blocks.
+* Noise: per axis, from differences of successive readings inside still
+  segments (``sigma``), and the *effective* per-sample variance of a mean
+  (``sigma_eff``: batch means, so that correlated samples -- repeats, slow
+  wander -- are not counted as independent).
+
+Rows with an overflow code (HMC5883L -4096 on all axes) are kept in ``x``
+but flagged and left out of segments.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..session import HMC5883L_OVERFLOW, LABEL_ROT, SessionData
+from ..still import segment_still
+
+SENSORS = ("accel", "gyro", "mag")
+BLOCK_S = 2.0              # time block length (s)
+MIN_SEG_SAMPLES = 20       # shorter still stretches are not used
+N_BATCH = 8                # batches for the variance of a segment mean
+# chips whose value at that code means "overflow" (all three axes)
+OVERFLOW_CODES = {"mag": HMC5883L_OVERFLOW}
+
+
+@dataclass
+class Table:
+    """One row per segment (or block)."""
+    mean: np.ndarray            # (k, 3) counts
+    n: np.ndarray               # (k,) samples
+    t: np.ndarray               # (k,) mid time, s
+    t0: np.ndarray              # (k,) first time
+    t1: np.ndarray              # (k,) last time
+    seg: np.ndarray             # (k,) segment index (for blocks: the segment it is in)
+    rows: list                  # per row of the table: indices into SensorObs.x
+    sd: np.ndarray              # (k, 3) within sd, counts
+
+    def __len__(self):
+        return len(self.n)
+
+
+@dataclass
+class SensorObs:
+    sensor: str
+    chip: str | None
+    K: float                    # LSB per unit (g, deg/s, gauss)
+    x: np.ndarray               # (n, 3) counts
+    t: np.ndarray               # (n,) s
+    label: np.ndarray           # (n,) session labels
+    part: np.ndarray            # (n,) recording part (file) index
+    rows: np.ndarray            # (n,) row indices into the session
+    rate: float                 # Hz (this sensor)
+    overflow: np.ndarray        # (n,) bool
+    segs: Table | None = None
+    blocks: Table | None = None
+    sigma: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    sigma_eff: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    labelled_poses: bool = False    # segments are the session's static poses
+    moving: np.ndarray | None = None  # (n,) bool rows outside any segment
+
+    @property
+    def n(self) -> int:
+        return len(self.x)
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0]) if self.n > 1 else 0.0
+
+    def var_of_mean(self, n) -> np.ndarray:
+        """(k, 3) variance of a segment mean of n samples (counts^2)."""
+        return self.sigma_eff[None, :] ** 2 / np.asarray(n, float)[:, None]
+
+
+def session_rate(data: SessionData, sensor: str | None = None) -> float:
+    meta = data.meta or {}
+    if sensor and isinstance(meta.get("rates_hz"), dict) and meta["rates_hz"].get(sensor):
+        return float(meta["rates_hz"][sensor])
+    if meta.get("rate_hz"):
+        return float(meta["rate_hz"])
+    t = data.t[np.isfinite(data.t)]
+    if len(t) > 2:
+        dt = np.diff(t)
+        dt = dt[dt > 0]
+        if len(dt):
+            return float(1.0 / np.median(dt))
+    return 125.0
+
+
+def recording_parts(data: SessionData) -> np.ndarray:
+    """Per row, the recording (file) it came from: rows of different files are
+    never differenced or joined into one segment."""
+    part = np.zeros(len(data), np.int64)
+    for i, f in enumerate((data.meta or {}).get("files") or []):
+        rows = f.get("rows") if isinstance(f, dict) else None
+        if rows and len(rows) == 2:
+            part[int(rows[0]):int(rows[1])] = i + 1
+    return part
+
+
+def _times(data: SessionData, rows: np.ndarray, rate: float) -> np.ndarray:
+    t = data.t[rows]
+    if np.all(np.isfinite(t)):
+        return t.astype(float)
+    return np.arange(len(rows)) / rate
+
+
+def _runs(mask: np.ndarray):
+    """(start, stop) of runs of True."""
+    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
+def _table(obs: SensorObs, groups: list[np.ndarray], seg_of: list[int]) -> Table:
+    k = len(groups)
+    mean = np.zeros((k, 3))
+    sd = np.zeros((k, 3))
+    n = np.zeros(k)
+    t = np.zeros(k)
+    t0 = np.zeros(k)
+    t1 = np.zeros(k)
+    for i, g in enumerate(groups):
+        xs = obs.x[g]
+        mean[i] = xs.mean(axis=0)
+        sd[i] = xs.std(axis=0, ddof=1) if len(g) > 1 else 0.0
+        n[i] = len(g)
+        t0[i], t1[i] = obs.t[g[0]], obs.t[g[-1]]
+        t[i] = 0.5 * (t0[i] + t1[i])
+    return Table(mean, n, t, t0, t1, np.asarray(seg_of, int), list(groups), sd)
+
+
+def _segments(obs: SensorObs, data_label: np.ndarray, scales: dict) -> tuple[list, bool]:
+    """Row-index groups of still segments (and whether they are labelled poses)."""
+    ok = ~obs.overflow
+    groups = []
+    poses = np.unique(data_label[(data_label >= 1) & ok])
+    if len(poses):
+        for p in poses:
+            idx = np.flatnonzero((data_label == p) & ok)
+            # a pose split across recordings or long gaps stays one pose
+            if len(idx) >= MIN_SEG_SAMPLES:
+                groups.append(idx)
+        return groups, True
+    # no pose labels: find still stretches in this sensor alone
+    raw = np.full((obs.n, 9), np.nan)
+    sl = {"accel": slice(0, 3), "gyro": slice(3, 6), "mag": slice(6, 9)}[obs.sensor]
+    raw[:, sl] = obs.x
+    lab = np.zeros(obs.n, np.int32)
+    for p in np.unique(obs.part):
+        m = obs.part == p
+        sub = segment_still(raw[m], obs.rate, scales)
+        sub[sub > 0] += lab.max()
+        lab[m] = sub
+    for s in np.unique(lab[lab > 0]):
+        idx = np.flatnonzero((lab == s) & ok)
+        if len(idx) >= MIN_SEG_SAMPLES:
+            groups.append(idx)
+    return groups, False
+
+
+def _blocks(obs: SensorObs, segs: list[np.ndarray]) -> tuple[list, list]:
+    groups, seg_of = [], []
+    nb_len = max(MIN_SEG_SAMPLES, int(round(BLOCK_S * obs.rate)))
+    for si, g in enumerate(segs):
+        nb = max(1, len(g) // nb_len)
+        for b in np.array_split(g, nb):
+            groups.append(b)
+            seg_of.append(si)
+    return groups, seg_of
+
+
+def _diff_pairs(obs: SensorObs, groups: list[np.ndarray]):
+    """Successive-reading differences inside groups (same recording)."""
+    out = []
+    for g in groups:
+        if len(g) > 1:
+            d = np.diff(obs.x[g], axis=0)
+            same = np.diff(obs.part[g]) == 0
+            out.append(d[same])
+    return np.vstack(out) if out else np.zeros((0, 3))
+
+
+def unique_updates(x: np.ndarray) -> np.ndarray:
+    """Bool mask dropping readings identical (all three axes) to the previous one."""
+    keep = np.ones(len(x), bool)
+    if len(x) > 1:
+        keep[1:] = np.any(np.diff(x, axis=0) != 0, axis=1)
+    return keep
+
+
+def noise_sigma(obs: SensorObs, groups: list[np.ndarray], dedup: bool = False) -> np.ndarray:
+    """Per-axis white-noise sigma (counts) from successive differences in still
+    groups; without still data, a robust estimate from second differences of
+    all rows (motion is smooth, noise is not)."""
+    if groups:
+        gs = groups
+        if dedup:
+            gs = [g[unique_updates(obs.x[g])] for g in groups]
+        d = _diff_pairs(obs, gs)
+        if len(d) >= 10:
+            return np.sqrt(np.mean(d * d, axis=0) / 2.0)
+    x = obs.x[~obs.overflow]
+    if dedup:
+        x = x[unique_updates(x)]
+    if len(x) < 10:
+        return np.full(3, np.nan)
+    d2 = x[2:] - 2 * x[1:-1] + x[:-2]
+    mad = np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0)
+    return 1.4826 * mad / np.sqrt(6.0)
+
+
+def effective_sigma(obs: SensorObs, groups: list[np.ndarray]) -> np.ndarray:
+    """Per-axis sigma_eff with var(mean of n) = sigma_eff^2 / n, from batch
+    means inside each group (pooled)."""
+    num = np.zeros(3)
+    den = 0.0
+    for g in groups:
+        if len(g) < 2 * N_BATCH:
+            continue
+        xs = obs.x[g]
+        parts = np.array_split(np.arange(len(g)), N_BATCH)
+        bm = np.array([xs[p].mean(axis=0) for p in parts])
+        bn = np.array([len(p) for p in parts], float)
+        m = xs.mean(axis=0)
+        # var of the mean: sum bn^2 (bm - m)^2 / (n^2) * B/(B-1)
+        v = (bn[:, None] ** 2 * (bm - m) ** 2).sum(axis=0) / len(g) ** 2 * N_BATCH / (N_BATCH - 1)
+        num += v * len(g)
+        den += 1.0
+    if den == 0:
+        return np.full(3, np.nan)
+    return np.sqrt(num / den)
+
+
+def sensor_obs(data: SessionData, sensor: str, dedup: bool = False) -> SensorObs | None:
+    """The observations of one sensor, or None when the session has none."""
+    has = data.has(sensor)
+    if not has.any():
+        return None
+    rows = np.flatnonzero(has)
+    rate = session_rate(data, sensor)
+    x = data.sensor(sensor)[rows].astype(float)
+    code = OVERFLOW_CODES.get(sensor)
+    overflow = np.all(x == code, axis=1) if code is not None else np.zeros(len(x), bool)
+    obs = SensorObs(sensor=sensor, chip=(data.chips or {}).get(sensor), K=float(data.scales[sensor]),
+                    x=x, t=_times(data, rows, rate), label=data.label[rows],
+                    part=recording_parts(data)[rows], rows=rows, rate=rate, overflow=overflow)
+    if dedup:
+        keep = unique_updates(x) | overflow
+        obs = SensorObs(sensor=sensor, chip=obs.chip, K=obs.K, x=x[keep], t=obs.t[keep],
+                        label=obs.label[keep], part=obs.part[keep], rows=rows[keep],
+                        rate=rate * keep.mean(), overflow=overflow[keep])
+    label = obs.label.copy()
+    label[label == LABEL_ROT] = 0
+    groups, labelled = _segments(obs, label, data.scales)
+    obs.labelled_poses = labelled
+    obs.sigma = noise_sigma(obs, groups)
+    # batch means inside time blocks: short-range correlation (repeats, shaking)
+    # counts, slow drift across a long segment does not
+    obs.sigma_eff = effective_sigma(obs, _blocks(obs, groups)[0] if groups else [])
+    if not np.all(np.isfinite(obs.sigma_eff)):
+        obs.sigma_eff = obs.sigma.copy()
+    # a mean can never be better known than white noise says
+    obs.sigma_eff = np.fmax(obs.sigma_eff, obs.sigma)
+    moving = np.ones(obs.n, bool)
+    if groups:
+        obs.segs = _table(obs, groups, list(range(len(groups))))
+        bg, bs = _blocks(obs, groups)
+        obs.blocks = _table(obs, bg, bs)
+        for g in groups:
+            moving[g] = False
+    obs.moving = moving & ~obs.overflow
+    return obs
+
+
+def all_obs(data: SessionData, dedup: dict | None = None) -> dict[str, SensorObs]:
+    dedup = dedup or {}
+    out = {}
+    for s in SENSORS:
+        o = sensor_obs(data, s, dedup=bool(dedup.get(s)))
+        if o is not None:
+            out[s] = o
+    return out

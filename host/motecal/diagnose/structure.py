@@ -1,0 +1,389 @@
+"""Calibration-type causes: terms that change the *mean* reading, found by
+nested least squares and confirmed on held-out data.
+
+Per sensor, one of four regimes decides what the observations are:
+
+* ``poses``  (accelerometer, magnetometer; >= ``MIN_POSES`` still
+  orientations): one magnitude residual per pose mean, weighted by its noise;
+  candidates ``cross_axis``, ``nonlinearity``, ``bias_drift``.
+* ``sweep``  (magnetometer without enough poses): one magnitude residual per
+  reading; candidates as above plus ``field_disturbance`` as a field
+  magnitude that moves with time.
+* ``single`` (accelerometer or magnetometer in one or a few orientations):
+  per axis, block means = a constant per orientation + drift; candidate
+  ``bias_drift``.
+* ``still``  (gyroscope): per axis, block means = bias (per recording) +
+  g-sensitivity x specific force + drift; candidates ``g_sensitivity``,
+  ``bias_drift``.
+
+Selection is forward and greedy: in each round every remaining candidate is
+added to the current model and F-tested against it; the most significant one
+is kept if its p-value is below the per-test level the engine passes in
+(``alpha``, Bonferroni over every test of the diagnosis).  The held-out gain
+of each kept term is then measured by K-fold cross-validation over
+interleaved poses or time blocks: held-out rms of the residual of the final
+model without the term / with it (both refitted on the other folds).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import fitting as F
+from .prepare import SensorObs
+
+MIN_POSES = 12            # orientations needed for magnitude (calibration) terms
+KFOLD = 5
+SWEEP_CHUNK_S = 2.0       # time chunk of sweep data for held-out folds
+MAX_SWEEP_POINTS = 6000   # sweeps are thinned to this many readings
+MIN_DOF = 5
+
+
+@dataclass
+class TestRecord:
+    round: int
+    cause: str
+    q: int
+    F: float
+    p: float
+    dof: int
+    dbic: float
+    rss0: float
+    rss1: float
+
+
+@dataclass
+class Structure:
+    sensor: str
+    regime: str
+    unit: str
+    accepted: list                 # spec items (cause[:size]), in the order added
+    tests: list                    # TestRecord
+    fit0: object                   # starting model fit
+    fit: object                    # final fit
+    fits: dict                     # frozenset(causes) -> fit
+    points: dict                   # arrays used (for evidence and pictures)
+    excess: tuple = (1.0, 1.0)     # (rss/dof, p) of the final model
+    heldout: dict = field(default_factory=dict)    # cause -> (rms_without, rms_with)
+    heldout_total: tuple | None = None             # (rms start model, rms final)
+    noise_floor: float = np.nan    # rms a perfect model leaves on the points (sensor unit)
+    notes: list = field(default_factory=list)
+
+    def candidates_tested(self) -> list[str]:
+        return sorted({t.cause for t in self.tests})
+
+    @property
+    def causes(self) -> list[str]:
+        return [cause_of(c) for c in self.accepted]
+
+
+# ---------------------------------------------------------------------------
+# magnitude sensors
+# ---------------------------------------------------------------------------
+def cause_of(item: str) -> str:
+    """Spec items are cause ids, optionally with a basis size: "bias_drift:16"."""
+    return item.split(":")[0]
+
+
+def _size(spec, cause, default):
+    for it in spec:
+        if cause_of(it) == cause and ":" in it:
+            return int(it.split(":")[1])
+    return default
+
+
+def _causes(spec) -> set:
+    return {cause_of(it) for it in spec}
+
+
+def _spec_fit(sensor, K, X, T, W, spec: frozenset, trange, Jf, start=None):
+    causes = _causes(spec)
+    family = "full" if "cross_axis" in causes else "paper"
+    extras = []
+    if "nonlinearity" in causes:
+        extras.append(F.NonlinearityExtra())
+    if "bias_drift" in causes:
+        extras.append(F.DriftExtra(*trange, _size(spec, "bias_drift", F.DRIFT_J)))
+    if "field_disturbance" in causes:
+        extras.append(F.FieldExtra(*trange, _size(spec, "field_disturbance", Jf)))
+    return F.fit_magnitude(sensor, K, X, T, W, family=family, extras=extras, start=start)
+
+
+def drift_sizes(duration: float, max_params: int, per_axis: int = 3) -> list[int]:
+    """Basis sizes tried for a drift: a smooth one (warm-up, linear) and a
+    finer one (random walk; one function per ~10 s), as the data allow."""
+    small = F.DRIFT_J
+    large = int(np.clip(round(duration / 10.0), 8, 40))
+    large = min(large, max_params // per_axis)
+    return [small] + ([large] if large > small else [])
+
+
+def _greedy(candidates: dict, fits: dict, fit_fn, n_obs: int, alpha: float, tests: list):
+    """Forward selection.  ``candidates``: cause -> list of spec items (variants;
+    a cause's p-value is its best variant's times the number of variants)."""
+    cur = frozenset()
+    accepted = []
+    remaining = dict(candidates)
+    rnd = 0
+    while remaining:
+        rnd += 1
+        best = None
+        for cause, variants in remaining.items():
+            cbest = None
+            for item in variants:
+                spec = cur | {item}
+                if spec not in fits:
+                    fits[spec] = fit_fn(spec, fits[cur])
+                f0, f1 = fits[cur], fits[spec]
+                q = f1.p - f0.p
+                dof = n_obs - f1.p
+                if dof < MIN_DOF or not getattr(f1, "ok", True):
+                    continue
+                Fv, p = F.f_test(f0.rss, f1.rss, q, dof)
+                rec = TestRecord(rnd, cause, q, Fv, min(1.0, p * len(variants)), dof,
+                                 F.delta_bic(f0.rss, f1.rss, q, n_obs), f0.rss, f1.rss)
+                rec.item = item
+                if cbest is None or (rec.p, rec.dbic) < (cbest.p, cbest.dbic):
+                    cbest = rec
+            if cbest is None:
+                continue
+            tests.append(cbest)
+            if best is None or (cbest.p, -cbest.F) < (best.p, -best.F):
+                best = cbest
+        if best is None or not (best.p < alpha):
+            break
+        cur = cur | {best.item}
+        accepted.append(best.item)
+        del remaining[best.cause]
+    return cur, accepted
+
+
+def residual_variance(fit: F.MagnitudeFit, X, T, var_counts) -> np.ndarray:
+    """Variance of each magnitude residual (sensor unit^2) from the variance
+    of the raw point per axis (counts^2)."""
+    A, c, H = fit.affine()
+    v = fit.calibrate(X, T)
+    nv = v / np.linalg.norm(v, axis=1, keepdims=True)
+    g = (nv @ A) / fit.K                         # d|v| / d raw counts
+    return np.sum(g * g * var_counts, axis=1)
+
+
+def magnitude_points(obs: SensorObs, regime: str, drop_rows: np.ndarray | None = None):
+    """Points of the poses or sweep regime: X counts, T, raw variance per axis,
+    fold and group (pose) ids."""
+    if regime == "poses":
+        segs = obs.segs
+        keep = np.ones(len(segs), bool)
+        if drop_rows is not None:
+            for i, g in enumerate(segs.rows):
+                if drop_rows[g].mean() > 0.01:
+                    keep[i] = False
+        idx = np.flatnonzero(keep)
+        X = segs.mean[idx]
+        T = segs.t[idx]
+        var = obs.var_of_mean(segs.n[idx])
+        fold = np.arange(len(idx)) % KFOLD
+        return {"X": X, "T": T, "var": var, "fold": fold, "group": idx,
+                "n": segs.n[idx], "dropped": int((~keep).sum())}
+    # sweep: every (non-overflow, non-clipped) reading, thinned
+    ok = ~obs.overflow
+    if drop_rows is not None:
+        ok &= ~drop_rows
+    idx = np.flatnonzero(ok)
+    step = max(1, int(np.ceil(len(idx) / MAX_SWEEP_POINTS)))
+    idx = idx[::step]
+    X = obs.x[idx]
+    T = obs.t[idx]
+    var = np.tile(obs.sigma ** 2, (len(idx), 1))
+    chunk = np.floor((T - T[0]) / SWEEP_CHUNK_S).astype(int)
+    fold = chunk % KFOLD
+    return {"X": X, "T": T, "var": var, "fold": fold, "group": chunk, "n": np.ones(len(idx)),
+            "dropped": int((~ok).sum()), "step": step}
+
+
+def field_basis_size(duration: float) -> int:
+    return int(np.clip(round(duration / 5.0), 4, 40))
+
+
+def analyse_magnitude(obs: SensorObs, regime: str, candidates: list[str], alpha: float,
+                      drop_rows=None) -> Structure | None:
+    pts = magnitude_points(obs, regime, drop_rows)
+    X, T = pts["X"], pts["T"]
+    k = len(X)
+    if k < 8:
+        return None
+    trange = (float(T.min()), float(T.max()))
+    Jf = field_basis_size(trange[1] - trange[0])
+    unit = "g" if obs.sensor == "accel" else "gauss"
+    # starting model: calib's LM fit, then weights from its noise propagation
+    fit0 = _spec_fit(obs.sensor, obs.K, X, T, np.ones(k), frozenset(), trange, Jf)
+    V = residual_variance(fit0, X, T, pts["var"])
+    W = 1.0 / np.sqrt(V)
+    fit0 = _spec_fit(obs.sensor, obs.K, X, T, W, frozenset(), trange, Jf, start=fit0)
+    fits = {frozenset(): fit0}
+    cand = {}
+    for c in candidates:
+        if c == "bias_drift":
+            sizes = drift_sizes(trange[1] - trange[0], (k - fit0.p) // 2)
+            cand[c] = [f"bias_drift:{j}" for j in sizes]
+        elif c == "field_disturbance":
+            cand[c] = [f"field_disturbance:{Jf}"]
+        else:
+            cand[c] = [c]
+    tests = []
+    cur, accepted = _greedy(cand, fits, lambda spec, start: _spec_fit(
+        obs.sensor, obs.K, X, T, W, spec, trange, Jf, start=start), k, alpha, tests)
+    final = fits[cur]
+    st = Structure(obs.sensor, regime, unit, accepted, tests, fit0, final, fits,
+                   dict(pts, W=W, V=V, trange=trange, Jf=Jf))
+    st.excess = F.chi2_excess(final.rss, k - final.p)
+    st.noise_floor = float(np.sqrt(np.mean(V)))
+    _heldout_magnitude(st, obs)
+    return st
+
+
+def _heldout_magnitude(st: Structure, obs: SensorObs):
+    pts = st.points
+    X, T, W, fold = pts["X"], pts["T"], pts["W"], pts["fold"]
+    full = frozenset(st.accepted)
+    specs = {frozenset(): None, full: None}
+    for c in st.accepted:
+        specs[full - {c}] = None
+    out = {}
+    for spec in specs:
+        r = np.full(len(X), np.nan)
+        start = st.fits.get(spec)
+        if start is None:
+            start = _spec_fit(st.sensor, obs.K, X, T, W, spec, pts["trange"], pts["Jf"],
+                              start=st.fit)
+            st.fits[spec] = start
+        for f in np.unique(fold):
+            te = fold == f
+            tr = ~te
+            if tr.sum() - start.p < 1:
+                continue
+            fk = _spec_fit(st.sensor, obs.K, X[tr], T[tr], W[tr], spec, pts["trange"],
+                           pts["Jf"], start=start)
+            r[te] = fk.residuals(X[te], T[te])
+        out[spec] = float(np.sqrt(np.nanmean(r * r)))
+    for c in st.accepted:
+        st.heldout[cause_of(c)] = (out[full - {c}], out[full])
+    st.heldout_total = (out[frozenset()], out[full])
+
+
+# ---------------------------------------------------------------------------
+# linear: gyroscope and one-orientation data
+# ---------------------------------------------------------------------------
+def _design(pts, spec, trange):
+    causes = _causes(spec)
+    cols, names, groups = [], [], {}
+    for j, p in enumerate(pts["const_groups"]):
+        cols.append((pts["cgroup"] == p).astype(float))
+        names.append(f"const{j}")
+    groups["const"] = list(range(len(cols)))
+    if "g_sensitivity" in causes:
+        i0 = len(cols)
+        for j in range(3):
+            cols.append(pts["F"][:, j])
+            names.append("gsens_" + "xyz"[j])
+        groups["g_sensitivity"] = list(range(i0, len(cols)))
+    if "bias_drift" in causes:
+        i0 = len(cols)
+        B = F.time_basis(pts["T"], *trange, _size(spec, "bias_drift", F.DRIFT_J))
+        for j in range(B.shape[1]):
+            cols.append(B[:, j])
+            names.append(f"drift{j}")
+        groups["bias_drift"] = list(range(i0, len(cols)))
+    return np.column_stack(cols), names, groups
+
+
+def linear_points(obs: SensorObs, accel_g: np.ndarray | None, per_orientation: bool):
+    """Block means with their weights; ``accel_g`` (blocks, 3) the specific
+    force in g during each block (gyroscope), or None."""
+    b = obs.blocks
+    Y = b.mean
+    W = 1.0 / np.sqrt(obs.var_of_mean(b.n))
+    T = b.t
+    if per_orientation:
+        cgroup = b.seg                                   # one constant per orientation
+    else:
+        cgroup = obs.part[[g[0] for g in b.rows]]        # one bias per recording
+    return {"Y": Y, "W": W, "T": T, "F": accel_g, "cgroup": np.asarray(cgroup),
+            "const_groups": list(np.unique(cgroup)), "fold": np.arange(len(Y)) % KFOLD,
+            "seg": b.seg, "n": b.n}
+
+
+def analyse_linear(obs: SensorObs, candidates: list[str], alpha: float,
+                   accel_g: np.ndarray | None = None, per_orientation: bool = False,
+                   drop_blocks: np.ndarray | None = None) -> Structure | None:
+    if obs.blocks is None:
+        return None
+    pts = linear_points(obs, accel_g, per_orientation)
+    if drop_blocks is not None and drop_blocks.any():
+        keep = ~drop_blocks
+        pts = {k: (v[keep] if isinstance(v, np.ndarray) and len(v) == len(keep) else v)
+               for k, v in pts.items()}
+        pts["const_groups"] = list(np.unique(pts["cgroup"]))
+    k = len(pts["Y"])
+    if k < 4:
+        return None
+    trange = (float(pts["T"].min()), float(pts["T"].max()))
+    if pts["F"] is None:
+        candidates = [c for c in candidates if c != "g_sensitivity"]
+    else:
+        # g-sensitivity needs orientations that span the sphere
+        Fu = pts["F"] / np.linalg.norm(pts["F"], axis=1, keepdims=True)
+        if np.linalg.matrix_rank(Fu - Fu.mean(axis=0), tol=0.2) < 3:
+            candidates = [c for c in candidates if c != "g_sensitivity"]
+
+    def fit(spec):
+        X, names, groups = _design(pts, spec, trange)
+        return F.fit_linear(X, pts["Y"], pts["W"], names, groups)
+
+    fits = {frozenset(): fit(frozenset())}
+    cand = {}
+    for c in candidates:
+        if c == "bias_drift":
+            sizes = drift_sizes(trange[1] - trange[0], (k - fits[frozenset()].p // 3) // 2, 1)
+            cand[c] = [f"bias_drift:{j}" for j in sizes]
+        else:
+            cand[c] = [c]
+    tests = []
+    cur, accepted = _greedy(cand, fits, lambda spec, start: fit(spec), 3 * k, alpha, tests)
+    final = fits[cur]
+    unit = {"accel": "g", "gyro": "deg/s", "mag": "gauss"}[obs.sensor]
+    st = Structure(obs.sensor, "single" if per_orientation else "still", unit, accepted, tests,
+                   fits[frozenset()], final, fits, dict(pts, trange=trange))
+    st.excess = F.chi2_excess(final.rss, 3 * k - final.p)
+    st.noise_floor = float(np.sqrt(np.mean(1.0 / pts["W"] ** 2))) / obs.K
+    _heldout_linear(st, obs, fit_fn=lambda spec, keep: _fit_subset(pts, spec, trange, keep))
+    return st
+
+
+def _fit_subset(pts, spec, trange, keep):
+    X, names, groups = _design(pts, spec, trange)
+    return F.fit_linear(X[keep], pts["Y"][keep], pts["W"][keep], names, groups), X
+
+
+def _heldout_linear(st: Structure, obs: SensorObs, fit_fn):
+    pts = st.points
+    fold = pts["fold"]
+    full = frozenset(st.accepted)
+    specs = [frozenset(), full] + [full - {c} for c in st.accepted]
+    out = {}
+    for spec in specs:
+        r = np.full(pts["Y"].shape, np.nan)
+        for f in np.unique(fold):
+            te = fold == f
+            fk, X = fit_fn(spec, ~te)
+            # a held-out block whose constant group has no training block is skipped
+            usable = te.copy()
+            for j, g in enumerate(pts["const_groups"]):
+                if not np.any((pts["cgroup"] == g) & ~te):
+                    usable &= pts["cgroup"] != g
+            r[usable] = pts["Y"][usable] - X[usable] @ fk.beta
+        out[spec] = float(np.sqrt(np.nanmean(r * r))) / obs.K
+    for c in st.accepted:
+        st.heldout[cause_of(c)] = (out[full - {c}], out[full])
+    st.heldout_total = (out[frozenset()], out[full])

@@ -21,7 +21,6 @@ import contextlib
 import datetime as _dt
 import itertools
 import json
-import math
 import os
 import sqlite3
 import time

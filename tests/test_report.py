@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from motecal.calib import BoardCalibration, calibrate_board
+from motecal.calib import BoardCalibration, calibrate_board, decide
 from motecal.calib import tables as CT
 from motecal.cli import main
 from motecal.errors import UserError
@@ -82,8 +82,13 @@ def sim(tmp_path_factory):
     db = base / "s.db"
     with open_store(str(db), create=True) as st:
         st.save_session(data)
+        # what `motecal calibrate` does: the report shows the stored calibration
+        board = calibrate_board(st.load_session("simrep"), seed=SEED)
+        decide(board)
+        st.save_calibration("simrep", 1, board.to_json())
         index = write_report(st, "simrep", base / "report", seed=SEED)
-    return {"db": db, "data": data, "index": index, "out": index.parent, "base": base}
+    return {"db": db, "data": data, "index": index, "out": index.parent, "base": base,
+            "board": board}
 
 
 @pytest.fixture(scope="module")
@@ -191,11 +196,11 @@ def test_tables_equal_the_calibration_engine(sim):
         int((data.label == LABEL_ROT).sum())
 
 
-def test_calibration_shown_is_calibrate_board(sim):
-    """No calibration stored: the board is calibrated with the report's seed and
-    the calibration table holds its numbers; its full-model rows agree with
-    Table I/III (same objective, same optimum)."""
-    board = calibrate_board(sim["data"], seed=SEED)
+def test_calibration_shown_is_the_stored_one(sim):
+    """The calibration stored in the database is the one shown (its numbers in
+    the calibration table); its full-model rows agree with Tables I-III (same
+    objective, same optimum)."""
+    board = sim["board"]
     rows = {r["sensor"]: r for r in T.read_csv(sim["out"] / "calibration.csv")}
     assert set(rows) == {"accel", "gyro", "mag"}
     for name, sc in board.sensors():
@@ -204,7 +209,9 @@ def test_calibration_shown_is_calibrate_board(sim):
         assert int(r["samples"]) == sc.n_samples
         for k in ("mse_before", "mse_after", "min_before", "max_before", "min_after",
                   "max_after"):
-            assert _num(r[k]) == pytest.approx(getattr(sc, k), rel=1e-6), (name, k)
+            assert _num(r[k]) == getattr(sc, k), (name, k)
+    assert _num(rows["mag"]["field_gauss"]) == board.mag.field_gauss
+    assert "stored in the database" in (sim["out"] / "calibration.md").read_text()
     t1 = {r["parameters"]: r for r in T.read_csv(sim["out"] / "table1_accel.csv")}
     assert _num(t1["full model"]["error_after"]) == pytest.approx(board.accel.mse_after,
                                                                    rel=1e-6)
@@ -215,6 +222,10 @@ def test_calibration_shown_is_calibrate_board(sim):
     t3 = {r["set"]: r for r in T.read_csv(sim["out"] / "table3_mag.csv")}
     assert _num(t3["R"]["field_full"]) == pytest.approx(board.mag_sets["R"]["field_gauss"],
                                                         rel=1e-6)
+    # the gate's decision on it is in the page header
+    html = sim["index"].read_text()
+    state = "accepted" if board.gate.get("accepted") else "refused"
+    assert f"mote 1: {state}" in html
 
 
 def test_csv_and_markdown_agree(sim):
@@ -264,11 +275,15 @@ def test_cli_measured_two_motes_tables_per_mote(measured_db, tmp_path, capsys):
     assert "mote1_accel_magnitude.png" in names
     links = _links(out / "index.html")
     assert {p.name for p in out.iterdir()} - {"index.html"} <= set(links.refs)
-    # a second run replaces the earlier report
-    assert main(["report", "--db", str(measured_db), "--session", "razor_sweep",
-                 "--mote", "2", "--out", str(out), "-q"]) == 0
-    assert not (out / "table1_accel.csv").exists()
-    assert [p for p in tmp_path.iterdir() if p.name.startswith(".rep.")] == []
+    # nothing stored: each board calibrated now with the report's seed
+    cal = {(r["mote"], r["sensor"]): r for r in T.read_csv(out / "calibration.csv")}
+    assert sorted(cal) == [("1", "accel"), ("1", "gyro"), ("1", "mag"), ("2", "mag")]
+    board2 = calibrate_board(sweep, seed=3)
+    assert cal[("2", "mag")]["dataset"] == "R"
+    assert _num(cal[("2", "mag")]["mse_after"]) == pytest.approx(board2.mag.mse_after, rel=1e-9)
+    assert _num(cal[("2", "mag")]["field_gauss"]) == pytest.approx(board2.mag.field_gauss,
+                                                                  rel=1e-6)
+    assert "calibrated now" in (out / "calibration.md").read_text()
 
 
 def test_given_and_stored_calibration_are_shown(measured_db, tmp_path):
@@ -291,15 +306,17 @@ def test_given_and_stored_calibration_are_shown(measured_db, tmp_path):
         # a calibration for another mote is refused
         with pytest.raises(UserError, match="mote 2"):
             write_report(st, "razor_sweep", tmp_path / "x", mote=1, cal=str(cal))
-        # stored in the database: used without --cal
+        # stored in the database: used without --cal; the earlier report is replaced
         st.save_calibration("razor_sweep", 2, BoardCalibration.loads(cal.read_text()).to_json())
-        out2 = tmp_path / "stored"
-        write_report(st, "razor_sweep", out2, mote=2)
-        rows2 = {r["sensor"]: r for r in T.read_csv(out2 / "calibration.csv")}
+        (out / "mote2_coverage.png").unlink()          # the new report brings it back
+        write_report(st, "razor_sweep", out, mote=2)
+        rows2 = {r["sensor"]: r for r in T.read_csv(out / "calibration.csv")}
         assert rows2["mag"]["model"] == "paper(offsets+scales)"
         assert _num(rows2["mag"]["mse_after"]) == board.mag.mse_after
-        assert "stored in the database" in (out2 / "calibration.md").read_text()
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["cal.json", "given", "stored"]
+        text = (out / "calibration.md").read_text()
+        assert "stored in the database" in text and "given calibration" not in text
+        assert (out / "mote2_coverage.png").is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cal.json", "given"]
 
 
 # ------------------------------------------------------------------ bad input

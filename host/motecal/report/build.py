@@ -80,6 +80,10 @@ MODEL_OF = {"offsets": "paper", "scales": "paper", "offsets + scales": "paper",
             "offsets + scales + angles": "paper", "full model": "full (ours)"}
 
 
+def _plural(n: int, word: str) -> str:
+    return f"{n} {word}" + ("" if n == 1 else "s")
+
+
 def _f(x):
     return None if x is None else float(x)
 
@@ -302,13 +306,13 @@ def _fig_coverage(mr: MoteReport, out: Path) -> list:
                         f"with a sample within 25 deg).")]
 
 
-def _rate(data: SessionData) -> float:
-    """Sample rate: the session's ``rate_hz``, else from the median interval of
-    consecutive samples."""
-    r = data.meta.get("rate_hz")
+def _rate(data: SessionData, sensor: str, rows: np.ndarray) -> float:
+    """Sample rate of one sensor: the session's per-sensor ``rates_hz`` or
+    ``rate_hz``, else from the median interval of that sensor's rows."""
+    r = (data.meta.get("rates_hz") or {}).get(sensor) or data.meta.get("rate_hz")
     if r:
         return float(r)
-    dt = np.diff(data.t)[np.diff(data.seq) == 1]
+    dt = np.diff(data.t[rows])
     dt = dt[np.isfinite(dt) & (dt > 0)]
     if len(dt):
         return float(1.0 / np.median(dt))
@@ -317,7 +321,7 @@ def _rate(data: SessionData) -> float:
 
 def _fig_allan(mr: MoteReport, out: Path) -> list:
     data = mr.data
-    runs = F.still_runs(data.label, data.seq, data.has("gyro"))
+    runs = F.still_runs(data.label, data.seq, data.has("gyro"), data.t)
     if not runs:
         if data.has("gyro").any():
             mr.notes.append("Allan deviation: no still (labelled) gyroscope run of 8 samples")
@@ -325,7 +329,7 @@ def _fig_allan(mr: MoteReport, out: Path) -> list:
     sc = getattr(mr.board, "gyro", None) if mr.board is not None else None
     g = data.sensor("gyro")
     series = [sc.apply(g[r]) if sc is not None else g[r] / data.scales["gyro"] for r in runs]
-    rate = _rate(data)
+    rate = _rate(data, "gyro", np.flatnonzero(data.has("gyro")))
     tau, adev, _ = F.allan_deviation(series, rate)
     if len(tau) < 2:
         return []
@@ -489,6 +493,12 @@ def build_report(store, session, out_dir, *, mote=None, cal=None, seed: int = 0,
                                 f"{UNITS[s]})" for s in SENSOR_SLICES
                                 if data.has(s).any())),
             ("GA seed of the tables", str(seed))]
+    gates = [f"mote {mr.mote}: " + ("accepted" if mr.gate.get("accepted") else
+                                   f"refused ({_plural(len(mr.gate.get('reasons', [])), 'reason')}, "
+                                   f"see 'Calibration shown')")
+             for mr in reports if mr.gate]
+    if gates:
+        meta.append(("quality gate of the calibration shown", "; ".join(gates)))
     index = out / "index.html"
     index.write_text(H.render(f"motecal report: session {name}", meta, sections),
                      encoding="utf-8")

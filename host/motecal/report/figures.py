@@ -251,15 +251,35 @@ def coverage(path, sets: list[tuple[str, np.ndarray]], title: str) -> Path:
 
 # ------------------------------------------------------------------ gyroscope noise
 
-def still_runs(label: np.ndarray, seq: np.ndarray, ok: np.ndarray,
+GAP_FACTOR = 10.0      # interleaved rows: an interval over this many mean intervals is a gap
+
+
+def still_runs(label: np.ndarray, seq: np.ndarray, ok: np.ndarray, t: np.ndarray | None = None,
                min_len: int = 8) -> list[np.ndarray]:
-    """Row indices of contiguous runs (same static label >= 1, consecutive seq,
-    rows where ``ok``), each at least ``min_len`` rows long."""
-    good = (np.asarray(label) >= 1) & np.asarray(ok)
+    """Row indices of contiguous runs of one sensor's samples: rows where ``ok``
+    (the sensor has a value) with the same static label >= 1, split where the
+    label changes or samples are missing.  Missing means a jump in ``seq``
+    other than 1 when the sensor has a value in consecutive rows (sensors
+    sampled together); for sensors on their own clocks (rows interleaved with
+    other sensors', timestamps often bursty) an interval of ``t`` over
+    ``GAP_FACTOR`` times the mean interval.  Runs under ``min_len`` rows are
+    dropped."""
+    label = np.asarray(label)
+    good = (label >= 1) & np.asarray(ok)
     idx = np.flatnonzero(good)
-    if len(idx) == 0:
+    if len(idx) < 2:
         return []
-    brk = (np.diff(idx) != 1) | (np.diff(label[idx]) != 0) | (np.diff(seq[idx]) != 1)
+    brk = np.diff(label[idx]) != 0
+    dseq = np.diff(np.asarray(seq)[idx])
+    tt = None if t is None else np.asarray(t, float)[idx]
+    interleaved = not np.all(ok)          # rows without this sensor in between
+    if interleaved and tt is not None and np.isfinite(tt).all():
+        dt = np.diff(tt)
+        typical = dt[(dt > 0) & (dt < 1.0)]
+        mean = float(typical.mean()) if len(typical) else 0.0
+        brk |= (dt < 0) | (dt > GAP_FACTOR * mean)
+    else:
+        brk |= dseq != 1
     runs = np.split(idx, np.flatnonzero(brk) + 1)
     return [r for r in runs if len(r) >= min_len]
 
@@ -270,14 +290,15 @@ def allan_deviation(runs: list[np.ndarray], rate_hz: float, n_tau: int = 30):
     ``runs`` is a list of (n_i, k) rate arrays sampled at ``rate_hz``; for each
     averaging time tau = m / rate the squared second differences of the
     integrated signal are summed over every run long enough for m and divided
-    by their total number.  Returns ``(tau (T,), adev (T, k), terms (T,))``.
+    by their total number; tau goes up to a quarter of the longest run.  Returns ``(tau (T,), adev (T, k), terms (T,))``.
     """
     runs = [np.asarray(r, float) for r in runs if len(r) >= 3]
     if not runs:
         return np.zeros(0), np.zeros((0, 3)), np.zeros(0, int)
     k = runs[0].shape[1]
     longest = max(len(r) for r in runs)
-    m_max = (longest - 1) // 2
+    m_max = max(1, (longest - 1) // 4)   # tau up to a quarter of the longest run (>= 2
+    #                                     independent averages; longer taus are mostly noise)
     ms = np.unique(np.round(np.logspace(0, np.log10(max(m_max, 1)), n_tau)).astype(int))
     ms = ms[ms >= 1]
     thetas = [np.vstack([np.zeros((1, k)), np.cumsum(r, axis=0)]) / rate_hz for r in runs]

@@ -16,6 +16,7 @@ counts what it had to skip in ``stats`` (``protocol.DecoderStats``).
 """
 from __future__ import annotations
 
+import abc
 import os
 import select
 import socket
@@ -138,7 +139,7 @@ def parse_port(text: str | None, baud: int | None = None, env=None) -> PortSpec:
 # --------------------------------------------------------------------------
 # Sources
 # --------------------------------------------------------------------------
-class Source:
+class Source(abc.ABC):
     """Common part: frames out, skip counters in ``stats``."""
 
     spec: PortSpec
@@ -147,8 +148,10 @@ class Source:
         self.spec = spec
         self.stats = P.DecoderStats()
 
-    def read(self) -> list[P.Frame]:         # pragma: no cover - interface
-        raise NotImplementedError
+    @abc.abstractmethod
+    def read(self) -> list[P.Frame]:
+        """Checked frames of what arrived (waits up to READ_TIMEOUT); raises
+        SourceLost when the port went away, SourceEnded at the end of a file."""
 
     def flush(self) -> list[P.Frame]:
         """The stream ended (closed, lost): a frame cut off is counted, not kept
@@ -156,11 +159,13 @@ class Source:
         decoder = getattr(self, "decoder", None)
         return decoder.feed(b"\x7e") if decoder is not None else []
 
-    def send(self, am: P.AMPacket, ack_seq: int | None = None) -> None:  # pragma: no cover
-        raise NotImplementedError
+    @abc.abstractmethod
+    def send(self, am: P.AMPacket, ack_seq: int | None = None) -> None:
+        """Put one AM packet on the line (a 0x44 frame with ``ack_seq``)."""
 
-    def close(self) -> None:                 # pragma: no cover - interface
-        raise NotImplementedError
+    @abc.abstractmethod
+    def close(self) -> None:
+        """Release the port (safe to call twice)."""
 
     def __enter__(self):
         return self

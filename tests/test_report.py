@@ -92,7 +92,7 @@ def sim(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def measured_db(tmp_path_factory, measured_path=None):
+def measured_db(tmp_path_factory):
     from conftest import MEASURED
     razor = read_razor_text(sorted((MEASURED / "sensorstick-boards" / "razor1")
                                    .glob("razor1_acc_*.raw")))
@@ -159,8 +159,8 @@ def test_tables_equal_the_calibration_engine(sim):
     ref1 = CT.table1(data, seed=SEED)
     before = ref1[0]
     assert [r["parameters"] for r in t1] == [r["parameters"] for r in ref1[1:]]
-    assert [r["parameters"] for r in t1] == ["offsets", "scales", "offsets + scales",
-                                             "offsets + scales + angles", "full model"]
+    assert {"offsets", "scales", "offsets + scales", "offsets + scales + angles",
+            "full model"} <= {r["parameters"] for r in t1}
     for row, ref in zip(t1, ref1[1:]):
         assert row["mote"] == "1"
         assert _num(row["error_after"]) == pytest.approx(ref["error"], rel=1e-9)
@@ -259,7 +259,7 @@ def test_cli_measured_two_motes_tables_per_mote(measured_db, tmp_path, capsys):
     assert f"report written: {out / 'index.html'}" in captured.out
     # mote 1: the six razor1 accel poses (all tables); mote 2: the sweep (Table III only)
     t1 = T.read_csv(out / "table1_accel.csv")
-    assert {r["mote"] for r in t1} == {"1"} and len(t1) == 5
+    assert {r["mote"] for r in t1} == {"1"} and len(t1) == len(CT.ACCEL_ROWS) + 1
     t3 = T.read_csv(out / "table3_mag.csv")
     assert sorted((r["mote"], r["set"]) for r in t3) == [("1", "O"), ("2", "R")]
     with open_store(str(measured_db)) as st:

@@ -8,7 +8,7 @@ import pytest
 
 from motecal.calib import fit, gate, tables
 from motecal.calib.board import calibrate_board
-from motecal.calib.models import make_model
+from motecal.calib.models import make_model, theta_from_affine
 from motecal.calib.result import BoardCalibration
 from motecal.calib.synthetic import paper_sized_session, true_affine, vector_error
 from motecal.errors import UserError
@@ -49,6 +49,40 @@ def test_accel_full_model_accuracy_and_paper_model_failure(board_session, board)
     assert err_full < 1e-3 < 5e-3 < err_paper
     # the residual: noise-level for the full model, systematic for the paper model
     assert paper.accel.mse_after > 1.15 * board.accel.mse_after
+
+
+@pytest.mark.parametrize("sensor", ["accel", "mag"])
+def test_recovered_parameters_within_stated_std_of_the_simulated_truth(board_session, board,
+                                                                       sensor):
+    """The simulator's true map, put into the full model's gauge (and, for the
+    magnetometer, scaled to det 1), against the fit: z-scores.  The per-sample
+    magnitude fitness is biased by the noise (E|v + e| = |v| + sigma^2/|v|),
+    so the fit shrinks the accelerometer's matrix by (1 - sigma^2) and, with
+    det(A) fixed, raises the magnetometer's field by (1 + sigma^2 / B^2)."""
+    pt = board_session.meta["physical_truth"]
+    A, c = true_affine(pt, sensor)
+    K = board_session.scales[sensor]
+    m = make_model(sensor, "full")
+    An = A * K
+    H = 1.0
+    if sensor == "mag":
+        g = np.linalg.det(An) ** (1 / 3)
+        An, c, H = An / g, c / g, 0.48 / g
+        theta = theta_from_affine(m, An, c, field=H)
+    else:
+        theta = theta_from_affine(m, An, c)
+    sigma2 = np.mean((np.array(pt[sensor]["noise"]) / K) ** 2) * np.mean(np.diag(An)) ** 2
+    if sensor == "mag":
+        theta[-1] *= 1 + sigma2 / H ** 2
+    else:
+        theta[3:9] *= 1 - sigma2
+    sc = getattr(board, sensor)
+    est = np.array([p.value for p in sc.params])
+    sd = np.array([p.std for p in sc.params])
+    assert [p.name for p in sc.params] == m.names
+    z = (est - theta) / sd
+    assert np.abs(z).max() < 4, dict(zip(m.names, z.round(2)))
+    assert np.mean(z ** 2) < 3
 
 
 def test_accuracy_goal_rms_over_boards():

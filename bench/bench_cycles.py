@@ -16,7 +16,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 import avrsim  # noqa: E402
 
 SOURCES = [avrsim.CSRC / "avr_bench.c"] + [
-    avrsim.TINYOS / f for f in ("ninedof_board.c", "ninedof_cal.c", "ninedof_sampling.c")]
+    avrsim.TINYOS / f for f in ("ninedof_board.c", "ninedof_cal.c", "ninedof_sampling.c",
+                                "ninedof_clock.c")]
 MHZ = avrsim.F_CPU / 1e6
 BATCH = 5
 

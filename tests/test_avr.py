@@ -4,6 +4,7 @@ correction (AVR assembly kernel vs portable C), decode/validate, the upload
 receiver's replies, and the EEPROM image."""
 import binascii
 import subprocess
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -152,22 +153,30 @@ def test_receiver_replies_are_identical_on_the_avr(avr_run):
 # The rest of the firmware's plain C logic, on the host and on the AVR
 # --------------------------------------------------------------------------
 LOGIC_SOURCES = [avrsim.CSRC / "logic_tests.c", avrsim.BASESTATION / "ninedof_bs.c"] + [
-    avrsim.TINYOS / f for f in ("ninedof_board.c", "ninedof_cal.c", "ninedof_sampling.c")]
+    avrsim.TINYOS / f for f in ("ninedof_board.c", "ninedof_cal.c", "ninedof_sampling.c",
+                                "ninedof_clock.c")]
 
 
 @pytest.fixture(scope="module")
 def logic_outputs(tmp_path_factory):
-    d = tmp_path_factory.mktemp("logic")
-    exe = d / "logic_host"
-    subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror",
-                    f"-I{avrsim.TINYOS}", f"-I{avrsim.BASESTATION}"]
-                   + [str(s) for s in LOGIC_SOURCES] + ["-o", str(exe)], check=True)
-    host = subprocess.run([str(exe)], capture_output=True, text=True).stdout.replace("\n", "")
     if avrsim.missing_tools():
         pytest.fail(f"missing {avrsim.missing_tools()}: run `make sysdeps`")
-    elf = avrsim.build(LOGIC_SOURCES, d / "logic.elf", include=[avrsim.BASESTATION])
-    avr = avrsim.run(elf)
-    return host, avr
+    d = tmp_path_factory.mktemp("logic")
+    exe = d / "logic_host"
+
+    def host():
+        subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror",
+                        f"-I{avrsim.TINYOS}", f"-I{avrsim.BASESTATION}"]
+                       + [str(s) for s in LOGIC_SOURCES] + ["-o", str(exe)], check=True)
+        return subprocess.run([str(exe)], capture_output=True, text=True).stdout.replace("\n", "")
+
+    def avr():
+        return avrsim.run(avrsim.build(LOGIC_SOURCES, d / "logic.elf",
+                                       include=[avrsim.BASESTATION]))
+
+    with ThreadPoolExecutor(2) as pool:          # the two builds side by side
+        jobs = pool.submit(host), pool.submit(avr)
+        return tuple(j.result() for j in jobs)
 
 
 def _result(text):
@@ -207,6 +216,39 @@ def test_logic_outputs_identical_and_readable_by_the_host(logic_outputs):
     assert P.BS_STATUS.unpack(digests[4]) == dict(radio_rx=1, radio_drops=2, serial_rx=3,
                                                   serial_drops=4, radio_fail=5,
                                                   serial_fail=0xFFFF)
+
+
+# The sampling clock's simulated cases, as in CLOCK_CASES (logic_tests.c):
+# (true alarm rate in crystal ticks per alarm tick, Q24; its change per
+# second; bound on the phase's peak-to-peak after locking, us; bound on the
+# long-run rate error, ppm)
+CLOCK_CASES = [
+    (538776, 0, 80, 1.0),        # RC 2 % fast, crystal counter wraps
+    (560736, 0, 120, 1.0),       # RC 2 % slow, 300 us interrupt latency
+    (549756, -11, 100, 1.0),     # RC drifting 20 ppm/s
+    (541521, 110, 300, 2.0),     # RC drifting 200 ppm/s (3 % over the run)
+    (522268, 0, 80, 1.0),        # RC 5 % fast, boot measurement 5 % off
+]
+Q24_US = 1e6 / 1024 / 2**24      # one Q24 crystal tick in microseconds
+
+
+def test_sampling_clock_follows_the_crystal(logic_outputs):
+    """ninedof_clock.c against simulated RC errors, drift, latency and counter
+    wrap: after locking, the phase against the crystal stays bounded (so the
+    long-run rate is the crystal's), periods never jump by more than a tick,
+    and the rate the loop settles on is the simulated one."""
+    tokens, _ = _result(logic_outputs[0])
+    cases = [np.frombuffer(bytes.fromhex(t[1:]), ">i4") for t in tokens if t.startswith("K")]
+    assert len(cases) == len(CLOCK_CASES)
+    for (k, dk, pp_us, ppm), v in zip(CLOCK_CASES, cases):
+        seconds, settle, lo, hi, at_settle, at_end, pmin, pmax, rate16 = (int(x) for x in v)
+        assert (hi - lo) * Q24_US <= pp_us, (k, dk, (hi - lo) * Q24_US)
+        long_run = (at_end - at_settle) * Q24_US / (seconds - settle)   # us/s = ppm
+        assert abs(long_run) <= ppm, (k, dk, long_run)
+        true_hz = 2**34 / (k + dk * seconds)              # alarm ticks per crystal second
+        assert abs(rate16 / 16 / true_hz - 1) < 100e-6, (rate16 / 16, true_hz)
+        if dk == 0:                                        # two adjacent periods
+            assert pmax - pmin == 1 and pmin <= true_hz / 125 <= pmax
 
 
 def test_board_register_table_matches_the_datasheet_goals():

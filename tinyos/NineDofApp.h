@@ -1,7 +1,8 @@
 /*
  * NineDofApp.h -- nesC side of the sampling app: the message definitions
  * and the app's plain C (calibration receiver and correction, batching,
- * counters, EEPROM writer), compiled in here once for the application.
+ * counters, EEPROM writer, sampling clock), compiled in here once for the
+ * application.
  */
 #ifndef NINEDOF_APP_NESC_H
 #define NINEDOF_APP_NESC_H
@@ -10,7 +11,9 @@
 #include "nx_nesc.h"
 #include "ninedof_cal.h"
 #include "ninedof_sampling.h"
+#include "ninedof_clock.h"
 #include "ninedof_cal.c"
 #include "ninedof_sampling.c"
+#include "ninedof_clock.c"
 
 #endif

@@ -1,5 +1,5 @@
 /*
- * NineDofAppC -- the sensor mote: 9DOF board sampled at exactly 125 Hz,
+ * NineDofAppC -- the sensor mote: 9DOF board sampled at 125 Hz of the crystal,
  * batched, corrected with the uploaded calibration, sent to the BaseStation.
  * See NineDofAppP for the behaviour and the LEDs.
  *
@@ -15,7 +15,7 @@ implementation
 {
   components MainC, LedsC, NineDofAppP as App;
   components NineDofBoardC as Board;
-  components new Alarm32khz32C() as Alarm;
+  components new Alarm32khz32C() as Alarm, LocalTimeMilliC as Crystal, PlatformC;
   components ActiveMessageC as Radio;
   components new AMSenderC(AM_NINEDOF_SAMPLES_MSG) as SampleSend;
   components new AMSenderC(AM_NINEDOF_MOTE_STATUS_MSG) as StatusSend;
@@ -36,6 +36,8 @@ implementation
   App.BoardControl -> Board;
   App.Board -> Board;
   App.Alarm -> Alarm;
+  App.Crystal -> Crystal;
+  App.Atm128Calibrate -> PlatformC;
   App.RadioControl -> Radio;
   App.SampleSend -> SampleSend;
   App.StatusSend -> StatusSend;

@@ -1,10 +1,14 @@
 /*
  * NineDofAppP -- 125 Hz 9DOF sampling mote.
  *
- * Every 250 ticks of a 31.25 kHz alarm (exactly 8 ms, re-armed from its own
- * previous expiry so no error accumulates) the board reads the nine axes of
- * that instant; each period has a sequence number.  Records of consecutive
- * periods are batched NINEDOF_BATCH to a message, corrected with the
+ * Every 8 ms of the 32768 Hz crystal the board reads the nine axes of that
+ * instant; each period has a sequence number.  The period is timed by a
+ * "32 kHz" alarm, which on iris counts the CPU's RC oscillator (nominally
+ * 31250 Hz, 250 ticks), re-armed from its own previous expiry with the
+ * number of ticks ninedof_clock.c computes: at each expiry it takes the
+ * crystal time (LocalTime<TMilli>) and keeps the long-run rate at 125.000
+ * Hz of the crystal, periods differing by at most one tick.  Records of
+ * consecutive periods are batched NINEDOF_BATCH to a message, corrected with the
  * calibration in force and flagged (ninedof_sampling.c, ninedof_cal.c) and
  * sent to the BaseStation (address 0) with an acknowledgement requested and
  * up to NINEDOF_RETRIES retries, through a queue of NINEDOF_SEND_QUEUE
@@ -33,6 +37,8 @@ module NineDofAppP @safe()
     interface SplitControl as BoardControl;
     interface ReadNow<ninedof_raw_t> as Board;
     interface Alarm<T32khz, uint32_t> as Alarm;
+    interface LocalTime<TMilli> as Crystal;
+    interface Atm128Calibrate;
     interface SplitControl as RadioControl;
     interface AMSend as SampleSend;
     interface AMSend as StatusSend;
@@ -66,6 +72,10 @@ implementation
   ninedof_calrx_t rx;
   ninedof_batch_t batch;
   ninedof_eewriter_t eewriter;
+
+  /* the 125 Hz period: set up in startSampling() before the alarm is armed,
+   * then used only in Alarm.fired(), before it re-arms the alarm */
+  norace ninedof_clock_t clock;
 
   /* shared with the alarm and I2C interrupts */
   ninedof_counters_t counters;
@@ -112,7 +122,8 @@ implementation
       if (sampling)
         return;
       sampling = TRUE;
-      call Alarm.startAt(call Alarm.getNow(), NINEDOF_PERIOD_TICKS);
+      ninedof_clock_init(&clock, call Atm128Calibrate.cyclesPerJiffy());
+      call Alarm.startAt(call Alarm.getNow(), ninedof_clock_first(&clock));
     }
     call StatusTimer.startPeriodic(STATUS_TICKS);
   }
@@ -151,8 +162,8 @@ implementation
     uint16_t seq;
     bool busy;
 
-    /* next period from this one's expiry: exactly 250 ticks, no drift */
-    call Alarm.startAt(call Alarm.getAlarm(), NINEDOF_PERIOD_TICKS);
+    /* next period from this one's expiry, as long as the crystal says */
+    call Alarm.startAt(call Alarm.getAlarm(), ninedof_clock_next(&clock, call Crystal.get()));
     atomic {
       seq = counters.seq++;
       busy = reading;

@@ -4,15 +4,6 @@
 #include <string.h>
 #include "ninedof_sampling.h"
 
-/* the alarm rate must be a whole multiple of the sample rate (no drift) */
-typedef char ninedof_period_is_exact[(NINEDOF_ALARM_HZ % NINEDOF_RATE_HZ) == 0 ? 1 : -1];
-
-uint16_t ninedof_periods_between(uint32_t from, uint32_t to)
-{
-  uint32_t d = (to - from) / NINEDOF_PERIOD_TICKS;     /* unsigned: wrap-safe */
-  return d > 0xFFFFu ? 0xFFFFu : (uint16_t)d;
-}
-
 void ninedof_counters_init(ninedof_counters_t *c)
 {
   memset(c, 0, sizeof(*c));

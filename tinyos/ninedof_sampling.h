@@ -1,9 +1,10 @@
 /*
- * ninedof_sampling.h -- the sampling app's logic in plain C: the 125 Hz
- * period, sequence numbers, batching records into ninedof_samples_msg,
+ * ninedof_sampling.h -- the sampling app's logic in plain C: sequence
+ * numbers, batching records into ninedof_samples_msg,
  * status counters, and the background EEPROM writer of the calibration
  * image.  NineDofAppP.nc (nesC) only wires these to timers, the radio and
- * the EEPROM; tests run them with gcc and in simavr.
+ * the EEPROM; tests run them with gcc and in simavr.  The 125 Hz period
+ * itself is ninedof_clock.h.
  */
 #ifndef NINEDOF_SAMPLING_H
 #define NINEDOF_SAMPLING_H
@@ -11,17 +12,6 @@
 #include <stdint.h>
 #include "NineDofMsg.h"
 #include "ninedof_cal.h"
-
-/* ---------------------------------------------------------------------- */
-/* Period                                                                  */
-/* ---------------------------------------------------------------------- */
-/* On iris the "32 kHz" alarms (Alarm32khz32C) count CPU clock / 256 =
- * 31250 Hz, so one period is exactly 250 ticks = 8 ms (125.000 Hz).  A
- * Timer<TMilli> of 8 would give 1024/8 = 128 Hz (binary milliseconds). */
-#ifndef NINEDOF_ALARM_HZ
-#define NINEDOF_ALARM_HZ 31250UL
-#endif
-#define NINEDOF_PERIOD_TICKS ((uint16_t)(NINEDOF_ALARM_HZ / NINEDOF_RATE_HZ))
 
 /* Where samples and status go, and how they are sent */
 #ifndef NINEDOF_BASESTATION_ADDR
@@ -33,9 +23,6 @@
 #ifndef NINEDOF_SEND_QUEUE
 #define NINEDOF_SEND_QUEUE 4            /* sample messages waiting for the radio */
 #endif
-
-/* Whole periods between two alarm times (wrap-safe, 32-bit ticks) */
-uint16_t ninedof_periods_between(uint32_t from, uint32_t to);
 
 /* ---------------------------------------------------------------------- */
 /* Counters (wrap at 65536; the host takes differences)                    */

@@ -10,6 +10,7 @@
 
 #include "ninedof_board.h"
 #include "ninedof_cal.h"
+#include "ninedof_clock.h"
 #include "ninedof_sampling.h"
 
 static void out_c(char c)
@@ -56,6 +57,7 @@ static ninedof_cal_t cal;
 static ninedof_batch_t batch;
 static ninedof_samples_msg_t msg;
 static ninedof_eewriter_t ew;
+static ninedof_clock_t clk;
 static int16_t raw[NINEDOF_BATCH * 9], out[NINEDOF_BATCH * 9];
 static uint8_t bytes[3][6];
 static uint8_t reply[32], rtype;
@@ -158,6 +160,17 @@ int main(void)
   ninedof_eewriter_init(&ew, 0, 1);
   MEASURE("eeprom_image", ninedof_eewriter_poll(&ew, &rx));
   MEASURE("eeprom_next_byte", ninedof_eewriter_next(&ew, &addr, &v));
+
+  /* the sampling clock: an ordinary period, and the one that ends a second
+   * (loop update) */
+  ninedof_clock_init(&clk, 244);
+  for (i = 0; i < NINEDOF_RATE_HZ - 1; i++) {
+    if (i == 10)
+      MEASURE("clock_period", (void)ninedof_clock_next(&clk, (uint32_t)i * 1024 / 125));
+    else
+      (void)ninedof_clock_next(&clk, (uint32_t)i * 1024 / 125);
+  }
+  MEASURE("clock_update", (void)ninedof_clock_next(&clk, 1019));
 
   out_s("END\n");
   cli();

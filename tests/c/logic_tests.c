@@ -1,6 +1,6 @@
 /*
  * logic_tests.c -- behaviour of the firmware's plain C logic (board data
- * conversion, I2C rate, 125 Hz period, batching, status, EEPROM writer, the
+ * conversion, I2C rate, 125 Hz sampling clock, batching, status, EEPROM writer, the
  * BaseStation's serial divisor and status),
  * built twice by tests/test_avr.py: with gcc on the host and with avr-gcc
  * for the ATmega1281 in simavr.  Prints "CHECKS <n> FAILED <m>" and, for the
@@ -12,6 +12,7 @@
 #include "ninedof_board.h"
 #include "ninedof_bs.h"
 #include "ninedof_cal.h"
+#include "ninedof_clock.h"
 #include "ninedof_sampling.h"
 
 #ifdef __AVR__
@@ -114,16 +115,143 @@ static void test_board(void)
 }
 
 /* ---------------------------------------------------------------------- */
-static void test_period(void)
+/* The sampling clock (ninedof_clock.c) against a simulated mote: the alarm
+ * counts the RC-oscillator clock, whose true rate is given here in crystal
+ * ticks per alarm tick (Q24; nominal 2^34 / 31250 = 549756); the crystal
+ * counter (1024 Hz, 32 bits) is read at each expiry after an interrupt
+ * latency.  Integer arithmetic only, so host and AVR print the same. */
+typedef struct {
+  uint32_t k;          /* crystal ticks per alarm tick, Q24 */
+  int16_t dk;          /* change of k per simulated second (drift) */
+  uint16_t cpj;        /* what MeasureClockC measured at boot */
+  uint16_t lat_max;    /* largest interrupt latency, 1/65536 crystal tick */
+  uint32_t xtal0;      /* crystal counter at the first expiry */
+  uint16_t seconds;    /* simulated */
+  uint16_t settle;     /* seconds allowed to lock */
+} clock_case_t;
+
+#define K_NOMINAL 549756UL                  /* 2^34 / 31250 */
+#define K_RC(ppm) ((uint32_t)(K_NOMINAL - (int32_t)(K_NOMINAL / 1000L) * (ppm) / 1000L))
+#define LAT_US(us) ((uint16_t)((us) * 65536UL / 977UL))
+
+static const clock_case_t CLOCK_CASES[] = {
+  /* RC 2 % fast; crystal counter wraps in the first second */
+  { K_RC(20000), 0, 249, LAT_US(40), 0xFFFFFE00UL, 150, 30 },
+  /* RC 2 % slow; radio interrupts delay the alarm by up to 300 us */
+  { K_RC(-20000), 0, 239, LAT_US(300), 0x7FFFFF00UL, 150, 30 },
+  /* warming up: the RC speeds up by 20 ppm every second (0.3 % in all) */
+  { K_NOMINAL, -11, 244, LAT_US(100), 0x12345678UL, 150, 30 },
+  /* cooling fast: 200 ppm per second (3 % in all) */
+  { K_RC(15000), 110, 248, LAT_US(100), 0xFFFF0000UL, 150, 30 },
+  /* a boot measurement 5 % off: the loop still locks */
+  { K_RC(50000), 0, 244, LAT_US(40), 0UL, 120, 60 },
+};
+
+static void out_i32(int32_t v)
 {
+  uint8_t b[4];
+  b[0] = (uint8_t)((uint32_t)v >> 24);
+  b[1] = (uint8_t)((uint32_t)v >> 16);
+  b[2] = (uint8_t)((uint32_t)v >> 8);
+  b[3] = (uint8_t)v;
+  out_hex(b, 4);
+}
+
+static void test_clock_case(const clock_case_t *t)
+{
+  static ninedof_clock_t c;
+  uint32_t k = t->k, xtal = t->xtal0, frac = 0x123456UL;
+  uint16_t rnd = 12345;
+  uint32_t x0 = (xtal << 24) | frac;
+  int32_t phase = 0, phase_settle = 0, phase_lo = INT32_MAX, phase_hi = INT32_MIN;
+  uint16_t p, last, sec, i, pmin = 0xFFFF, pmax = 0, smin, smax;
+  uint8_t max_step = 0, max_spread = 0;
+
+  ninedof_clock_init(&c, t->cpj);
+  p = ninedof_clock_first(&c);
+  for (sec = 0; sec < t->seconds; sec++) {
+    smin = 0xFFFF;
+    smax = 0;
+    for (i = 0; i < NINEDOF_RATE_HZ; i++) {
+      /* an expiry: read the crystal after the interrupt latency */
+      uint32_t lat, read;
+      rnd = (uint16_t)(rnd * 25173u + 13849u);
+      lat = ((uint32_t)rnd * t->lat_max) >> 8;                  /* Q24 */
+      read = xtal + ((frac + lat) >> 24);
+      last = p;
+      p = ninedof_clock_next(&c, read);
+      if ((uint16_t)(p - last + 1) > 2)
+        max_step = 2;                                           /* |p - last| > 1 */
+      if (p < smin) smin = p;
+      if (p > smax) smax = p;
+      /* the alarm ticks p times: the crystal advances p * k */
+      frac += (uint32_t)p * k;
+      xtal += frac >> 24;
+      frac &= 0xFFFFFFUL;
+    }
+    k = (uint32_t)((int32_t)k + t->dk);
+    /* 125 periods later: ideal crystal time is the start + (sec + 1) * 1024
+     * ticks, which is 0 modulo 2^32 in Q24; phase > 0 = late */
+    phase = (int32_t)(((xtal << 24) | frac) - x0);
+    if (sec + 1 == t->settle)
+      phase_settle = phase;
+    if (sec + 1 >= t->settle) {
+      if (phase < phase_lo) phase_lo = phase;
+      if (phase > phase_hi) phase_hi = phase;
+      if (smax - smin > max_spread)
+        max_spread = (uint8_t)(smax - smin);
+      if (smin < pmin) pmin = smin;
+      if (smax > pmax) pmax = smax;
+    }
+  }
+  CHECK(max_step <= 1);                      /* consecutive periods: one tick at most */
+  CHECK(max_spread <= 1);                    /* one second: two adjacent periods */
+  CHECK(c.resyncs == 0);
+  /* K <seconds> <settle> <phase lo> <phase hi> <phase settle> <phase end>
+   * (Q24 crystal ticks) <shortest> <longest period> <rate x16> */
+  out_c('K');
+  out_i32(t->seconds);
+  out_i32(t->settle);
+  out_i32(phase_lo);
+  out_i32(phase_hi);
+  out_i32(phase_settle);
+  out_i32(phase);
+  out_i32(pmin);
+  out_i32(pmax);
+  out_i32((int32_t)c.rate);
+  out_c(';');
+}
+
+static void test_clock(void)
+{
+  static ninedof_clock_t c;
+  uint8_t n;
+  uint16_t i, p;
+
   CHECK(NINEDOF_PERIOD_TICKS == 250);
   CHECK((uint32_t)NINEDOF_PERIOD_TICKS * NINEDOF_RATE_HZ == NINEDOF_ALARM_HZ);
-  CHECK(ninedof_periods_between(1000, 1000) == 0);
-  CHECK(ninedof_periods_between(1000, 1249) == 0);
-  CHECK(ninedof_periods_between(1000, 1250) == 1);
-  CHECK(ninedof_periods_between(0xFFFFFF00UL, 0x00000100UL) == 2);   /* wraps */
-  /* 125 periods are exactly one second of alarm ticks: no drift */
-  CHECK(ninedof_periods_between(0, NINEDOF_ALARM_HZ) == NINEDOF_RATE_HZ);
+  /* start: 8 MHz measured as 244 cycles per jiffy = 31232 Hz alarm */
+  ninedof_clock_init(&c, 244);
+  CHECK(c.rate == 244UL * 128 * 16 && ninedof_clock_first(&c) == 249);
+  ninedof_clock_init(&c, 0);                /* unknown: nominal, 250 ticks */
+  CHECK(c.rate == 500000UL && ninedof_clock_first(&c) == 250);
+  ninedof_clock_init(&c, 1000);             /* nonsense (not within +-10 %): nominal */
+  CHECK(c.rate == 500000UL && ninedof_clock_first(&c) == 250);
+  /* a crystal exactly on the nominal clock: 250 ticks every time, the grid
+   * is 8.192 crystal ticks per period, no correction */
+  ninedof_clock_init(&c, 0);
+  for (i = 0; i < 3 * NINEDOF_RATE_HZ; i++) {
+    /* the crystal reading at expiry i: floor(i * 1024 / 125) + 7 */
+    p = ninedof_clock_next(&c, 7UL + (uint32_t)i * 1024UL / 125UL);
+    CHECK(p == 250);
+  }
+  CHECK(c.error == 0 && c.rate == 500000UL);
+  /* a stall of two seconds restarts the phase reference, keeps the rate */
+  for (i = 0; i < NINEDOF_RATE_HZ; i++)
+    ninedof_clock_next(&c, 100000UL + (i == 0 ? 0 : 3000UL));
+  CHECK(c.resyncs == 1 && c.rate == 500000UL && !c.synced);
+  for (n = 0; n < sizeof(CLOCK_CASES) / sizeof(CLOCK_CASES[0]); n++)
+    test_clock_case(&CLOCK_CASES[n]);
 }
 
 /* ---------------------------------------------------------------------- */
@@ -347,7 +475,7 @@ int main(void)
 {
   out_init();
   test_board();
-  test_period();
+  test_clock();
   test_batching();
   test_status();
   test_eeprom();

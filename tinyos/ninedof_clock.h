@@ -1,0 +1,93 @@
+/*
+ * ninedof_clock.h -- the 125 Hz sampling period, disciplined to the 32768 Hz
+ * crystal.
+ *
+ * The iris CPU runs on the ATmega1281's internal RC oscillator (nominally
+ * 8 MHz; MeasureClockC measures it against the crystal at boot and nothing
+ * in TinyOS corrects the timers for it).  The sampling alarm
+ * (Alarm32khz32C: timer 1 at CPU / 8, divided by 32) therefore ticks at
+ * CPU / 256, nominally 31250 Hz, but really as fast as the RC oscillator
+ * happens to run: off by up to a few percent, and drifting with temperature
+ * and supply voltage.  The crystal (timer 2, LocalTime<TMilli>: 32768 Hz / 32
+ * = 1024 Hz) is accurate to tens of ppm.
+ *
+ * At every alarm expiry the app hands the crystal time to
+ * ninedof_clock_next() and arms the alarm with the period it returns:
+ *  - Measurement: over each group of NINEDOF_RATE_HZ periods (one second),
+ *    the sum of (crystal time - ideal crystal time of that period).  The
+ *    ideal times are 1024 / 125 = 8.192 crystal ticks apart, so the 125
+ *    readings fall at 125 evenly spread fractions of a crystal tick and
+ *    their sum resolves the mean phase to 1/125 tick (7.8 us), although
+ *    each reading is only whole milliseconds.
+ *  - Loop: a proportional-integral loop (gains 1/2 and 1/16, per second)
+ *    sets the rate, alarm ticks per crystal second, in 1/16 tick.  It
+ *    keeps the phase error bounded, so over any long time the number of
+ *    periods is 125 per crystal second exactly: the long-run rate is as
+ *    exact as the crystal.
+ *  - Periods: rate / 125 alarm ticks, the fraction spread by a Bresenham
+ *    accumulator, so the periods of one second take two adjacent values.
+ *    A change of rate moves a period by at most one tick from the one
+ *    before (what that limit holds back is owed and paid next).
+ * Cost on the ATmega1281: about 150 cycles per period, 550 for the loop
+ * update once per second (bench/bench_cycles.py).
+ */
+#ifndef NINEDOF_CLOCK_H
+#define NINEDOF_CLOCK_H
+
+#include <stdint.h>
+#include "NineDofMsg.h"
+
+/* The sampling alarm's nominal rate: Alarm32khz32C on iris counts CPU / 256 */
+#ifndef NINEDOF_ALARM_HZ
+#define NINEDOF_ALARM_HZ 31250UL
+#endif
+/* Nominal period in alarm ticks (250 = 8 ms at 8.000 MHz) */
+#define NINEDOF_PERIOD_TICKS ((uint16_t)(NINEDOF_ALARM_HZ / NINEDOF_RATE_HZ))
+
+/* LocalTime<TMilli> on iris: the 32768 Hz crystal / 32 (timer 2) */
+#define NINEDOF_XTAL_HZ 1024UL
+
+enum {
+  NINEDOF_CLOCK_FRAC = 16,               /* rate resolution: 1/16 alarm tick */
+  NINEDOF_CLOCK_KP_SHIFT = 1,            /* proportional gain 1/2 */
+  NINEDOF_CLOCK_KI_SHIFT = 4,            /* integral gain 1/16 */
+};
+/* rate (alarm ticks per crystal second, x16): nominal and the range the
+ * loop may use (the RC oscillator's factory calibration is +-10 %) */
+#define NINEDOF_CLOCK_NOMINAL (NINEDOF_ALARM_HZ * NINEDOF_CLOCK_FRAC)
+#define NINEDOF_CLOCK_MIN (NINEDOF_CLOCK_NOMINAL / 10UL * 9UL)
+#define NINEDOF_CLOCK_MAX (NINEDOF_CLOCK_NOMINAL / 10UL * 11UL)
+/* A mean phase error beyond one second (the alarm interrupt stalled, or
+ * the crystal counter jumped): restart the phase reference, keep the rate. */
+#define NINEDOF_CLOCK_RESYNC ((int32_t)NINEDOF_XTAL_HZ * NINEDOF_RATE_HZ)
+
+typedef struct {
+  int32_t integ;       /* integrator: rate << NINEDOF_CLOCK_KI_SHIFT */
+  uint32_t rate;       /* alarm ticks per crystal second, x NINEDOF_CLOCK_FRAC */
+  uint32_t grid;       /* ideal crystal time of this second's first period */
+  int32_t sum;         /* sum of (crystal time - grid) over this second */
+  int32_t error;       /* last second's mean phase error, 1/125 crystal tick
+                        * (> 0 = late), against a grid on the first reading's tick */
+  uint16_t base;       /* rate / (16 * 125): the shorter period */
+  uint16_t step;       /* rate % (16 * 125): Bresenham increment */
+  uint16_t acc;        /* Bresenham accumulator, < 16 * 125 */
+  uint16_t last;       /* the period handed out last */
+  int16_t owed;        /* ticks held back by the one-tick limit */
+  uint8_t count;       /* periods measured in this second */
+  uint8_t synced;      /* grid set (0 until the first expiry) */
+  uint8_t locked;      /* a second measured on this grid (frequency set) */
+  uint16_t resyncs;    /* times the phase reference was restarted */
+} ninedof_clock_t;
+
+/* Start from MeasureClockC's CPU cycles per 1/32768 s (Atm128Calibrate.
+ * cyclesPerJiffy: 244 at 8 MHz; 0 = unknown, nominal). */
+void ninedof_clock_init(ninedof_clock_t *c, uint16_t cycles_per_jiffy);
+
+/* The first period, to arm the alarm when sampling starts. */
+uint16_t ninedof_clock_first(const ninedof_clock_t *c);
+
+/* At an alarm expiry: the crystal time now (LocalTime<TMilli>, read first
+ * thing in the handler) -> alarm ticks from this expiry to the next. */
+uint16_t ninedof_clock_next(ninedof_clock_t *c, uint32_t xtal_now);
+
+#endif /* NINEDOF_CLOCK_H */

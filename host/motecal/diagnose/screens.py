@@ -38,7 +38,11 @@ class Screen:
     gain_unit: str = ""
     practical: bool = True          # above the practical floor
 
+    fixed_gain: tuple | None = None     # (gain, rms before, rms after) measured elsewhere
+
     def gain(self) -> float | None:
+        if self.fixed_gain is not None:
+            return self.fixed_gain[0]
         if not len(self.block_stat):
             return None
         b = np.sqrt(np.mean((self.block_stat - self.pred_before) ** 2))
@@ -48,16 +52,19 @@ class Screen:
         return float(b / a)
 
     def rms(self):
+        if self.fixed_gain is not None:
+            return self.fixed_gain[1], self.fixed_gain[2]
         if not len(self.block_stat):
             return None, None
         return (float(np.sqrt(np.mean((self.block_stat - self.pred_before) ** 2))),
                 float(np.sqrt(np.mean((self.block_stat - self.pred_after) ** 2))))
 
 
-def _chunks(obs: SensorObs, seconds: float = 4.0) -> list[np.ndarray]:
-    """Row groups for per-block statistics: the time blocks of still segments,
-    or consecutive stretches of about ``seconds`` (same recording) otherwise."""
-    if obs.blocks is not None and len(obs.blocks) >= 4:
+def _chunks(obs: SensorObs, seconds: float = 4.0, still: bool = True) -> list[np.ndarray]:
+    """Row groups for per-block statistics: the time blocks of still segments
+    (``still``), or consecutive stretches of about ``seconds`` (same
+    recording)."""
+    if still and obs.blocks is not None and len(obs.blocks) >= 4:
         return [g for g in obs.blocks.rows if len(g) > 4]
     n = max(8, int(round(seconds * obs.rate)))
     out = []
@@ -225,7 +232,7 @@ def saturation(obs: SensorObs, chip_limits: tuple | None = None) -> Screen | Non
     for h in hits:
         i = "xyz".index(h["axis"])
         clipped |= obs.x[:, i] == h["limit_counts"]
-    groups = _chunks(obs)
+    groups = _chunks(obs, still=False)
     if not groups or len(groups) < 2:
         groups = [np.arange(obs.n)]
     stat = np.array([clipped[g].mean() for g in groups])
@@ -271,11 +278,10 @@ def motion(acc: SensorObs | None, gyr: SensorObs | None, seg_rows_shared: bool) 
         w = gyr.x[g]
         fbar = f.mean(axis=0)
         wr = np.radians((w - w.mean(axis=0)) / Kg) / rate        # rad per sample
-        m = (len(g) // L) * L
-        dth = wr[:m].reshape(-1, L, 3).sum(axis=1)               # (k, 3)
-        df = f[L:m + L:L][: len(dth)] - f[:m:L][: len(dth)]
-        k = min(len(df), len(dth))
-        dth, df = dth[:k], df[:k]
+        k = (len(g) - 1) // L                                     # whole intervals
+        m = k * L
+        dth = wr[:m].reshape(k, L, 3).sum(axis=1)                # turn over [iL, (i+1)L)
+        df = f[L:m + 1:L] - f[0:m:L]                              # f((i+1)L) - f(iL)
         pred = -np.cross(dth, fbar)
         ys.append(df.ravel())
         zs.append(pred.ravel())

@@ -387,3 +387,69 @@ def _heldout_linear(st: Structure, obs: SensorObs, fit_fn):
     for c in st.accepted:
         st.heldout[cause_of(c)] = (out[full - {c}], out[full])
     st.heldout_total = (out[frozenset()], out[full])
+
+
+# ---------------------------------------------------------------------------
+# saturation in static poses: censored residuals
+# ---------------------------------------------------------------------------
+def censored_residuals(fit: F.MagnitudeFit, X, T, clip: list) -> np.ndarray:
+    """Residuals where ``clip[k]`` = (axis, side, limit) marks a pose whose axis
+    read its limit: the true reading is anywhere beyond the limit, so the
+    residual is 0 when some value beyond it gives the right magnitude, else
+    the smallest |residual| beyond it."""
+    r = fit.residuals(X, T)
+    for k, c in enumerate(clip):
+        if c is None:
+            continue
+        a, side, L = c
+        grid = L + side * np.linspace(0.0, 0.6 * fit.K, 121)
+        Xk = np.repeat(X[k][None], len(grid), axis=0)
+        Xk[:, a] = grid
+        rk = fit.residuals(Xk, np.full(len(grid), T[k]))
+        r[k] = 0.0 if rk.min() <= 0.0 <= rk.max() else rk[np.argmin(np.abs(rk))]
+    return r
+
+
+def saturation_gain(st: Structure, obs: SensorObs, clip_rows: np.ndarray, limits: list):
+    """Held-out gain of the saturation term on the pose means: without it,
+    clipped poses are fitted and predicted as ordinary readings; with it they
+    are left out of the fit and predicted as censored.  Returns (gain, rms
+    before, rms after) or None."""
+    if st is None or st.regime != "poses" or obs.segs is None:
+        return None
+    pts = magnitude_points(obs, "poses", None)
+    X, T, fold = pts["X"], pts["T"], pts["fold"]
+    clip = []
+    for gi in pts["group"]:
+        rows = obs.segs.rows[gi]
+        frac = clip_rows[rows].mean()
+        c = None
+        if frac > 0.01:
+            best = None
+            for h in limits:
+                a = "xyz".index(h["axis"])
+                n = int(np.sum(obs.x[rows, a] == h["limit_counts"]))
+                if n and (best is None or n > best[0]):
+                    best = (n, (a, 1 if h["side"] == "high" else -1, h["limit_counts"]))
+            c = best[1] if best else None
+        clip.append(c)
+    isclip = np.array([c is not None for c in clip])
+    if not isclip.any():
+        return None
+    spec = frozenset(st.accepted)
+    V = residual_variance(st.fit, X, T, pts["var"])
+    W = 1.0 / np.sqrt(V)
+    trange, Jf = st.points["trange"], st.points["Jf"]
+    rb = np.full(len(X), np.nan)
+    ra = np.full(len(X), np.nan)
+    for f in np.unique(fold):
+        te = fold == f
+        tr = ~te
+        fb = _spec_fit(st.sensor, obs.K, X[tr], T[tr], W[tr], spec, trange, Jf, start=st.fit)
+        rb[te] = fb.residuals(X[te], T[te])
+        tra = tr & ~isclip
+        fa = _spec_fit(st.sensor, obs.K, X[tra], T[tra], W[tra], spec, trange, Jf, start=st.fit)
+        ra[te] = censored_residuals(fa, X[te], T[te], [c for c, m in zip(clip, te) if m])
+    b = float(np.sqrt(np.nanmean(rb ** 2)))
+    a = float(np.sqrt(np.nanmean(ra ** 2)))
+    return (b / a if a > 0 else float("inf")), b, a

@@ -1,0 +1,698 @@
+"""The diagnosis: the four questions, in order, for one mote's session.
+
+1. what the simulation gets wrong -- the paper's starting model fitted, the
+   session simulated with it, statistics side by side (``compare``);
+2. the cause -- screens on the raw readings and nested fits (``screens``,
+   ``structure``), named from the vocabulary (``causes``) with evidence;
+3. the extension -- the kept terms as a simulator model file (``extend``);
+4. the gain -- held-out rms before/after per term, and how much closer the
+   simulated statistics come (``gain``, ``compare``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from ..calib.gate import distinct_directions
+from ..errors import QualityError, UserError
+from ..session import SessionData
+from . import causes as C
+from . import extend as X
+from . import fitting as F
+from . import gain as G
+from . import screens as SC
+from . import structure as ST
+from .prepare import SensorObs, all_obs, sensor_obs
+
+UNTRUSTWORTHY_FIELD = 0.05        # relative field change above which mag calibration is refused
+MIN_SWEEP_ROWS = 200
+
+
+@dataclass
+class Finding:
+    sensor: str
+    cause: str
+    summary: str
+    evidence: dict
+    params: dict
+    gain: float | None
+
+    def to_json(self) -> dict:
+        return {"sensor": self.sensor, "cause": self.cause, "summary": self.summary,
+                "evidence": _jsonable(self.evidence), "params": _jsonable(self.params),
+                "gain": None if self.gain is None else _num(self.gain)}
+
+
+@dataclass
+class Diagnosis:
+    session: str
+    mote: int
+    kind: str
+    findings: list
+    tests: list                    # every test: sensor, cause, p, level, kept
+    alpha: float
+    n_tests: int
+    model: dict                    # the extended simulator model
+    start_model: dict              # the paper model fitted to the session
+    structures: dict               # sensor -> structure.Structure
+    screens: list
+    obs: dict
+    comparison: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+
+    @property
+    def clean(self) -> bool:
+        return not self.findings
+
+    def to_json(self) -> dict:
+        """Exactly the issue's form: clean, findings, model."""
+        return {"clean": self.clean, "findings": [f.to_json() for f in self.findings],
+                "model": self.model}
+
+    def details_json(self) -> dict:
+        """Everything else (the --report directory's diagnosis.json)."""
+        return _jsonable({"session": self.session, "mote": self.mote, "kind": self.kind,
+                          "alpha": self.alpha, "n_tests": self.n_tests,
+                          "per_test_alpha": G.per_test_alpha(self.alpha, self.n_tests),
+                          "tests": self.tests, "comparison": self.comparison,
+                          "notes": self.notes, "start_model": self.start_model})
+
+    def causes(self) -> set:
+        return {(f.sensor, f.cause) for f in self.findings}
+
+
+def _num(x):
+    x = float(x)
+    if not np.isfinite(x):
+        return None
+    return float(f"{x:.6g}")
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.bool_, bool)):
+        return bool(x)
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        return _num(x)
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    return x
+
+
+# ---------------------------------------------------------------------------
+# regimes and plan
+# ---------------------------------------------------------------------------
+def regime(obs: SensorObs) -> str | None:
+    s = obs.sensor
+    nseg = 0 if obs.segs is None else len(obs.segs)
+    if s == "gyro":
+        return "still" if obs.blocks is not None else None
+    if nseg >= ST.MIN_POSES and distinct_directions(obs.segs.mean) >= ST.MIN_POSES:
+        return "poses"
+    if s == "mag" and obs.moving is not None and obs.moving.sum() >= MIN_SWEEP_ROWS:
+        return "sweep"
+    if nseg >= 1:
+        return "single"
+    return None
+
+
+CANDIDATES = {
+    "poses": ["cross_axis", "nonlinearity", "bias_drift"],
+    "sweep": ["cross_axis", "nonlinearity", "bias_drift", "field_disturbance"],
+    "single": ["bias_drift"],
+    "still": ["g_sensitivity", "bias_drift"],
+}
+
+
+def _shared_rows(a: SensorObs | None, b: SensorObs | None) -> bool:
+    return a is not None and b is not None and len(a.rows) == len(b.rows) and \
+        np.array_equal(a.rows, b.rows)
+
+
+def _plan(obs: dict) -> list:
+    plan = []
+    for s, o in obs.items():
+        plan += [(s, "stale_samples"), (s, "saturation")]
+        r = regime(o)
+        if r:
+            cands = list(CANDIDATES[r])
+            if s == "gyro" and "accel" not in obs:
+                cands.remove("g_sensitivity")
+            plan += [(s, c) for c in cands]
+            plan.append((s, "excess"))
+    if _shared_rows(obs.get("accel"), obs.get("gyro")) and obs["accel"].segs is not None:
+        plan.append(("accel", "motion"))
+    return plan
+
+
+# ---------------------------------------------------------------------------
+# the diagnosis
+# ---------------------------------------------------------------------------
+def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0,
+             simulate: bool = True, force: set | None = None) -> Diagnosis:
+    """Diagnose one mote's session (see the module doc).
+
+    ``force``: a set of (sensor, cause) to keep without testing (and nothing
+    else) -- used to refit a diagnosis' terms on half of the data."""
+    motes = data.motes
+    if len(motes) != 1:
+        raise UserError(f"session {data.name} holds motes {motes}: diagnose one mote at a "
+                        f"time (--mote)")
+    if not 0 < alpha < 1:
+        raise UserError(f"--alpha must be within 0..1, not {alpha}")
+    obs = all_obs(data)
+    if not obs:
+        raise QualityError(f"session {data.name}: no sensor readings to diagnose")
+    plan = _plan(obs)
+    n_tests = len(plan)
+    a_test = G.per_test_alpha(alpha, n_tests)
+    tests: list[dict] = []
+    findings: list[Finding] = []
+    screens: list[SC.Screen] = []
+    notes: list[str] = []
+
+    def decide(sensor, cause, p, g, practical=True):
+        if force is not None:
+            return (sensor, cause) in force
+        return G.accepted(p, a_test, g, practical)
+
+    def record(sensor, cause, p, kept, **kw):
+        tests.append({"sensor": sensor, "cause": cause, "p": _num(p), "level": _num(a_test),
+                      "kept": bool(kept), **kw})
+
+    # -- screens on raw readings ----------------------------------------------------
+    stale_on, clip_rows = {}, {}
+    for s, o in obs.items():
+        sc = SC.stale_samples(o, o.rate)
+        if sc is not None:
+            g = sc.gain()
+            kept = decide(s, "stale_samples", sc.p, g, sc.practical)
+            record(s, "stale_samples", sc.p, kept, effect=sc.effect)
+            if kept:
+                stale_on[s] = sc
+                screens.append(sc)
+        sat = SC.saturation(o, X.SIM_LIMITS[s])
+        if sat is not None:
+            g = sat.gain()
+            kept = decide(s, "saturation", sat.p, g, sat.practical)
+            record(s, "saturation", sat.p, kept, effect=sat.effect)
+            if kept:
+                screens.append(sat)
+                rows = o.overflow.copy()
+                for h in sat.evidence.get("limits", []):
+                    rows |= o.x[:, "xyz".index(h["axis"])] == h["limit_counts"]
+                clip_rows[s] = rows
+    mot = None
+    if ("accel", "motion") in plan:
+        mot = SC.motion(obs["accel"], obs["gyro"], True)
+        if mot is not None:
+            kept = decide("accel", "motion", mot.p, mot.gain(), mot.practical)
+            record("accel", "motion", mot.p, kept, effect=mot.effect)
+            if not kept:
+                mot = None
+            else:
+                screens.append(mot)
+
+    # sensors with repeats are analysed on their unique updates
+    sobs = dict(obs)
+    for s in stale_on:
+        o2 = sensor_obs(data, s, dedup=True)
+        if o2 is not None:
+            sobs[s] = o2
+            if s in clip_rows:
+                keep_rows = np.isin(obs[s].rows, o2.rows)
+                clip_rows[s] = clip_rows[s][keep_rows]
+
+    # -- structure: nested fits ----------------------------------------------------------
+    structures = {}
+    for s in ("accel", "mag", "gyro"):
+        o = sobs.get(s)
+        if o is None:
+            continue
+        r = regime(o)
+        if r is None:
+            notes.append(f"{s}: no still segments and no sweep: only the raw-reading screens ran")
+            continue
+        cands = [c for (ss, c) in plan if ss == s and c in CANDIDATES[r]]
+        level = a_test
+        if force is not None:
+            cands = [c for c in cands if (s, c) in force]
+            level = 1.01
+        st = None
+        if r in ("poses", "sweep"):
+            st = ST.analyse_magnitude(o, r, cands, level, drop_rows=clip_rows.get(s))
+        elif r == "single":
+            st = ST.analyse_linear(o, cands, level, per_orientation=True)
+        else:
+            acc_g = _accel_for_blocks(o, structures.get("accel"), sobs.get("accel"))
+            drop = None
+            if s in clip_rows:
+                drop = np.array([clip_rows[s][g].any() for g in o.blocks.rows])
+            st = ST.analyse_linear(o, [c for c in cands if acc_g is not None
+                                       or c != "g_sensitivity"], level, accel_g=acc_g,
+                                   drop_blocks=drop)
+        if st is None:
+            notes.append(f"{s}: too few points for the {r} analysis")
+            continue
+        structures[s] = st
+        for t in st.tests:
+            record(s, t.cause, t.p, False, F=t.F, q=t.q, dof=t.dof, dbic=t.dbic, round=t.round)
+        for c in st.causes:
+            before, after = st.heldout.get(c, (None, None))
+            g = before / after if before and after else None
+            ok = decide(s, c, min(t.p for t in st.tests if t.cause == c), g)
+            for t in tests:
+                if t["sensor"] == s and t["cause"] == c:
+                    t["kept"] = ok
+            if ok:
+                findings.append(_structure_finding(s, c, st, o, g, before, after))
+            else:
+                notes.append(f"{s}: {c} passed the F-test but not the held-out check "
+                             f"(gain {g if g is None else round(g, 3)}); not kept")
+        fd = _excess_finding(s, st, o, sobs, structures, a_test, record, mot, force)
+        if fd is not None:
+            findings.append(fd)
+
+    # saturation in static poses: the gain on the pose means (censored)
+    for sc in screens:
+        if sc.cause == "saturation" and sc.sensor in structures and sc.sensor in clip_rows:
+            sg = ST.saturation_gain(structures[sc.sensor], sobs[sc.sensor],
+                                    clip_rows[sc.sensor], sc.evidence.get("limits", []))
+            if sg is not None:
+                sc.fixed_gain = sg
+                sc.gain_unit = "held-out rms of the pose-mean magnitude residual, clipped " \
+                               "poses censored"
+
+    # screens become findings (after the structure, so that mag disturbance can veto)
+    for sc in screens:
+        sensor = "accel" if sc.cause == "motion" else sc.sensor
+        b, a = sc.rms()
+        ev = dict(sc.evidence)
+        ev.update({"p": _num(sc.p), "level": _num(a_test), "gain_basis": sc.gain_unit,
+                   "heldout_rms_before": b, "heldout_rms_after": a})
+        if sc.cause == "motion":
+            ev["sensors"] = ["accel", "gyro"]
+        findings.append(Finding(sensor, sc.cause, C.summary(sensor, sc.cause, ev, sc.params,
+                                                            sc.gain(), b, a), ev, sc.params,
+                                sc.gain()))
+
+    # the magnetometer: a strongly disturbed field voids its calibration terms
+    fdist = [f for f in findings if f.sensor == "mag" and f.cause == "field_disturbance"]
+    if fdist and fdist[0].evidence.get("untrustworthy"):
+        dropped = [f.cause for f in findings if f.sensor == "mag"
+                   and f.cause in ("cross_axis", "nonlinearity", "bias_drift", "unexplained")]
+        findings = [f for f in findings if not (f.sensor == "mag" and f.cause in dropped)]
+        if dropped:
+            notes.append("mag: the field changes too much for a calibration: "
+                         + ", ".join(dropped) + " not reported")
+
+    order = {c: i for i, c in enumerate(C.ORDER)}
+    findings.sort(key=lambda f: ({"accel": 0, "gyro": 1, "mag": 2}[f.sensor], order[f.cause]))
+    start_model, model = _models(data, obs, sobs, structures, findings, screens, mot)
+    d = Diagnosis(data.name, motes[0], data.kind, findings, tests, alpha, n_tests, model,
+                  start_model, structures, screens, sobs, notes=notes)
+    if simulate:
+        from .compare import comparison
+        d.comparison = comparison(data, d, seed=seed)
+    return d
+
+
+# ---------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------
+def _accel_for_blocks(g: SensorObs, acc_st, acc: SensorObs | None):
+    """Specific force (g) during each gyro block, from the calibrated
+    accelerometer (its starting model when fitted, else nominal scale)."""
+    if acc is None:
+        return None
+    out = np.full((len(g.blocks), 3), np.nan)
+    shared = _shared_rows(acc, g)
+    for i, rows in enumerate(g.blocks.rows):
+        if shared:
+            xa = acc.x[rows]
+        else:
+            t0, t1 = g.t[rows[0]], g.t[rows[-1]]
+            m = (acc.t >= t0) & (acc.t <= t1)
+            if m.sum() < 3:
+                continue
+            xa = acc.x[m]
+        out[i] = xa.mean(axis=0)
+    if np.isnan(out).any():
+        return None
+    if acc_st is not None and acc_st.regime == "poses":
+        fit = acc_st.fit0
+        return fit.calibrate(out, np.zeros(len(out)))
+    return out / acc.K
+
+
+def _structure_finding(s, c, st: ST.Structure, o: SensorObs, g, before, after) -> Finding:
+    rec = [t for t in st.tests if t.cause == c]
+    best = min(rec, key=lambda t: t.p)
+    ev = {"F": _num(best.F), "p": _num(best.p), "extra_params": best.q, "dof": best.dof,
+          "delta_bic": _num(best.dbic), "regime": st.regime,
+          "heldout_rms_before": before, "heldout_rms_after": after, "unit": st.unit,
+          "noise_floor": st.noise_floor, "points": int(len(st.points.get("X", st.points.get("Y")))),
+          "gain_basis": ("held-out rms of the pose-mean magnitude residual"
+                         if st.regime == "poses" else
+                         "held-out rms of the magnitude residual (time blocks)"
+                         if st.regime == "sweep" else
+                         "held-out rms of block means (interleaved time blocks)")}
+    params = {}
+    fit = st.fit
+    if isinstance(fit, F.MagnitudeFit):
+        tb, parts = fit.split()
+        pmap = {e.cause: (e, p) for e, p in zip(fit.extras, parts)}
+        if c == "cross_axis":
+            A, cc, H = fit.affine()
+            M = np.linalg.inv(A)
+            D = np.diag(M)
+            Cm = M / D[:, None] - np.eye(3)
+            np.fill_diagonal(Cm, 0)
+            i, j = np.unravel_index(np.argmax(np.abs(Cm)), Cm.shape)
+            ev["max_coupling"] = float(Cm[i, j])
+            ev["max_coupling_at"] = f"C[{'xyz'[i]}{'xyz'[j]}]"
+            ev["matrix"] = np.round(M / np.cbrt(np.linalg.det(M)), 6)
+            params = {"C": np.round(Cm, 6)}
+        elif c == "nonlinearity":
+            e, p = pmap["nonlinearity"]
+            k = int(np.argmax(np.abs(p)))
+            ev["max_coef"] = float(p[k])
+            ev["max_coef_at"] = e.names()[k]
+            params = {"q": np.round(p[0:3], 6), "c3": np.round(p[3:6], 6), "a": np.round(p[6:9], 6)}
+        elif c == "bias_drift":
+            e, p = pmap["bias_drift"]
+            tt = np.linspace(*st.points["trange"], 200)
+            curve = e.offset(tt, p) / o.K
+            ev["drift_range"] = float(np.ptp(curve, axis=0).max())
+            ev["basis"] = f"{e.J} time functions per axis"
+            params = _drift_params_for(curve * X.K_NOMINAL[s], tt, e.J)
+        elif c == "field_disturbance":
+            e, p = pmap["field_disturbance"]
+            T = st.points["T"]
+            f = e.field(T, p)
+            H = fit.field_magnitude()
+            rel = float(np.std(f) / H)
+            ev["relative_change"] = rel
+            ev["field_range_gauss"] = float(np.ptp(f))
+            ev["untrustworthy"] = rel > UNTRUSTWORTHY_FIELD
+            ev["what"] = (f"the field magnitude moves with time by {np.std(f):.3g} gauss rms "
+                          f"({np.ptp(f):.3g} peak to peak) around {H:.3g} gauss, independent "
+                          f"of direction.")
+            params = {"rms_gauss": round(float(np.std(f)), 6),
+                      "tau_s": round(_corr_time(T, f), 3), "pose_rms_gauss": 0.0}
+    else:
+        cols = fit.groups.get(c, [])
+        if c == "g_sensitivity":
+            Gm = fit.beta[cols].T / o.K
+            i, j = np.unravel_index(np.argmax(np.abs(Gm)), Gm.shape)
+            ev["max_G"] = float(Gm[i, j])
+            ev["max_G_at"] = f"G[{'xyz'[i]}{'xyz'[j]}] (gyro {'xyz'[i]} per accel {'xyz'[j]})"
+            params = {"G": np.round(Gm, 6)}
+        elif c == "bias_drift":
+            J = len(cols)
+            tt = np.linspace(*st.points["trange"], 200)
+            Phi = F.time_basis(tt, *st.points["trange"], J)
+            curve = Phi @ fit.beta[cols] / o.K
+            ev["drift_range"] = float(np.ptp(curve, axis=0).max())
+            ev["basis"] = f"{J} time functions per axis"
+            params = _drift_params_for(curve * X.K_NOMINAL[s], tt, J)
+    summ = C.summary(s, c, ev, params, g, before, after, st.unit)
+    return Finding(s, c, summ, ev, params, g)
+
+
+def _drift_params_for(curve_sim, tt, J):
+    dp, _ = X.drift_params(tt - tt[0], curve_sim, J > F.DRIFT_J, J)
+    return dp
+
+
+def _corr_time(T, f) -> float:
+    f = f - f.mean()
+    if len(f) < 4 or not np.any(f):
+        return 10.0
+    ac = np.correlate(f, f, "full")[len(f) - 1:] / (f @ f)
+    dt = np.median(np.diff(T)) if len(T) > 1 else 1.0
+    k = np.flatnonzero(ac < np.exp(-1))
+    return float((k[0] if len(k) else len(f)) * dt)
+
+
+def _structure_text(st: ST.Structure, r: np.ndarray) -> str:
+    """What the leftover residual looks like."""
+    parts = []
+    T = st.points.get("T")
+    if T is not None and len(r) > 8:
+        o = np.argsort(T)
+        rr = r[o] - r.mean()
+        ac = float(rr[1:] @ rr[:-1] / max(rr @ rr, 1e-30))
+        parts.append(f"lag-1 autocorrelation in time {ac:.2f}")
+        z = np.abs(r) / np.sqrt(np.mean(r * r))
+        parts.append(f"largest |residual| {z.max():.1f}x its rms")
+        kurt = float(stats.kurtosis(r))
+        if kurt > 3:
+            parts.append(f"heavy tails (excess kurtosis {kurt:.1f}): outlier poses")
+    return "; ".join(parts) if parts else "none identified"
+
+
+def _excess_finding(s, st: ST.Structure, o, sobs, structures, a_test, record, mot, force=None):
+    """Scatter beyond the noise after every kept term: field disturbance
+    (magnetometer) or unexplained."""
+    ratio, p = st.excess
+    if s == "mag" and st.regime == "sweep" and "field_disturbance" in st.causes:
+        record(s, "excess", p, False, ratio=ratio, note="time-varying field already kept")
+        return None
+    fit = st.fit
+    if isinstance(fit, F.MagnitudeFit):
+        X_, T = st.points["X"], st.points["T"]
+        r = fit.residuals(X_, T)
+        V = st.points["V"]
+    else:
+        Xd, names, groups = ST._design(st.points, frozenset(st.accepted), st.points["trange"])
+        r = ((st.points["Y"] - Xd @ fit.beta) / o.K).ravel()
+        V = ((1.0 / st.points["W"]) / o.K).ravel() ** 2
+    time_kept = any(c in st.causes for c in ("bias_drift", "field_disturbance"))
+    kept = p < a_test
+    if force is not None:
+        kept = (s, "field_disturbance") in force or (s, "unexplained") in force
+        time_kept = False
+    if kept and time_kept:
+        # leftover that is just finer time structure of a kept drift
+        T = st.points["T"]
+        rr = r if r.shape == T.shape else r.reshape(-1, 3).mean(axis=1)
+        order = np.argsort(T)
+        x = rr[order] - rr.mean()
+        ac = float(x[1:] @ x[:-1] / max(x @ x, 1e-30))
+        if ac > 3.0 / np.sqrt(len(x)):
+            record(s, "excess", p, False, ratio=ratio,
+                   note=f"time-correlated leftover (lag-1 {ac:.2f}) of the kept drift")
+            return None
+    if kept and mot is not None and s in ("accel", "gyro"):
+        record(s, "excess", p, False, ratio=ratio, note="explained by the kept motion")
+        return None
+    if not kept:
+        record(s, "excess", p, False, ratio=ratio)
+        return None
+    k = len(r)
+    dof = max(1, k - fit.p)
+    fold = (np.arange(k) % ST.KFOLD) if st.regime != "poses" else st.points["fold"]
+
+    def tau2(mask):
+        return max(0.0, float(np.mean(r[mask] ** 2) * k / max(dof, 1) - np.mean(V[mask])))
+
+    tau2_all = tau2(np.ones(k, bool))
+    if s == "mag" and st.regime in ("poses", "single"):
+        gval, before, after = G.variance_gain(r, V, fold, tau2)
+        ev = {"excess_ratio": ratio, "p": p, "level": a_test, "regime": st.regime,
+              "heldout_rms_before": before, "heldout_rms_after": after,
+              "gain_basis": "held-out rms of (measured - predicted) pose-residual spread"}
+        dip = _dip_test(st, sobs, structures)
+        H = fit.field_magnitude() if isinstance(fit, F.MagnitudeFit) else np.nan
+        tau = float(np.sqrt(tau2_all))
+        ev.update({"extra_scatter_gauss": tau, "relative_change": tau / H if H == H else None,
+                   "untrustworthy": bool(H == H and tau / H > UNTRUSTWORTHY_FIELD)})
+        what = (f"pose field magnitudes scatter {ratio:.2g}x their noise "
+                f"({tau:.2g} gauss beyond it).")
+        if dip is not None:
+            ev.update(dip)
+            what += (f" The dip angle scatters {dip['dip_sd_deg']:.3g} deg across poses "
+                     f"({dip['dip_excess_ratio']:.2g}x its noise).")
+        ev["what"] = what
+        is_field = dip is None or dip["dip_p"] < a_test
+        if force is not None:
+            is_field = (s, "field_disturbance") in force
+        record(s, "excess", p, True, ratio=ratio)
+        if is_field:
+            # time correlation splits the scatter into per-pose jumps and a wander
+            Tt = st.points["T"]
+            order = np.argsort(Tt)
+            x = r[order]
+            ac = float(x[1:] @ x[:-1] / max(x @ x, 1e-30)) if len(x) > 3 else 0.0
+            params = {"pose_rms_gauss": round(tau, 6), "rms_gauss": 0.0, "tau_s": 10.0}
+            if ac > 3.0 / np.sqrt(len(x)):
+                dt = float(np.median(np.diff(Tt[order])))
+                params = {"pose_rms_gauss": round(tau * np.sqrt(1 - ac), 6),
+                          "rms_gauss": round(tau * np.sqrt(ac), 6),
+                          "tau_s": round(-dt / np.log(min(ac, 0.99)), 3)}
+            ev["pose_residual_autocorrelation"] = ac
+            return Finding(s, "field_disturbance",
+                           C.summary(s, "field_disturbance", ev, params, gval, before, after,
+                                     "gauss"), ev, params, gval)
+        ev["structure"] = ("field magnitude scatter without a dip-angle change: "
+                           + _structure_text(st, r))
+        return Finding(s, "unexplained", C.summary(s, "unexplained", ev, {}, None), ev, {}, 1.0)
+    record(s, "excess", p, True, ratio=ratio)
+    ev = {"excess_ratio": ratio, "p": p, "level": a_test, "regime": st.regime,
+          "extra_scatter": float(np.sqrt(tau2_all)), "unit": st.unit,
+          "structure": _structure_text(st, r)}
+    return Finding(s, "unexplained", C.summary(s, "unexplained", ev, {}, None), ev, {}, 1.0)
+
+
+def _dip_test(st: ST.Structure, sobs, structures) -> dict | None:
+    """Angle between calibrated gravity and field per pose: constant unless the
+    field changes direction.  A relative rotation of the two sensors (3
+    parameters) and the dip are fitted; the scatter left is compared with
+    the noise of the two pose means (chi-square)."""
+    acc = sobs.get("accel")
+    ast = structures.get("accel")
+    mag = sobs.get("mag")
+    if acc is None or ast is None or ast.regime != "poses" or st.regime != "poses":
+        return None
+    groups = st.points["group"]
+    gvec, bvec, vg, vb = [], [], [], []
+    H = st.fit.field_magnitude()
+    for gi in groups:
+        rows = mag.segs.rows[gi]
+        t0, t1 = mag.t[rows[0]], mag.t[rows[-1]]
+        m = (acc.t >= t0) & (acc.t <= t1)
+        if m.sum() < 5:
+            continue
+        ga = ast.fit.calibrate(acc.x[m].mean(axis=0)[None], np.array([acc.t[m].mean()]))[0]
+        bm = st.fit.calibrate(mag.segs.mean[gi][None], np.array([mag.segs.t[gi]]))[0]
+        gvec.append(ga)
+        bvec.append(bm)
+        vg.append(np.mean(acc.sigma_eff ** 2) / acc.K ** 2 / m.sum())
+        vb.append(np.mean(mag.sigma_eff ** 2) / mag.K ** 2 / len(rows) / H ** 2)
+    if len(gvec) < 8:
+        return None
+    gu = np.array(gvec) / np.linalg.norm(gvec, axis=1, keepdims=True)
+    bu = np.array(bvec) / np.linalg.norm(bvec, axis=1, keepdims=True)
+    sd = np.sqrt(np.array(vg) + np.array(vb))           # rad, per pose
+
+    from scipy.optimize import least_squares
+    from scipy.spatial.transform import Rotation
+
+    def res(p):
+        R = Rotation.from_rotvec(p[:3]).as_matrix()
+        ang = np.arccos(np.clip(np.sum(gu * (bu @ R.T), axis=1), -1, 1))
+        return (ang - p[3]) / sd
+
+    ang0 = np.arccos(np.clip(np.sum(gu * bu, axis=1), -1, 1))
+    sol = least_squares(res, np.r_[0, 0, 0, ang0.mean()])
+    rss = float(sol.fun @ sol.fun)
+    dof = len(gu) - 4
+    ratio, p = F.chi2_excess(rss, dof)
+    R = Rotation.from_rotvec(sol.x[:3]).as_matrix()
+    ang = np.arccos(np.clip(np.sum(gu * (bu @ R.T), axis=1), -1, 1))
+    return {"dip_deg": float(np.degrees(sol.x[3]) - 90.0), "dip_sd_deg": float(np.degrees(np.std(ang))),
+            "dip_excess_ratio": ratio, "dip_p": p,
+            "accel_mag_rotation_deg": float(np.degrees(np.linalg.norm(sol.x[:3])))}
+
+
+# ---------------------------------------------------------------------------
+# the models: fitted start model and the extension
+# ---------------------------------------------------------------------------
+def _models(data, obs, sobs, structures, findings, screens, mot):
+    from .prepare import session_rate
+    kept = {(f.sensor, f.cause): f for f in findings}
+    rate = session_rate(data)
+    sensors_start, sensors_ext = {}, {}
+    env = {"gravity_g": 1.0, "field_gauss": 0.48, "inclination_deg": 60.0,
+           "declination_deg": 0.0}
+    for s in ("accel", "gyro", "mag"):
+        o = sobs.get(s)
+        if o is None:
+            continue
+        st = structures.get(s)
+        scale = X.sim_scale(s, o.K)
+        t0 = float(o.t[0])
+        noise = X.white_noise(o.sigma, scale) if np.all(np.isfinite(o.sigma)) else [0, 0, 0]
+        start_terms, ext_terms = [], []
+        if s in ("accel", "mag"):
+            fit0, fitx = _magnitude_fits(o, st)
+            if fit0 is not None:
+                trange = (float(o.t.min()), float(o.t.max()))
+                start_terms, info0 = X.magnitude_sensor_terms(fit0, s, o.K, t0, trange)
+                ext_terms, info = X.magnitude_sensor_terms(fitx, s, o.K, t0,
+                                                           st.points["trange"] if st else trange)
+                if s == "mag":
+                    env["field_gauss"] = round(float(info["field"]), 6)
+        else:
+            if st is not None:
+                start_terms, _ = X.gyro_terms(st.fit0, o.K, t0, st.points["trange"])
+                ext_terms, _ = X.gyro_terms(st.fit, o.K, t0, st.points["trange"])
+            else:
+                b = np.median(o.x, axis=0) * scale
+                start_terms = ext_terms = [{"term": "linear", "b": X._r(b)}]
+        if s == "mag" and (s, "field_disturbance") in kept:
+            ext_terms = [{"term": "field_disturbance",
+                          **kept[(s, "field_disturbance")].params}] + ext_terms
+        if (s, "saturation") in kept:
+            ext_terms.append(X.saturation_term(kept[(s, "saturation")].params, s, o.K))
+        if (s, "stale_samples") in kept:
+            ext_terms.append({"term": "stale_samples", **kept[(s, "stale_samples")].params})
+        sensors_start[s] = {"noise": noise, "terms": start_terms}
+        sensors_ext[s] = {"noise": noise, "terms": ext_terms}
+    incl = _inclination(structures, sobs)
+    if incl is not None:
+        env["inclination_deg"] = round(incl, 3)
+    board_terms = []
+    if mot is not None and ("accel", "motion") in kept:
+        board_terms.append({"term": "motion", **kept[("accel", "motion")].params})
+    mote = data.motes[0]
+    start = X.model_json(f"{data.name}-paper", mote, rate, dict(env), sensors_start, [],
+                         f"the paper's starting model fitted to session {data.name}")
+    causes_txt = ", ".join(f"{f.sensor} {f.cause}" for f in findings) or "nothing"
+    ext = X.model_json(f"{data.name}-extended", mote, rate, dict(env), sensors_ext, board_terms,
+                       f"session {data.name}: the paper's model extended by motecal diagnose "
+                       f"({causes_txt})")
+    return start, ext
+
+
+def _magnitude_fits(o: SensorObs, st):
+    """(start fit, final fit) for the model files: the structure's when there
+    is one; else a paper fit on whatever still means exist (>= 6)."""
+    if st is not None and isinstance(st.fit, F.MagnitudeFit):
+        return st.fit0, st.fit
+    if o.segs is not None and len(o.segs) >= 6:
+        f = F.fit_magnitude(o.sensor, o.K, o.segs.mean, o.segs.t, np.ones(len(o.segs)))
+        return f, f
+    if o.sensor == "mag" and o.moving is not None and o.moving.sum() >= MIN_SWEEP_ROWS:
+        x = o.x[~o.overflow]
+        f = F.fit_magnitude(o.sensor, o.K, x, o.t[~o.overflow], np.ones(len(x)))
+        return f, f
+    return None, None
+
+
+def _inclination(structures, sobs):
+    a, m = structures.get("accel"), structures.get("mag")
+    acc, mag = sobs.get("accel"), sobs.get("mag")
+    if a is None or m is None or a.regime != "poses" or m.regime != "poses":
+        return None
+    dots = []
+    for gi in m.points["group"]:
+        rows = mag.segs.rows[gi]
+        t0, t1 = mag.t[rows[0]], mag.t[rows[-1]]
+        sel = (acc.t >= t0) & (acc.t <= t1)
+        if sel.sum() < 5:
+            continue
+        ga = a.fit.calibrate(acc.x[sel].mean(axis=0)[None], np.array([acc.t[sel].mean()]))[0]
+        bm = m.fit.calibrate(mag.segs.mean[gi][None], np.array([mag.segs.t[gi]]))[0]
+        dots.append(ga @ bm / np.linalg.norm(ga) / np.linalg.norm(bm))
+    if not dots:
+        return None
+    return float(np.degrees(np.arcsin(np.clip(-np.mean(dots), -1, 1))))

@@ -22,7 +22,7 @@ from pathlib import Path
 
 from .. import protocol as P
 from ..errors import UserError
-from ..sources import PortSpec, Source
+from ..sources import PortSpec, Source, SourceEnded
 from .model import load_model, write_truth
 from .network import Network
 from .trajectory import KINDS, make_trajectory
@@ -100,12 +100,15 @@ class WorldPort(Source):
     seconds further and returns the frames completed meanwhile; ``send()``
     puts a frame into the BaseStation's UART.  ``clock()`` is the simulated
     time, for code that waits (the uploader's timeouts then count simulated
-    seconds, and a run is deterministic in the seed)."""
+    seconds, and a run is deterministic in the seed).  With ``until`` the
+    port ends (``SourceEnded``, as a recorded file does) at that simulated
+    time, so a logger reading it stops exactly there."""
 
-    def __init__(self, world: World, step: float = 0.005):
+    def __init__(self, world: World, step: float = 0.005, until: float | None = None):
         super().__init__(PortSpec("serial", "world", world.baud, 0, "<simulated world>"))
         self.world = world
         self.step = float(step)
+        self.until = until
         self.decoder = P.FrameDecoder()
         self.stats = self.decoder.stats
 
@@ -113,7 +116,12 @@ class WorldPort(Source):
         return self.world.now
 
     def read(self) -> list:
-        return self.decoder.feed(self.world.run_until(self.world.now + self.step))
+        t = self.world.now + self.step
+        if self.until is not None:
+            if self.world.now >= self.until:
+                raise SourceEnded(str(self.spec))
+            t = min(t, self.until)
+        return self.decoder.feed(self.world.run_until(t))
 
     def send(self, am: P.AMPacket, ack_seq: int | None = None) -> None:
         self.world.write(P.encode_am(am, ack_seq=ack_seq))

@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from collections import deque
@@ -52,6 +51,7 @@ from . import fixedpoint as FP
 from . import protocol as P
 from . import sources as S
 from .errors import QualityError, UserError
+from .logger import _positive
 from .session import NOMINAL_SCALES, UNITS
 
 DEFAULT_TIMEOUT = 0.3        # s: a mote's reply, counted from the BaseStation's serial ack
@@ -363,9 +363,9 @@ def describe_flags(flags: int) -> str:
 class Uploader:
     """The upload protocol with one mote over a ``Link``.
 
-    ``upload`` is the checked path.  ``stage``, ``commit`` and ``reset`` are
-    the protocol steps themselves and send whatever they are given (no local
-    check): the tests use them to send deliberately bad sets.
+    ``upload`` and ``reset`` are the checked paths.  ``stage``, ``commit`` and
+    ``apply`` are the protocol steps themselves and send whatever they are
+    given (no local check): the tests use them to send deliberately bad sets.
     """
 
     def __init__(self, link: Link, mote: int, progress=None):
@@ -446,6 +446,22 @@ class Uploader:
         self.link.samples.clear()        # what follows was packed after the commit
         return ack
 
+    def apply(self, version: int, crc: int) -> dict:
+        """Commit the staged set; Rejected (with the mote's reason) unless it is
+        now in force with our CRC."""
+        ack = self.commit(version, crc)
+        if ack["status"] != P.CAL_OK:
+            raise Rejected(f"mote {self.mote} rejected calibration version {version}: "
+                           f"{P.cal_reason(ack['status'])}; version {ack['version']} stays in "
+                           "force", ack["status"])
+        if ack["crc"] != crc or ack["version"] != version:
+            raise UploadFailed(f"mote {self.mote} acknowledged version {ack['version']} with "
+                               f"CRC 0x{ack['crc']:04x}, sent version {version} with CRC "
+                               f"0x{crc:04x}")
+        self.progress.note(f"  commit: accepted, mote CRC 0x{ack['crc']:04x} = ours, version "
+                           f"{ack['version']} in force, corrected: {sensor_names(ack['sensors'])}")
+        return ack
+
     def check_samples(self, expected_flags: int, wait: float = VERIFY_WAIT) -> SampleCheck:
         """The next sample messages of the mote carry ``expected_flags``: skip
         the old-flag ones still queued at the commit, then want
@@ -495,17 +511,7 @@ class Uploader:
         cs = FP.unpack_calset(calset)
         crc = P.crc16(calset)
         self.stage(calset, cs.version)
-        ack = self.commit(cs.version, crc)
-        if ack["status"] != P.CAL_OK:
-            raise Rejected(f"mote {self.mote} rejected calibration version {cs.version}: "
-                           f"{P.cal_reason(ack['status'])}; version {ack['version']} stays in "
-                           "force", ack["status"])
-        if ack["crc"] != crc or ack["version"] != cs.version:
-            raise UploadFailed(f"mote {self.mote} acknowledged version {ack['version']} with "
-                               f"CRC 0x{ack['crc']:04x}, sent version {cs.version} with CRC "
-                               f"0x{crc:04x}")
-        self.progress.note(f"  commit: accepted, mote CRC 0x{ack['crc']:04x} = ours, version "
-                           f"{ack['version']} in force, corrected: {sensor_names(ack['sensors'])}")
+        ack = self.apply(cs.version, crc)
         back = self.read_set(expect_version=cs.version)
         if back.data != calset:
             i = next(k for k in range(len(calset)) if back.data[k] != calset[k])
@@ -738,16 +744,21 @@ class Options:
     force: bool = False
 
 
-def upload_cal(source: S.Source, cal: CalFile, mote: int, opts: Options = Options(),
-               progress=None) -> Result:
-    """The whole checked upload of a cal.json's calibration over an open source."""
-    progress = progress or make_progress()
+def check_cal(cal: CalFile, mote: int, opts: Options) -> None:
+    """Before any port is opened: the gate's verdict, and a set that is
+    representable and that the mote's own checks accept (whatever the version)."""
     if cal.refused and not opts.force:
         raise QualityError(f"{cal.path} was refused by the quality gate ("
                            + "; ".join(cal.gate.get("reasons", [])) + "); --force uploads "
                            "it anyway")
-    # the set must be representable and plausible whatever the version
     check_set(build_set(cal, mote, opts.version or 1)[0], mote, cal.path)
+
+
+def upload_cal(source: S.Source, cal: CalFile, mote: int, opts: Options = Options(),
+               progress=None) -> Result:
+    """The whole checked upload of a cal.json's calibration over an open source."""
+    check_cal(cal, mote, opts)
+    progress = progress or make_progress()
     link = Link(source, timeout=opts.timeout, retries=opts.retries, progress=progress)
     up = Uploader(link, mote, progress)
     try:
@@ -801,18 +812,6 @@ def _version(text):
     if not 1 <= v <= MAX_VERSION:
         raise argparse.ArgumentTypeError(f"version must be 1..{MAX_VERSION}: {text!r}")
     return v
-
-
-def _positive(kind):
-    def parse(text):
-        try:
-            v = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-        if not v > 0 or (isinstance(v, float) and not math.isfinite(v)):
-            raise argparse.ArgumentTypeError(f"must be > 0: {text!r}")
-        return v
-    return parse
 
 
 def _count(text):
@@ -871,9 +870,11 @@ def run(args) -> int:
         sys.stdout.flush()
         check_set(build_set(cal, mote, args.version or 1)[0], mote, cal.path)
         return 0
-    spec = S.parse_port(args.port, args.baud)
     opts = Options(timeout=args.timeout, retries=args.retries, version=args.version,
                    force=args.force)
+    if not (args.show or args.reset):
+        check_cal(cal, mote, opts)
+    spec = S.parse_port(args.port, args.baud)
     with _open(spec) as source:
         if args.show:
             return _show(source, mote, cal, opts)
@@ -886,7 +887,7 @@ def run(args) -> int:
 
 def _show(source, mote, cal, opts) -> int:
     link = Link(source, timeout=opts.timeout, retries=opts.retries,
-                progress=PlainProgress(sys.stderr, steps=False))     # only repeats
+                progress=PlainProgress(steps=False))     # only the repeats, then the set
     up = Uploader(link, mote)
     inf = up.read_set()
     for line in show_lines(inf, cal):
@@ -939,13 +940,16 @@ def calibrate_step(args):
     opts = Options(force=bool(getattr(args, "force", False)))
 
     def step(board, path=None) -> Result:
-        cal = cal_from_board(board, str(path) if path else f"mote {board.mote}")
-        print(f"  uploading to mote {board.mote} through {spec}", flush=True)
+        where = str(path) if path else f"mote {board.mote}"
         try:
+            cal = cal_from_board(board, where)
+            check_cal(cal, cal.mote, opts)
+            print(f"  uploading to mote {board.mote} through {spec}", flush=True)
             with _open(spec) as source:
                 res = upload_cal(source, cal, cal.mote, opts)
-        except UploadFailed as e:
-            raise UploadFailed(f"calibration saved, but the upload failed: {e}") from None
+        except UserError as e:              # same exit status, saying what was done
+            raise UserError(f"calibration saved ({where}), not uploaded: {e}",
+                            exit_code=e.exit_code) from None
         print("  " + summary(res), flush=True)
         return res
 

@@ -11,20 +11,24 @@ import argparse
 import importlib
 import sys
 
-from . import __version__
+from . import __doc__ as motecal_doc, __version__
 from .errors import UserError
 
-# subcommand modules, in the order of the data path
-COMMAND_MODULES = (
-    "motecal.sim.cli",
-    "motecal.logger",
-    "motecal.store_cli",
-    "motecal.importer",
-    "motecal.calib.cli",
-    "motecal.upload",
-    "motecal.diagnose.cli",
-    "motecal.report",
-)
+# Subcommands in the order of the data path: name -> (module, one-line help).
+# Only the module of the command being run is imported, so a command starts
+# without loading every other command's dependencies (scipy, matplotlib, ...).
+COMMANDS = {
+    "sim": ("motecal.sim.cli", "simulate motes, radio, BaseStation and serial line"),
+    "log": ("motecal.logger", "log samples from a port into a database, guiding a person"),
+    "sessions": ("motecal.store_cli", "list the sessions in a database"),
+    "export": ("motecal.store_cli", "write a session as the project CSV"),
+    "import": ("motecal.importer", "import measured data files as a session"),
+    "calibrate": ("motecal.calib.cli", "calibrate accelerometer, gyroscope and magnetometer"),
+    "upload": ("motecal.upload", "send a calibration to a mote, or read/reset it"),
+    "diagnose": ("motecal.diagnose.cli", "what the simulation gets wrong, its cause and the gain"),
+    "report": ("motecal.report", "the paper's tables and figures as an HTML report"),
+}
+COMMAND_MODULES = tuple(dict.fromkeys(m for m, _ in COMMANDS.values()))
 
 
 class _Parser(argparse.ArgumentParser):
@@ -32,24 +36,33 @@ class _Parser(argparse.ArgumentParser):
         raise UserError(f"{self.prog}: {message}")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="motecal", description=__doc__.splitlines()[0])
+def _command_word(argv: list[str]) -> str | None:
+    for a in argv:
+        if not a.startswith("-"):
+            return a
+    return None
+
+
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The parser; with ``argv``, only the named command's module is loaded."""
+    parser = _Parser(prog="motecal", description=motecal_doc.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"motecal {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    for name in COMMAND_MODULES:
-        try:
-            mod = importlib.import_module(name)
-        except ModuleNotFoundError as e:
-            if e.name and name.startswith(e.name):   # subcommand not built yet
-                continue
-            raise
-        mod.register(sub)
+    word = _command_word(argv) if argv is not None else None
+    wanted = [COMMANDS[word][0]] if word in COMMANDS else \
+        (list(COMMAND_MODULES) if argv is None else [])
+    for name in wanted:
+        importlib.import_module(name).register(sub)
+    for cmd, (_, text) in COMMANDS.items():     # the others, for --help
+        if cmd not in sub.choices:
+            sub.add_parser(cmd, help=text)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     try:
-        parser = build_parser()
+        argv = sys.argv[1:] if argv is None else list(argv)
+        parser = build_parser(argv)
         args = parser.parse_args(argv)
         if not getattr(args, "func", None):
             parser.print_help(sys.stderr)

@@ -55,7 +55,7 @@ from .logger import _positive
 from .session import NOMINAL_SCALES, UNITS
 
 DEFAULT_TIMEOUT = 0.3        # s: a mote's reply, counted from the BaseStation's serial ack
-DEFAULT_RETRIES = 10         # repeats of one message after the first try
+DEFAULT_RETRIES = 20         # repeats of one message after the first try
 SERIAL_ACK_TIMEOUT = 0.25    # s: the BaseStation's 0x43 for one 0x44 frame
 SERIAL_RETRIES = 3
 VERIFY_WAIT = 2.0            # s: for the mote's sample messages after the commit
@@ -701,8 +701,9 @@ def show_lines(inf: InForce, cal: CalFile | None = None) -> list[str]:
             lines.append(f"    A[{i}] = {_fmt_row(A[i], '+.6e')}")
         lines.append(f"    c    = {_fmt_row(c, '+.6f')} {unit}"
                      f"  (= {_fmt_row(fs.offset, '+.2f')} counts)")
+        per = f"({unit})" if "/" in unit else unit
         lines.append(f"    scale {_fmt_row(np.diag(fs.matrix), '.5f')} x nominal "
-                     f"{k:g} LSB/{unit}")
+                     f"{k:g} LSB/{per}")
     if cal is not None:
         mine, _ = build_set(cal, inf.mote, inf.version if inf.version else 1)
         same = inf.version and mine == inf.data

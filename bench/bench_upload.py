@@ -1,0 +1,64 @@
+"""Calibration upload: simulated time from the first query to a verified set,
+by radio loss (both directions) and number of motes streaming samples.
+
+Each run: a World (idle session, motes 1..N sampling at 125 Hz), the checked
+upload of ``motecal.upload`` to mote 1 over ``WorldPort`` (timeouts count
+simulated seconds, default --timeout 0.3 s and --retries 20), read back bit
+for bit and verified on the sample flags.  Goal (issue 6): the upload
+completes with 30 % loss in both directions and the set read back is
+bit-identical; its duration is a measured figure, not a goal.
+
+    .venv/bin/python bench/bench_upload.py [--seeds 20]
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from motecal import upload as U
+from motecal.sim.world import World, WorldPort
+
+
+def calibration() -> U.CalFile:
+    """A plausible calibration of all three sensors (near the identity)."""
+    rng = np.random.default_rng(1)
+    k = {"accel": 256.0, "gyro": 14.375, "mag": 1090.0}
+    phys = {n: ((np.eye(3) + np.tril(rng.normal(0, 0.02, (3, 3)))) / k[n],
+                rng.normal(0, 0.05, 3)) for n in k}
+    return U.CalFile("bench", 1, phys)
+
+
+def once(cal, motes: int, loss: float, seed: int):
+    w = World(motes=motes, session="idle", seed=seed, loss=loss, duration=3600.0)
+    port = WorldPort(w)
+    w.run_until(0.5)
+    res = U.upload_cal(port, cal, 1, U.Options(), progress=U.NullProgress())
+    ok = w.motes[1].cal.active_calset() == U.build_set(cal, 1, res.version)[0]
+    return res.seconds, res.stats.retries, ok
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=20)
+    a = ap.parse_args()
+    cal = calibration()
+    once(cal, 1, 0.0, 1)                                   # warm imports, C build
+    print("motes | loss | completed | bit-identical | median s | max s | repeats mean/max "
+          "| wall s")
+    for motes, loss in ((1, 0.0), (1, 0.1), (1, 0.3), (6, 0.0), (6, 0.3)):
+        t0 = time.perf_counter()
+        runs = [once(cal, motes, loss, s) for s in range(1, a.seeds + 1)]
+        secs = np.array([r[0] for r in runs])
+        reps = np.array([r[1] for r in runs])
+        print(f"{motes:5d} | {loss:4.0%} | {len(runs):4d}/{a.seeds:<4d} | "
+              f"{sum(r[2] for r in runs):6d}/{a.seeds:<6d} | {np.median(secs):8.2f} | "
+              f"{secs.max():5.2f} | {reps.mean():6.1f}/{reps.max():<4d} | "
+              f"{time.perf_counter() - t0:6.1f}")
+    print("goal: completes and reads back bit-identical at 30% loss both ways "
+          "(a failure would stop this script with an error)")
+
+
+if __name__ == "__main__":
+    main()

@@ -261,6 +261,33 @@ def test_lost_serial_acks_are_repeated_and_the_upload_completes(cal):
     assert w.bs.serial_acks == res.stats.serial_frames == res.stats.tries + 2
 
 
+class _SerialForwarder(WorldPort):
+    """The world seen through a TinyOS SerialForwarder (sf@): it does the
+    serial acks itself, so the host sees none and sends no sequence bytes."""
+
+    def __init__(self, world):
+        super().__init__(world)
+        self.spec = PortSpec("sf", "localhost", 250000, 9002, "sf@localhost:9002")
+        self.seqs = []
+
+    def read(self):
+        return [f for f in super().read() if f.protocol != P.PROTO_ACK]
+
+    def send(self, am, ack_seq=None):
+        self.seqs.append(ack_seq)
+        super().send(am, ack_seq=0)                  # the forwarder's own serial frame
+
+
+def test_through_a_serialforwarder_no_serial_acks_are_awaited(cal):
+    w = World(motes=1, session="idle", seed=9, duration=3600.0)
+    port = _SerialForwarder(w)
+    w.run_until(0.5)
+    res = U.upload_cal(port, cal, 1, U.Options(), progress=U.NullProgress())
+    assert res.version == 1 and res.stats.serial_retries == 0
+    assert set(port.seqs) == {None} and len(port.seqs) == res.stats.tries
+    assert w.motes[1].cal.active_calset() == U.build_set(cal, 1, 1)[0]
+
+
 # ---------------------------------------------------------------- versions, reset, show
 def test_version_wraps_reset_goes_raw_and_show_decodes(cal):
     w, port = _world(seed=4)

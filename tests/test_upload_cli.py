@@ -244,3 +244,21 @@ def test_a_rejected_set_is_one_clear_line(cal_path):
                         "force\n")
     assert "fragment 6/6 (offset 100): 2 bytes acked" in r.stdout
     assert world.motes[1].cal.version == 0
+
+
+def test_calibrate_upload_options_are_checked_before_calibrating(tmp_path, capsys,
+                                                                 monkeypatch):
+    monkeypatch.delenv("MOTECOM", raising=False)
+    rec = tmp_path / "rec.bin"
+    rec.write_bytes(b"")
+    base = ["calibrate", "--db", str(tmp_path / "none.db"), "--session", "s", "--out",
+            str(tmp_path / "cal.json")]
+    for extra, text in ((["--port", "socket://127.0.0.1:9"], "--port and --baud go with "
+                                                             "--upload"),
+                        (["--upload"], "no port: give --port"),
+                        (["--upload", "--port", str(rec)], "is a recorded file"),
+                        (["--upload", "--port", "sf@host:notaport"], "bad TCP port")):
+        assert main(base + extra) == 2, extra
+        err = capsys.readouterr().err
+        assert len(err.splitlines()) == 1 and text in err, (extra, err)
+    assert not (tmp_path / "none.db").exists()           # nothing was opened or calibrated

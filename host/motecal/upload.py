@@ -236,11 +236,6 @@ class Link:
                     self.stats.replies += 1
                     self._replies.append((am.src, am.am_type, msg))
 
-    def wait(self, seconds: float) -> None:
-        end = self.clock() + seconds
-        while self.clock() < end:
-            self.pump()
-
     # -- sending ------------------------------------------------------------------
     def _send(self, am: P.AMPacket, what: str) -> None:
         """One AM packet onto the serial line, repeated until the BaseStation acks it."""
@@ -440,7 +435,10 @@ class Uploader:
     def commit(self, version: int, crc: int, length: int = P.CALSET_SIZE,
                action: int = P.CAL_APPLY) -> dict:
         what = "the commit" if action == P.CAL_APPLY else "the reset"
+        # an ack that accepts names our version; a late ack of an earlier commit does not
         ack = self.link.request(P.CAL_COMMIT, P.AM_NINEDOF_CAL_COMMIT_ACK_MSG, what,
+                                match=lambda m: m["status"] != P.CAL_OK
+                                or m["version"] == version,
                                 mote=self.mote, version=version, length=length,
                                 action=action, crc=crc)
         self.link.samples.clear()        # what follows was packed after the commit

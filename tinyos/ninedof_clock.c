@@ -78,7 +78,7 @@ void ninedof_clock_init(ninedof_clock_t *c, uint16_t cycles_per_jiffy)
   c->owed = 0;
   c->count = 0;
   c->synced = 0;
-  c->locked = 0;
+  c->stage = 0;
   c->resyncs = 0;
 }
 
@@ -99,19 +99,28 @@ static void update(ninedof_clock_t *c)
   c->count = 0;
   if (e > NINEDOF_CLOCK_RESYNC || e < -NINEDOF_CLOCK_RESYNC) {
     c->synced = 0;                 /* the next expiry starts a new grid */
-    c->locked = 0;
+    c->stage = 0;
     c->resyncs++;
     return;
   }
-  c->error = e;
   e16 = floor_shift(e * CLOCK_ERR_NUM, CLOCK_XTAL_LOG2);  /* late > 0: slow down */
-  if (!c->locked) {
-    /* first second on a new grid: the phase grew from 0 at a constant rate
-     * error, so its mean is half of that error: correct the frequency at
-     * once (to about 10 ppm) rather than integrate towards it */
-    c->locked = 1;
-    c->integ = clamp_rate((int32_t)c->rate - 2 * e16) << NINEDOF_CLOCK_KI_SHIFT;
+  if (c->stage == 0) {
+    /* first second on a new grid: its mean phase holds the grid's offset
+     * (the first reading is a floor: up to a tick) as well as the rate
+     * error; the next second at the same rate tells them apart */
+    c->error = e;
+    c->stage = 1;
+    return;
   }
+  if (c->stage == 1) {
+    /* the mean phase moved by the whole rate error over one second:
+     * correct the frequency at once (to about 10 ppm), the phase by the
+     * loop from here on */
+    int32_t slope16 = floor_shift((e - c->error) * CLOCK_ERR_NUM, CLOCK_XTAL_LOG2);
+    c->integ = clamp_rate((int32_t)c->rate - slope16) << NINEDOF_CLOCK_KI_SHIFT;
+    c->stage = 2;
+  }
+  c->error = e;
   c->integ -= e16;                 /* integral gain 1 / 2^KI_SHIFT, exact */
   if (c->integ < lo)
     c->integ = lo;

@@ -21,6 +21,9 @@
  *    each reading is only whole milliseconds.
  *  - Loop: a proportional-integral loop (gains 1/2 and 1/16, per second)
  *    sets the rate, alarm ticks per crystal second, in 1/16 tick.  It
+ *    starts from MeasureClockC's boot measurement (0.4 % steps); the
+ *    change of the mean phase between the first two seconds gives the
+ *    rate error at once (about 10 ppm), the loop does the rest.  It
  *    keeps the phase error bounded, so over any long time the number of
  *    periods is 125 per crystal second exactly: the long-run rate is as
  *    exact as the crystal.
@@ -28,7 +31,7 @@
  *    accumulator, so the periods of one second take two adjacent values.
  *    A change of rate moves a period by at most one tick from the one
  *    before (what that limit holds back is owed and paid next).
- * Cost on the ATmega1281: about 150 cycles per period, 550 for the loop
+ * Cost on the ATmega1281: about 170 cycles per period, 500 for the loop
  * update once per second (bench/bench_cycles.py).
  */
 #ifndef NINEDOF_CLOCK_H
@@ -75,7 +78,7 @@ typedef struct {
   int16_t owed;        /* ticks held back by the one-tick limit */
   uint8_t count;       /* periods measured in this second */
   uint8_t synced;      /* grid set (0 until the first expiry) */
-  uint8_t locked;      /* a second measured on this grid (frequency set) */
+  uint8_t stage;       /* seconds measured on this grid: 0, 1, 2 = locked */
   uint16_t resyncs;    /* times the phase reference was restarted */
 } ninedof_clock_t;
 

@@ -161,16 +161,16 @@ int main(void)
   MEASURE("eeprom_image", ninedof_eewriter_poll(&ew, &rx));
   MEASURE("eeprom_next_byte", ninedof_eewriter_next(&ew, &addr, &v));
 
-  /* the sampling clock: an ordinary period, and the one that ends a second
-   * (loop update) */
+  /* the sampling clock: an ordinary period, and one that ends a second
+   * once the loop is locked (third second: PI update) */
   ninedof_clock_init(&clk, 244);
-  for (i = 0; i < NINEDOF_RATE_HZ - 1; i++) {
+  for (i = 0; i < 3 * NINEDOF_RATE_HZ - 1; i++) {
     if (i == 10)
       MEASURE("clock_period", (void)ninedof_clock_next(&clk, (uint32_t)i * 1024 / 125));
     else
       (void)ninedof_clock_next(&clk, (uint32_t)i * 1024 / 125);
   }
-  MEASURE("clock_update", (void)ninedof_clock_next(&clk, 1019));
+  MEASURE("clock_update", (void)ninedof_clock_next(&clk, 3 * 1024 - 5));
 
   out_s("END\n");
   cli();

@@ -126,6 +126,7 @@ typedef struct {
   uint16_t cpj;        /* what MeasureClockC measured at boot */
   uint16_t lat_max;    /* largest interrupt latency, 1/65536 crystal tick */
   uint32_t xtal0;      /* crystal counter at the first expiry */
+  uint32_t frac0;      /* ... and the fraction of a tick it has run, Q24 */
   uint16_t seconds;    /* simulated */
   uint16_t settle;     /* seconds allowed to lock */
 } clock_case_t;
@@ -136,15 +137,15 @@ typedef struct {
 
 static const clock_case_t CLOCK_CASES[] = {
   /* RC 2 % fast; crystal counter wraps in the first second */
-  { K_RC(20000), 0, 249, LAT_US(40), 0xFFFFFE00UL, 150, 30 },
+  { K_RC(20000), 0, 249, LAT_US(40), 0xFFFFFE00UL, 0x123456UL, 150, 30 },
   /* RC 2 % slow; radio interrupts delay the alarm by up to 300 us */
-  { K_RC(-20000), 0, 239, LAT_US(300), 0x7FFFFF00UL, 150, 30 },
+  { K_RC(-20000), 0, 239, LAT_US(300), 0x7FFFFF00UL, 0xF00000UL, 150, 30 },
   /* warming up: the RC speeds up by 20 ppm every second (0.3 % in all) */
-  { K_NOMINAL, -11, 244, LAT_US(100), 0x12345678UL, 150, 30 },
+  { K_NOMINAL, -11, 244, LAT_US(100), 0x12345678UL, 0x800000UL, 150, 30 },
   /* cooling fast: 200 ppm per second (3 % in all) */
-  { K_RC(15000), 110, 248, LAT_US(100), 0xFFFF0000UL, 150, 30 },
+  { K_RC(15000), 110, 248, LAT_US(100), 0xFFFF0000UL, 0xC00000UL, 150, 30 },
   /* a boot measurement 5 % off: the loop still locks */
-  { K_RC(50000), 0, 244, LAT_US(40), 0UL, 120, 60 },
+  { K_RC(50000), 0, 244, LAT_US(40), 0UL, 0xFF0000UL, 120, 60 },
 };
 
 static void out_i32(int32_t v)
@@ -160,7 +161,7 @@ static void out_i32(int32_t v)
 static void test_clock_case(const clock_case_t *t)
 {
   static ninedof_clock_t c;
-  uint32_t k = t->k, xtal = t->xtal0, frac = 0x123456UL;
+  uint32_t k = t->k, xtal = t->xtal0, frac = t->frac0;
   uint16_t rnd = 12345;
   uint32_t x0 = (xtal << 24) | frac;
   int32_t phase = 0, phase_settle = 0, phase_lo = INT32_MAX, phase_hi = INT32_MIN;

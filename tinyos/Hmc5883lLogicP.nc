@@ -4,11 +4,12 @@
  * SplitControl.start: checks identification 'H' '4' '3' and writes the
  * register table of ninedof_board.c (1 sample per output, 1090 LSB/gauss),
  * whose last write starts the first single measurement.
- * ReadNow.read (async): the six data registers (X, Z, Y, big-endian), then
- * the MODE write that starts the next measurement, which is done (<= 6 ms)
- * before the next 8 ms period.  After that write, and after reading 0x08,
- * the chip's register pointer is at 0x03, so the data are read without a
- * pointer write; after any error the pointer is set explicitly once.
+ * ReadNow.read (async): one transaction that writes MODE = single
+ * measurement (which starts the next measurement, done within 6 ms, before
+ * the next 8 ms period) and, after a repeated start, reads the six data
+ * registers (X, Z, Y, big-endian) that still hold the previous measurement:
+ * the register pointer has moved from MODE (0x02) to DATA X MSB (0x03), so
+ * the trigger write is also the pointer write.
  * SplitControl.stop: idle mode.
  *
  * Every transfer holds the bus through Resource and every path that ends an
@@ -34,7 +35,6 @@ implementation
   norace uint8_t step;                     /* transfer within the operation */
   norace uint8_t cmd[2];                   /* register pointer (+ value) */
   norace uint8_t raw[NINEDOF_CHIP_DATA];   /* bytes read */
-  norace bool pointerAtData = FALSE;       /* chip's pointer is at 0x03 */
   norace error_t result;
 
   task void startDone() {
@@ -65,15 +65,12 @@ implementation
       cmd[1] = NINEDOF_HMC5883L_CONFIG[step - 2].value;
       return call I2CPacket.write(I2C_START | I2C_STOP, addr, 2, cmd);
     case S_READING:
-      if (step == 0) {                        /* only when the pointer is unknown */
-        cmd[0] = HMC5883L_DATA_X_MSB;
-        return call I2CPacket.write(I2C_START, addr, 1, cmd);
+      if (step == 0) {                        /* next single measurement */
+        cmd[0] = NINEDOF_HMC5883L_TRIGGER[0];
+        cmd[1] = NINEDOF_HMC5883L_TRIGGER[1];
+        return call I2CPacket.write(I2C_START, addr, 2, cmd);
       }
-      if (step == 1)
-        return call I2CPacket.read(I2C_START | I2C_STOP, addr, NINEDOF_CHIP_DATA, raw);
-      cmd[0] = NINEDOF_HMC5883L_TRIGGER[0];  /* next single measurement */
-      cmd[1] = NINEDOF_HMC5883L_TRIGGER[1];
-      return call I2CPacket.write(I2C_START | I2C_STOP, addr, 2, cmd);
+      return call I2CPacket.read(I2C_START | I2C_STOP, addr, NINEDOF_CHIP_DATA, raw);
     case S_STOPPING:
       cmd[0] = NINEDOF_HMC5883L_SLEEP.reg;
       cmd[1] = NINEDOF_HMC5883L_SLEEP.value;
@@ -92,7 +89,7 @@ implementation
     atomic s = state;
     switch (s) {
     case S_STARTING: return step == 1 + NINEDOF_HMC5883L_CONFIG_LEN;
-    case S_READING: return step == 2;
+    case S_READING: return step == 1;
     default: return TRUE;
     }
   }
@@ -121,20 +118,13 @@ implementation
 
   /* End the operation: release the bus, then report. */
   void finish(error_t err) {
-    /* every successful operation ends with a write of MODE (0x02): the
-     * pointer then sits at 0x03 */
-    pointerAtData = (err == SUCCESS);
     call Resource.release();
     report(err);
   }
 
   /* The bus is ours: the operation's first transfer. */
   error_t begin() {
-    uint8_t s;
-    atomic s = state;
-    step = (s == S_READING && pointerAtData) ? 1 : 0;
-    if (step == 0)
-      pointerAtData = FALSE;
+    step = 0;
     return transfer();
   }
 

@@ -21,4 +21,11 @@ typedef struct {
   int16_t axis[9];
 } ninedof_raw_t;
 
+/* The chips' shares of the board's bus (NineDofBusP), in reading order */
+enum {
+  NINEDOF_CHIP_ACCEL = 0,
+  NINEDOF_CHIP_GYRO = 1,
+  NINEDOF_CHIP_MAG = 2,
+};
+
 #endif

@@ -1,8 +1,15 @@
 /*
  * NineDofBoardP -- the 9DOF board as one sensor: SplitControl configures the
  * three chips one after the other; ReadNow reads the nine axes of one
- * instant, the three chips back to back on the 400 kHz bus (about 1 ms, see
- * the README), and returns them as one record (ax..mz, counts).
+ * instant, the three chips back to back on the 400 kHz bus, and returns
+ * them as one record (ax..mz, counts).
+ *
+ * Each operation holds the board's bus (Bus = NineDofBusP.Hold) from start
+ * to end, so the chips get their turns on it without arbitration: one
+ * grant per sample (see the README for the timing).  Every path that ends
+ * an operation -- success, a chip reporting an error, a chip refusing to
+ * start -- releases the bus before it reports.  A read while the board is
+ * being configured, or configuring while a read runs, is refused (EBUSY).
  *
  * @author motecal
  */
@@ -13,6 +20,7 @@ module NineDofBoardP @safe()
   provides interface SplitControl;
   provides interface ReadNow<ninedof_raw_t>;
   uses {
+    interface Resource as Bus;
     interface SplitControl as AccelControl;
     interface SplitControl as GyroControl;
     interface SplitControl as MagControl;
@@ -25,36 +33,44 @@ implementation
 {
   enum { C_IDLE, C_STARTING, C_STOPPING };
 
-  uint8_t control = C_IDLE;      /* tasks only */
-  error_t controlResult;
-  bool reading = FALSE;
+  uint8_t control = C_IDLE;      /* configuration under way */
+  error_t controlResult;         /* tasks only */
+  bool reading = FALSE;          /* a sample under way */
+  bool readWaiting = FALSE;      /* ... waiting for the bus */
   norace ninedof_raw_t sample;   /* written only while `reading` */
 
-  /* ---- start / stop: accel, gyro, mag in turn ---- */
+  /* ---- start / stop: accel, gyro, mag in turn, on the held bus ---- */
   task void controlDone() {
-    uint8_t c = control;
-    control = C_IDLE;
+    uint8_t c;
+    atomic {
+      c = control;
+      control = C_IDLE;
+    }
     if (c == C_STARTING)
       signal SplitControl.startDone(controlResult);
     else
       signal SplitControl.stopDone(controlResult);
   }
 
-  void controlFailed(error_t err) {
+  /* End of start/stop: release the bus, then report. */
+  void controlEnd(error_t err) {
+    call Bus.release();
     controlResult = err;
     post controlDone();
   }
 
+  bool starting() {
+    atomic return control == C_STARTING;
+  }
+
   /* Start or stop one chip; EALREADY counts as done. */
   error_t step(uint8_t chip) {
-    error_t err;
+    bool start = starting();
     if (chip == 0)
-      err = (control == C_STARTING) ? call AccelControl.start() : call AccelControl.stop();
-    else if (chip == 1)
-      err = (control == C_STARTING) ? call GyroControl.start() : call GyroControl.stop();
-    else
-      err = (control == C_STARTING) ? call MagControl.start() : call MagControl.stop();
-    return err;
+      return start ? call AccelControl.start() : call AccelControl.stop();
+    if (chip == 1)
+      return start ? call GyroControl.start() : call GyroControl.stop();
+    return start ? call MagControl.start() : call MagControl.stop();
   }
 
   void run(uint8_t chip) {
@@ -63,35 +79,39 @@ implementation
       if (err == SUCCESS)
         return;                  /* its done event continues with chip + 1 */
       if (err != EALREADY) {
-        controlFailed(err);
+        controlEnd(err);
         return;
       }
     }
-    controlResult = SUCCESS;
-    post controlDone();
+    controlEnd(SUCCESS);
   }
 
   void chipDone(uint8_t chip, error_t err) {
     if (err != SUCCESS)
-      controlFailed(err);
+      controlEnd(err);
     else
       run(chip + 1);
   }
 
+  error_t configure(uint8_t what) {
+    error_t err;
+    atomic {
+      if (control != C_IDLE || reading)
+        return EBUSY;
+      control = what;
+    }
+    err = call Bus.request();
+    if (err != SUCCESS)
+      atomic control = C_IDLE;
+    return err;
+  }
+
   command error_t SplitControl.start() {
-    if (control != C_IDLE)
-      return EBUSY;
-    control = C_STARTING;
-    run(0);
-    return SUCCESS;
+    return configure(C_STARTING);
   }
 
   command error_t SplitControl.stop() {
-    if (control != C_IDLE)
-      return EBUSY;
-    control = C_STOPPING;
-    run(0);
-    return SUCCESS;
+    return configure(C_STOPPING);
   }
 
   event void AccelControl.startDone(error_t err) { chipDone(0, err); }
@@ -101,10 +121,12 @@ implementation
   event void GyroControl.stopDone(error_t err) { chipDone(1, err); }
   event void MagControl.stopDone(error_t err) { chipDone(2, err); }
 
-  /* ---- one sample: accel, gyro, mag back to back ---- */
+  /* ---- one sample: accel, gyro, mag back to back, on the held bus ---- */
+  /* End of a sample that failed: release the bus, then report. */
   void readFailed(error_t err) {
     ninedof_raw_t none;
     uint8_t i;
+    call Bus.release();
     for (i = 0; i < 9; i++)
       none.axis[i] = 0;
     atomic reading = FALSE;
@@ -114,14 +136,39 @@ implementation
   async command error_t ReadNow.read() {
     error_t err;
     atomic {
-      if (reading)
+      if (reading || control != C_IDLE)
         return EBUSY;
       reading = TRUE;
     }
+    if (call Bus.immediateRequest() == SUCCESS) {
+      err = call Accel.read();
+      if (err != SUCCESS)
+        call Bus.release();
+    } else {
+      atomic readWaiting = TRUE;         /* bus busy: read when it comes */
+      err = call Bus.request();
+      if (err != SUCCESS)
+        atomic readWaiting = FALSE;
+    }
+    if (err != SUCCESS)
+      atomic reading = FALSE;            /* no readDone will follow */
+    return err;
+  }
+
+  event void Bus.granted() {
+    bool forRead;
+    error_t err;
+    atomic {
+      forRead = readWaiting;
+      readWaiting = FALSE;
+    }
+    if (!forRead) {
+      run(0);                            /* start / stop */
+      return;
+    }
     err = call Accel.read();
     if (err != SUCCESS)
-      atomic reading = FALSE;
-    return err;
+      readFailed(err);
   }
 
   async event void Accel.readDone(error_t err, ninedof_xyz_t v) {
@@ -150,6 +197,7 @@ implementation
     }
     sample.axis[6] = v.xyz[0]; sample.axis[7] = v.xyz[1]; sample.axis[8] = v.xyz[2];
     done = sample;
+    call Bus.release();
     atomic reading = FALSE;
     signal ReadNow.readDone(SUCCESS, done);
   }

@@ -9,9 +9,9 @@
  *  - ITG-3200: FS_SEL = 3 (+-2000 deg/s, 14.375 LSB/(deg/s)), digital low-pass
  *    42 Hz (below the 62.5 Hz Nyquist limit of 125 Hz sampling) with its 1 kHz
  *    internal rate, sample-rate divider 3 -> 250 Hz output, samples <= 4 ms old.
- *  - HMC5883L: single-measurement mode, triggered right after each read so
- *    the measurement (<= 6 ms at one sample per output) is finished before
- *    the next read 8 ms later.  Continuous mode tops out at 75 Hz and would
+ *  - HMC5883L: single-measurement mode, triggered at each read (in the same
+ *    transaction) so the measurement (<= 6 ms at one sample per output) is
+ *    finished before the next read 8 ms later.  Continuous mode tops out at 75 Hz and would
  *    repeat stale samples at 125 Hz.  Gain 1090 LSB/gauss (+-1.3 Ga).
  */
 #include "ninedof_board.h"

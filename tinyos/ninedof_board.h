@@ -74,10 +74,11 @@ extern const ninedof_reg_write_t NINEDOF_ITG3200_SLEEP;
 extern const ninedof_reg_write_t NINEDOF_HMC5883L_SLEEP;
 
 /* The write that starts one HMC5883L single measurement: MODE = single.
- * Its register pointer then auto-increments to 0x03 (DATA_X_MSB), and
- * wraps from 0x08 back to 0x03 after the six data bytes, so the data are
- * read without another pointer write (datasheet: "I2C Communication
- * Protocol", pointer auto-increment). */
+ * Its register pointer then auto-increments to 0x03 (DATA_X_MSB), so a
+ * read after a repeated start gets the six data registers, which still
+ * hold the previous measurement until the new one is done (datasheet:
+ * "I2C Communication Protocol", pointer auto-increment): trigger and read
+ * are one transaction. */
 extern const uint8_t NINEDOF_HMC5883L_TRIGGER[2];
 
 /* Identity checks (1 = the expected chip answered) */

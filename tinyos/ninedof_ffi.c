@@ -5,11 +5,13 @@
  */
 #include <string.h>
 #include "ninedof_cal.h"
+#include "ninedof_sampling.h"
 
 size_t ninedof_calrx_size(void) { return sizeof(ninedof_calrx_t); }
 size_t ninedof_cal_size(void) { return sizeof(ninedof_cal_t); }
 size_t ninedof_calset_size(void) { return sizeof(ninedof_calset_t); }
 size_t ninedof_image_size(void) { return NINEDOF_IMAGE_SIZE; }
+size_t ninedof_eewriter_size(void) { return sizeof(ninedof_eewriter_t); }
 
 uint16_t ninedof_calrx_version(const ninedof_calrx_t *rx) { return rx->active.version; }
 uint8_t ninedof_calrx_sensors(const ninedof_calrx_t *rx) { return rx->active.sensors; }

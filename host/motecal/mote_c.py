@@ -124,6 +124,12 @@ def _declare(lib):
         "ninedof_calrx_dirty": (c.c_uint8, [c.c_void_p]),
         "ninedof_calrx_set_dirty": (None, [c.c_void_p, c.c_uint8]),
         "ninedof_calrx_active": (None, [c.c_void_p, u8p]),
+        "ninedof_eewriter_size": (c.c_size_t, []),
+        "ninedof_eewriter_init": (None, [c.c_void_p, c.c_uint8, c.c_uint16]),
+        "ninedof_eewriter_poll": (c.c_uint8, [c.c_void_p, c.c_void_p]),
+        "ninedof_eewriter_next": (c.c_uint8, [c.c_void_p, c.POINTER(c.c_uint16), u8p]),
+        "ninedof_eewriter_busy": (c.c_uint8, [c.c_void_p]),
+        "ninedof_slot_addr": (c.c_uint16, [c.c_uint8]),
     }
     for name, (res, args) in sig.items():
         f = getattr(lib, name)
@@ -303,3 +309,45 @@ class CalReceiver:
         return Restored(None if used == 0xFF else int(used), int(nslot.value),
                         int(ngen.value))
 
+
+
+# --------------------------------------------------------------------------
+# The firmware's background EEPROM writer (tinyos/ninedof_sampling.c)
+# --------------------------------------------------------------------------
+class EepromWriter:
+    """Writes the set in force into the EEPROM slots one byte per step, as
+    the firmware does (an EEPROM byte write takes 3.4 ms while sampling goes
+    on).  ``eeprom`` is a bytearray standing for the chip's EEPROM."""
+
+    BYTE_TIME_S = 0.0034
+    SIZE = 4096                        # ATmega1281 EEPROM
+
+    def __init__(self, receiver: CalReceiver, eeprom: bytearray | None = None):
+        self._lib = library()
+        self.rx = receiver
+        self.eeprom = eeprom if eeprom is not None else bytearray(b"\xff" * self.SIZE)
+        self._w = ctypes.create_string_buffer(self._lib.ninedof_eewriter_size())
+        n = receiver._image_size
+        slots = [bytes(self.eeprom[a:a + n]) for a in (self.slot_addr(0), self.slot_addr(1))]
+        self.restored = receiver.restore(*slots)
+        self._lib.ninedof_eewriter_init(self._w, self.restored.next_slot,
+                                        self.restored.next_generation)
+
+    def slot_addr(self, slot: int) -> int:
+        return int(self._lib.ninedof_slot_addr(slot))
+
+    def poll(self) -> bool:
+        """Start writing if a commit left the set in force unpersisted."""
+        return bool(self._lib.ninedof_eewriter_poll(self._w, self.rx._rx))
+
+    @property
+    def busy(self) -> bool:
+        return bool(self._lib.ninedof_eewriter_busy(self._w))
+
+    def step(self) -> bool:
+        """Write one byte; False when nothing was left to write."""
+        addr, value = ctypes.c_uint16(), ctypes.c_uint8()
+        if not self._lib.ninedof_eewriter_next(self._w, ctypes.byref(addr), ctypes.byref(value)):
+            return False
+        self.eeprom[addr.value] = value.value
+        return True

@@ -64,6 +64,9 @@ def register(subparsers) -> None:
     p.add_argument("--model", metavar="FILE|NAME", default=None,
                    help="error model JSON file or built-in name (general)")
     p.add_argument("--truth", metavar="FILE", help="write the model's truth as JSON")
+    p.add_argument("--eeprom", metavar="FILE",
+                   help="keep the motes' EEPROM (uploaded calibrations) in FILE: restored "
+                        "at boot, written when a mote stores a set")
     p.add_argument("--realtime", action="store_true",
                    help="pace the bytes at the line rate in wall time")
     p.add_argument("--speed", type=_positive_float, default=None, metavar="X",
@@ -101,7 +104,7 @@ def run(args) -> int:
     speed = args.speed if args.speed is not None else (1.0 if args.realtime else None)
     world = World(motes=args.motes, session=args.session, seed=args.seed, baud=args.baud,
                   loss=args.loss, model=args.model, batch=args.batch,
-                  duration=args.duration)
+                  duration=args.duration, eeprom=args.eeprom)
     if args.truth:
         world.write_truth(args.truth)
     t0 = time.monotonic()

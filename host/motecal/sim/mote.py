@@ -20,6 +20,10 @@
   firmware's C code through ctypes); its reply goes back to address 0 through
   the same queue; samples are corrected with ``CalReceiver.correct`` and
   flagged with ``CalReceiver.flags()``.  Without it: raw records, flags 0.
+* EEPROM: an accepted set is persisted by the firmware's own background
+  writer (``mote_c.EepromWriter``, one byte per 3.4 ms while sampling goes
+  on) into the mote's EEPROM, which a World can keep in a file across runs;
+  at boot the set in force is restored from it, as the firmware does.
 """
 from __future__ import annotations
 
@@ -67,7 +71,8 @@ def _cal_value(cal, name):
 
 class SimMote:
     def __init__(self, net, mote_id: int, sampler, clock_ppm: float, rng, *,
-                 batch: int, rate_hz: float, duration: float, cal=None):
+                 batch: int, rate_hz: float, duration: float, cal=None,
+                 eeprom: bytearray | None = None):
         self.net = net
         self.loop = net.loop
         self.id = int(mote_id)
@@ -91,6 +96,12 @@ class SimMote:
         self.duration = duration
         self.status_period = STATUS_PERIOD / scale
         self.cal = cal
+        self.ee = None
+        if cal is not None and hasattr(cal, "image"):
+            from ..mote_c import EepromWriter
+            self.ee = EepromWriter(cal, eeprom)        # restores the set in force
+        self._ee_writing = False
+        self.eeprom_writes = 0                        # images completed
         self._flags = int(cal.flags()) if cal is not None else 0   # changes only in handle()
         self.mac = Mac(self.id, net.channel, rng, max_retries=MAX_RETRIES)
         net.channel.attach(self.id, self)
@@ -187,7 +198,11 @@ class SimMote:
             return
         reply = self.cal.handle(f.am_type, bytes(f.payload))
         self._flags = int(self.cal.flags())
-        if getattr(self.cal, "dirty", False):     # the EEPROM writer's job, instant here
+        if self.ee is not None:
+            if self.ee.poll() and not self._ee_writing:
+                self._ee_writing = True
+                self.loop.at(self.loop.now + self.ee.BYTE_TIME_S, self._ee_step, None)
+        elif getattr(self.cal, "dirty", False):   # a stand-in receiver: persisted at once
             self.cal.mark_persisted()
         if reply:
             rtype, rpayload = reply
@@ -195,6 +210,15 @@ class SimMote:
                 self.replies += 1
             else:
                 self.replies_dropped += 1
+
+    def _ee_step(self, _) -> None:
+        """One EEPROM byte write of the background writer."""
+        if self.ee.step() and self.ee.busy:
+            self.loop.at(self.loop.now + self.ee.BYTE_TIME_S, self._ee_step, None)
+            return
+        self._ee_writing = False
+        self.eeprom_writes += 1
+        self.net.eeprom_written(self.id)
 
     # ------------------------------------------------------------------ status
     def _status(self, _) -> None:
@@ -223,6 +247,7 @@ class SimMote:
                  radio_lost=self.radio_lost, msgs_dropped=self.msgs_dropped,
                  status_sent=self.status_sent, status_dropped=self.status_dropped,
                  replies=self.replies, replies_dropped=self.replies_dropped,
+                 eeprom_writes=self.eeprom_writes,
                  queued=sum(m.count for m in self.queue), clock_ppm=self.clock_ppm)
         d.update(self.mac.counters())
         return d

@@ -123,7 +123,8 @@ class Network:
 
     def __init__(self, samplers: dict, clock_ppm: dict, *, duration: float,
                  baud: int = 250000, loss: float = 0.0, batch: int = P.NINEDOF_BATCH,
-                 seed: int = 1, rate_hz: float = P.NINEDOF_RATE_HZ, cal_factory="auto"):
+                 seed: int = 1, rate_hz: float = P.NINEDOF_RATE_HZ, cal_factory="auto",
+                 eeprom: dict | None = None):
         if not 0.0 <= loss <= 1.0:
             raise ValueError("loss must be within 0..1")
         if not 1 <= batch <= 255:
@@ -149,7 +150,8 @@ class Network:
             cal = cal_factory(mote_id) if cal_factory is not None else None
             m = SimMote(self, mote_id, samplers[mote_id], clock_ppm.get(mote_id, 0.0),
                         random.Random(rng.getrandbits(64)), batch=self.batch,
-                        rate_hz=rate_hz, duration=self.duration, cal=cal)
+                        rate_hz=rate_hz, duration=self.duration, cal=cal,
+                        eeprom=(eeprom or {}).get(mote_id))
             m.bs_dropped = 0
             self.motes[mote_id] = m
             self.sent[mote_id] = SentLog(m)
@@ -160,6 +162,9 @@ class Network:
     # ---------------------------------------------------------------- hooks
     def uart_start(self, t: float, data: bytes) -> None:
         self._segments.append([t, data, 0])
+
+    def eeprom_written(self, mote_id: int) -> None:
+        """A mote finished writing a calibration image into its EEPROM."""
 
     def delivered(self, msg) -> None:
         self.sent[msg.mote].add(msg)

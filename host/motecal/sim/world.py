@@ -12,6 +12,8 @@ duration (or ``duration``); ``done`` is True once it is over and every queue
 has drained onto the line.  The motes keep answering calibration messages
 after that.  A sequence of kinds (``session="static80,static80"``) samples
 through all of them: log the first, calibrate, upload, log the second.
+With ``eeprom=FILE`` each mote's EEPROM lives in that file: a calibration
+uploaded in one run is restored at boot in the next, as on a real mote.
 """
 from __future__ import annotations
 
@@ -53,8 +55,10 @@ class World(Network):
     def __init__(self, motes: int = 3, session: str = "static80", seed: int = 1,
                  baud: int = 250000, loss: float = 0.0, model=None,
                  batch: int = P.NINEDOF_BATCH, duration: float | None = None,
-                 *, cal_factory="auto"):
+                 *, cal_factory="auto", eeprom: str | os.PathLike | None = None):
         check_options(motes, session, baud, loss, batch, duration)
+        self.eeprom_path = Path(eeprom) if eeprom is not None else None
+        self.eeproms = _load_eeproms(self.eeprom_path, motes)
         self.seed = int(seed)
         self.session = session
         self.model = model if hasattr(model, "board") else load_model(model)
@@ -65,7 +69,12 @@ class World(Network):
         samplers = {m: b.sampler(self.trajectory, self.seed) for m, b in self.boards.items()}
         ppm = {m: b.clock_ppm for m, b in self.boards.items()}
         super().__init__(samplers, ppm, duration=dur, baud=baud, loss=loss, batch=batch,
-                         seed=self.seed, rate_hz=self.model.rate_hz, cal_factory=cal_factory)
+                         seed=self.seed, rate_hz=self.model.rate_hz, cal_factory=cal_factory,
+                         eeprom=self.eeproms)
+
+    def eeprom_written(self, mote_id: int) -> None:
+        if self.eeprom_path is not None:
+            _save_eeproms(self.eeprom_path, self.eeproms)
 
     def network_truth(self) -> dict:
         """When each mote sampled: sample k of mote m was taken at true time
@@ -92,6 +101,48 @@ class World(Network):
         except OSError as e:
             raise UserError(f"cannot write truth file {path}: {e.strerror or e}") from None
         return d
+
+
+EEPROM_FORMAT = "motecal-sim-eeprom"
+EEPROM_SIZE = 4096
+
+
+def _load_eeproms(path: Path | None, motes: int) -> dict[int, bytearray]:
+    """Each mote's EEPROM (erased: 0xFF) or as the file left it."""
+    ee = {m: bytearray(b"\xff" * EEPROM_SIZE) for m in range(1, motes + 1)}
+    if path is None or not path.exists():
+        return ee
+    try:
+        d = json.loads(path.read_text(encoding="utf-8"))
+        if d.get("format") != EEPROM_FORMAT:
+            raise ValueError(f"not a {EEPROM_FORMAT} file")
+        for m, hexdata in d["motes"].items():
+            data = bytes.fromhex(hexdata)
+            if len(data) != EEPROM_SIZE:
+                raise ValueError(f"mote {m}: {len(data)} bytes, expected {EEPROM_SIZE}")
+            if int(m) in ee:
+                ee[int(m)][:] = data
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as e:
+        raise UserError(f"cannot read EEPROM file {path}: {e}") from None
+    return ee
+
+
+def _save_eeproms(path: Path, ee: dict[int, bytearray]) -> None:
+    """Write atomically (temp file + rename): a crash keeps the old file."""
+    old = {}
+    if path.exists():
+        try:
+            old = json.loads(path.read_text(encoding="utf-8")).get("motes", {})
+        except (OSError, ValueError):
+            old = {}
+    old.update({str(m): bytes(v).hex() for m, v in ee.items()})
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        tmp.write_text(json.dumps({"format": EEPROM_FORMAT, "motes": old}) + "\n",
+                       encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError as e:
+        raise UserError(f"cannot write EEPROM file {path}: {e.strerror or e}") from None
 
 
 class WorldPort(Source):

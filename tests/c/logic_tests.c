@@ -1,8 +1,9 @@
 /*
  * logic_tests.c -- behaviour of the firmware's plain C logic (board data
  * conversion, I2C rate, 125 Hz sampling clock, batching, status, EEPROM
- * writer, the BaseStation's serial divisor and status), built twice by tests/test_avr.py: with gcc on the host and with avr-gcc
- * for the ATmega1281 in simavr.  Prints "CHECKS <n> FAILED <m>" and, for the
+ * writer, the BaseStation's serial divisor and status), built twice by
+ * tests/test_avr.py: with gcc on the host and with avr-gcc for the
+ * ATmega1281 in simavr.  Prints "CHECKS <n> FAILED <m>" and, for the
  * host-vs-AVR comparison, a digest of every packed message ("D<hex>").
  */
 #include <stdint.h>

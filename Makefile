@@ -8,41 +8,46 @@ SHELL := /bin/bash
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-$(shell cat host/requirements.txt host/pyproject.toml | md5sum | cut -c1-8)
-APT_PACKAGES := gcc make gcc-avr avr-libc simavr postgresql
+# Debian packages: the demo needs a C compiler (the simulated motes run the
+# firmware's C code); the tests also need avr-gcc + simavr and a PostgreSQL
+# server (the store's server test).  Installed with apt-get when missing.
+DEMO_PACKAGES := gcc libc6-dev
+TEST_PACKAGES := $(DEMO_PACKAGES) gcc-avr avr-libc simavr postgresql
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 DEMO_DIR ?= demo-out
 
-.PHONY: all venv sysdeps test demo bench clean cbuild
+.PHONY: all venv sysdeps demodeps test demo bench clean
 
 all: test
 
 # --- set-up -------------------------------------------------------------
 $(STAMP): host/requirements.txt host/pyproject.toml
-	@if ! python3 -c 'import venv, ensurepip' 2>/dev/null; then \
-	  echo "installing python3-venv"; \
-	  $(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq python3-venv python3-pip; fi
+	@command -v python3 >/dev/null && python3 -c 'import sys; sys.exit(sys.version_info < (3, 10))' \
+	  || $(call apt_install,python3 python3-venv)
 	rm -rf $(VENV)
-	python3 -m venv $(VENV)
+	python3 -m venv $(VENV) || { rm -rf $(VENV); $(call apt_install,python3-venv) && python3 -m venv $(VENV); }
 	$(VENV)/bin/pip install -q --disable-pip-version-check -r host/requirements.txt
 	$(VENV)/bin/pip install -q --disable-pip-version-check --no-deps -e host
 	touch $@
 
 venv: $(STAMP)
 
-# Debian packages the tests need (gcc, avr-gcc, simavr; postgresql for the store's
-# server test), installed when missing.
+apt_install = { echo "installing Debian packages: $(1)"; \
+  $(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $(1) >/dev/null; }
+missing = $(shell for p in $(1); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done)
+
 sysdeps:
-	@missing=""; for p in $(APT_PACKAGES); do \
-	  dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
-	if [ -n "$$missing" ]; then echo "installing Debian packages:$$missing"; \
-	  $(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $$missing >/dev/null; fi
+	@$(if $(call missing,$(TEST_PACKAGES)),$(call apt_install,$(call missing,$(TEST_PACKAGES))),true)
+
+demodeps:
+	@$(if $(call missing,$(DEMO_PACKAGES)),$(call apt_install,$(call missing,$(DEMO_PACKAGES))),true)
 
 # --- the two commands -----------------------------------------------------
 test: venv sysdeps
 	$(PY) -m pytest -q -p no:cacheprovider $(PYTEST_ARGS) tests
 
-demo: venv
+demo: venv demodeps
 	$(PY) scripts/demo.py --out $(DEMO_DIR)
 
 bench: venv sysdeps

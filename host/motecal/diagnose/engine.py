@@ -125,7 +125,7 @@ def regime(obs: SensorObs) -> str | None:
 
 CANDIDATES = {
     "poses": ["cross_axis", "nonlinearity", "bias_drift"],
-    "sweep": ["cross_axis", "nonlinearity", "bias_drift", "field_disturbance"],
+    "sweep": ["cross_axis", "nonlinearity", "field_disturbance"],
     "single": ["bias_drift"],
     "still": ["g_sensitivity", "bias_drift"],
 }
@@ -178,10 +178,10 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
     screens: list[SC.Screen] = []
     notes: list[str] = []
 
-    def decide(sensor, cause, p, g, practical=True):
+    def decide(sensor, cause, p, g, practical=True, fitted=True):
         if force is not None:
             return (sensor, cause) in force
-        return G.accepted(p, a_test, g, practical)
+        return G.accepted(p, a_test, g if fitted else None, practical)
 
     def record(sensor, cause, p, kept, **kw):
         tests.append({"sensor": sensor, "cause": cause, "p": _num(p), "level": _num(a_test),
@@ -193,7 +193,7 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
         sc = SC.stale_samples(o, o.rate)
         if sc is not None:
             g = sc.gain()
-            kept = decide(s, "stale_samples", sc.p, g, sc.practical)
+            kept = decide(s, "stale_samples", sc.p, g, sc.practical, fitted=False)
             record(s, "stale_samples", sc.p, kept, effect=sc.effect)
             if kept:
                 stale_on[s] = sc
@@ -201,7 +201,7 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
         sat = SC.saturation(o, X.SIM_LIMITS[s])
         if sat is not None:
             g = sat.gain()
-            kept = decide(s, "saturation", sat.p, g, sat.practical)
+            kept = decide(s, "saturation", sat.p, g, sat.practical, fitted=False)
             record(s, "saturation", sat.p, kept, effect=sat.effect)
             if kept:
                 screens.append(sat)
@@ -213,7 +213,7 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
     if ("accel", "motion") in plan:
         mot = SC.motion(obs["accel"], obs["gyro"], True)
         if mot is not None:
-            kept = decide("accel", "motion", mot.p, mot.gain(), mot.practical)
+            kept = decide("accel", "motion", mot.p, mot.gain(), mot.practical, fitted=False)
             record("accel", "motion", mot.p, kept, effect=mot.effect)
             if not kept:
                 mot = None
@@ -262,6 +262,8 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
             notes.append(f"{s}: too few points for the {r} analysis")
             continue
         structures[s] = st
+        if "bias_drift" in st.causes and not isinstance(st.fit, F.MagnitudeFit):
+            st.random_walk = ST.random_walk(st, o)
         for t in st.tests:
             record(s, t.cause, t.p, False, F=t.F, q=t.q, dof=t.dof, dbic=t.dbic, round=t.round)
         for c in st.causes:
@@ -423,6 +425,11 @@ def _structure_finding(s, c, st: ST.Structure, o: SensorObs, g, before, after) -
             ev["drift_range"] = float(np.ptp(curve, axis=0).max())
             ev["basis"] = f"{J} time functions per axis"
             params = _drift_params_for(curve * X.K_NOMINAL[s], tt, J)
+            rw = getattr(st, "random_walk", None)
+            if rw is not None:
+                rws = np.asarray(rw["sigma_counts_per_sqrt_s"]) * X.sim_scale(s, o.K)
+                params["sigma"] = X._r(np.maximum(np.asarray(params["sigma"], float), rws))
+                ev["random_walk_sigma"] = X._r(rws)
     summ = C.summary(s, c, ev, params, g, before, after, st.unit)
     return Finding(s, c, summ, ev, params, g)
 
@@ -480,14 +487,22 @@ def _excess_finding(s, st: ST.Structure, o, sobs, structures, a_test, record, mo
     if force is not None:
         kept = (s, "field_disturbance") in force or (s, "unexplained") in force
         time_kept = False
+    if kept and "bias_drift" in st.causes and not isinstance(fit, F.MagnitudeFit):
+        # a random walk on top of the smooth drift (restricted likelihood)
+        rw = getattr(st, "random_walk", None)
+        if rw is not None:
+            if rw["excess"][1] >= a_test:
+                record(s, "excess", p, False, ratio=ratio,
+                       note=f"explained by a random walk of the kept drift "
+                            f"(sigma {np.round(rw['sigma_counts_per_sqrt_s'], 3).tolist()} "
+                            f"counts/sqrt(s); chi-square p {rw['excess'][1]:.2g})")
+                return None
     if kept and time_kept:
         # leftover that is just finer time structure of a kept drift
         T = st.points["T"]
-        rr = r if r.shape == T.shape else r.reshape(-1, 3).mean(axis=1)
-        order = np.argsort(T)
-        x = rr[order] - rr.mean()
-        ac = float(x[1:] @ x[:-1] / max(x @ x, 1e-30))
-        if ac > 3.0 / np.sqrt(len(x)):
+        rr = r if r.shape == T.shape else r.reshape(-1, 3)
+        ac, z = ST.lag1(rr, T)
+        if z > 1.645:                 # one-sided 5 %: correlated, i.e. still the drift
             record(s, "excess", p, False, ratio=ratio,
                    note=f"time-correlated leftover (lag-1 {ac:.2f}) of the kept drift")
             return None
@@ -638,6 +653,11 @@ def _models(data, obs, sobs, structures, findings, screens, mot):
             else:
                 b = np.median(o.x, axis=0) * scale
                 start_terms = ext_terms = [{"term": "linear", "b": X._r(b)}]
+        if (s, "bias_drift") in kept:
+            # the random walk measured on top of the smooth drift
+            for t in ext_terms:
+                if t["term"] == "bias_drift":
+                    t["sigma"] = kept[(s, "bias_drift")].params.get("sigma", t["sigma"])
         if s == "mag" and (s, "field_disturbance") in kept:
             ext_terms = [{"term": "field_disturbance",
                           **kept[(s, "field_disturbance")].params}] + ext_terms

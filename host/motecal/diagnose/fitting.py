@@ -154,6 +154,48 @@ class FieldExtra(Extra):
 
 
 # ---------------------------------------------------------------------------
+# least squares
+# ---------------------------------------------------------------------------
+def levenberg_marquardt(fun, jac, x0, *, max_iter: int = 100, rtol: float = 1e-10):
+    """Levenberg-Marquardt with Marquardt's diagonal scaling on the normal
+    equations (p is small, n may be thousands: a p x p solve per step instead
+    of an SVD of the n x p Jacobian)."""
+    x = np.asarray(x0, float).copy()
+    r = fun(x)
+    cost = float(r @ r)
+    lam = 1e-3
+    for _ in range(max_iter):
+        J = jac(x)
+        A = J.T @ J
+        g = J.T @ r
+        d = np.diag(A).copy()
+        d[d <= 0] = 1.0
+        improved = False
+        for _ in range(30):
+            try:
+                dx = -np.linalg.solve(A + lam * np.diag(d), g)
+            except np.linalg.LinAlgError:
+                lam *= 10.0
+                continue
+            xn = x + dx
+            rn = fun(xn)
+            cn = float(rn @ rn)
+            if np.isfinite(cn) and cn <= cost:
+                improved = True
+                break
+            lam *= 4.0
+        if not improved:
+            break
+        rel = (cost - cn) / max(cost, 1e-300)
+        small_step = np.all(np.abs(dx) <= 1e-9 * (np.abs(x) + 1e-9))
+        x, r, cost = xn, rn, cn
+        lam = max(lam / 3.0, 1e-12)
+        if rel < rtol or small_step:
+            break
+    return x
+
+
+# ---------------------------------------------------------------------------
 # magnitude model
 # ---------------------------------------------------------------------------
 @dataclass
@@ -171,6 +213,19 @@ class MagnitudeFit:
     @property
     def p(self) -> int:
         return len(self.theta)
+
+    @property
+    def names(self) -> list[str]:
+        out = list(self.base.names)
+        for e in self.extras:
+            out += [f"{e.cause}.{n}" for n in e.names()]
+        return out
+
+    def new_param_index(self, cause: str) -> np.ndarray:
+        """Indices of the parameters a cause adds (cross_axis: the k_ terms)."""
+        if cause == "cross_axis":
+            return np.array([i for i, n in enumerate(self.names) if n.startswith("k_")], int)
+        return np.array([i for i, n in enumerate(self.names) if n.startswith(cause + ".")], int)
 
     @property
     def causes(self) -> list[str]:
@@ -283,7 +338,8 @@ def start_theta(base: MagnitudeModel, A, c, H) -> np.ndarray:
 
 
 def fit_magnitude(sensor: str, K: float, x, t, w, *, family="paper", extras=(),
-                  start: MagnitudeFit | None = None, polish_base=True) -> MagnitudeFit:
+                  start: MagnitudeFit | None = None, polish_base=True,
+                  max_nfev: int | None = None) -> MagnitudeFit:
     """Weighted least squares of the magnitude model on points x (counts) at
     times t with weights w (1/sd of each residual)."""
     x = np.asarray(x, float)
@@ -319,9 +375,7 @@ def fit_magnitude(sensor: str, K: float, x, t, w, *, family="paper", extras=(),
     if not extras and family == "paper" and polish_base is False:
         theta = theta0
     else:
-        r = least_squares(res, theta0, jac=jac, method="trf", x_scale="jac", xtol=1e-10,
-                          ftol=1e-12, gtol=1e-12, max_nfev=50 * (len(theta0) + 1))
-        theta = r.x
+        theta = levenberg_marquardt(res, jac, theta0, max_iter=max_nfev or 100)
     fit.theta = np.asarray(theta, float)
     rr = res(fit.theta)
     fit.rss = float(rr @ rr)
@@ -386,3 +440,35 @@ def delta_bic(rss0: float, rss1: float, q: int, n: int) -> float:
     if rss0 <= 0 or rss1 <= 0 or n <= 0:
         return 0.0
     return float(n * np.log(rss1 / rss0) + q * np.log(n))
+
+
+def robust_wald(fit: MagnitudeFit, x, t, w, idx: np.ndarray, clusters: np.ndarray):
+    """Wald test that the parameters ``idx`` are 0, with a cluster-robust
+    (sandwich) covariance: scores summed within clusters of consecutive
+    readings, so that residuals correlated inside a cluster are not counted
+    as independent.  Returns (F = W / q, p) with F(q, G - 1), G clusters."""
+    q = len(idx)
+    G = len(np.unique(clusters))
+    if q == 0 or G - 1 < 4 * q:
+        return None
+    J = w[:, None] * fit.jacobian(x, t)
+    r = w * fit.residuals(x, t)
+    A = J.T @ J
+    try:
+        Ainv = np.linalg.pinv(A)
+    except np.linalg.LinAlgError:
+        return None
+    sc = J * r[:, None]
+    _, inv = np.unique(clusters, return_inverse=True)
+    Sb = np.zeros((G, J.shape[1]))
+    np.add.at(Sb, inv, sc)
+    meat = Sb.T @ Sb * G / (G - 1)
+    cov = Ainv @ meat @ Ainv
+    b = fit.theta[idx]
+    C = cov[np.ix_(idx, idx)]
+    try:
+        W = float(b @ np.linalg.solve(C, b))
+    except np.linalg.LinAlgError:
+        return None
+    Fv = W / q
+    return Fv, float(stats.f.sf(Fv, q, G - 1))

@@ -44,6 +44,7 @@ class Table:
     seg: np.ndarray             # (k,) segment index (for blocks: the segment it is in)
     rows: list                  # per row of the table: indices into SensorObs.x
     sd: np.ndarray              # (k, 3) within sd, counts
+    n_bad: np.ndarray | None = None   # (k,) overflow readings inside (left out of the mean)
 
     def __len__(self):
         return len(self.n)
@@ -144,11 +145,13 @@ def _segments(obs: SensorObs, data_label: np.ndarray, scales: dict) -> tuple[lis
     groups = []
     poses = np.unique(data_label[(data_label >= 1) & ok])
     if len(poses):
+        obs.bad_in_pose = []
         for p in poses:
             idx = np.flatnonzero((data_label == p) & ok)
             # a pose split across recordings or long gaps stays one pose
             if len(idx) >= MIN_SEG_SAMPLES:
                 groups.append(idx)
+                obs.bad_in_pose.append(int(np.sum((data_label == p) & ~ok)))
         return groups, True
     # no pose labels: find still stretches in this sensor alone
     raw = np.full((obs.n, 9), np.nan)
@@ -273,6 +276,8 @@ def sensor_obs(data: SessionData, sensor: str, dedup: bool = False) -> SensorObs
     moving = np.ones(obs.n, bool)
     if groups:
         obs.segs = _table(obs, groups, list(range(len(groups))))
+        bad = getattr(obs, "bad_in_pose", None)
+        obs.segs.n_bad = np.asarray(bad if bad is not None else np.zeros(len(groups)), float)
         bg, bs = _blocks(obs, groups)
         obs.blocks = _table(obs, bg, bs)
         for g in groups:

@@ -17,7 +17,7 @@ from .prepare import SensorObs, unique_updates
 # practical floors: below these an effect is not reported even when significant
 STALE_MIN_EXCESS = 0.02        # repeated-reading fraction above chance
 SAT_MIN_COUNT = 5              # readings at the limit
-SAT_MIN_RATIO = 10.0           # count at the limit / mean count of the 20 values inside it
+SAT_MIN_RATIO = 4.0            # count at the limit / mean count of the 20 values inside it
 SAT_NEIGHBOURS = 20
 MOTION_LAG_S = 0.064           # accelerometer change over this lag is compared with the gyro's
 
@@ -187,8 +187,8 @@ def saturation(obs: SensorObs, chip_limits: tuple | None = None) -> Screen | Non
     Test per axis and side: under a smooth distribution the count at the
     extreme value is comparable to the counts just inside it; the p-value is
     Poisson with twice the neighbours' mean count as the expectation (a
-    conservative allowance for the slope of the distribution).  Clipping needs
-    at least ``SAT_MIN_COUNT`` readings and ``SAT_MIN_RATIO`` times the
+    conservative allowance for the slope of the distribution).  Clipping also
+    needs at least ``SAT_MIN_COUNT`` readings and ``SAT_MIN_RATIO`` times the
     neighbours' mean; any overflow code is direct evidence."""
     if obs.n < 20:
         return None
@@ -200,7 +200,7 @@ def saturation(obs: SensorObs, chip_limits: tuple | None = None) -> Screen | Non
             L, c, lam = _pileup(x[:, a], side)
             lam2 = max(2.0 * lam, 0.5)
             p = float(stats.poisson.sf(c - 1, lam2)) if c > 0 else 1.0
-            ratio = c / lam2
+            ratio = c / max(lam, 0.25)
             if c >= SAT_MIN_COUNT and ratio >= SAT_MIN_RATIO:
                 hits.append({"axis": "xyz"[a], "side": "high" if side > 0 else "low",
                              "limit_counts": L, "count": c, "neighbour_mean": round(lam, 3),
@@ -261,7 +261,8 @@ def motion(acc: SensorObs | None, gyr: SensorObs | None, seg_rows_shared: bool) 
     is 0; a shaking board gives slope ~1.  One-sided z-test on the slope.
     Size: rms tremor angle (from the accelerometer's excess variance across
     the gravity direction) and bandwidth (rate / angle)."""
-    if acc is None or gyr is None or acc.segs is None or not seg_rows_shared:
+    if acc is None or gyr is None or acc.segs is None or gyr.blocks is None \
+            or not seg_rows_shared:
         return None
     if len(acc.x) != len(gyr.x) or not np.array_equal(acc.rows, gyr.rows):
         return None
@@ -301,7 +302,7 @@ def motion(acc: SensorObs | None, gyr: SensorObs | None, seg_rows_shared: bool) 
     p = float(2.0 * stats.norm.sf(abs(zstat)))
     # size: rate excess of the gyro, angle excess of the accelerometer
     sig_g = gyr.sigma
-    gvar = np.array([gyr.x[gg].var(axis=0, ddof=1) for gg in gyr.segs.rows])
+    gvar = np.array([gyr.x[gg].var(axis=0, ddof=1) for gg in gyr.blocks.rows])
     rate_var = np.clip(gvar - sig_g ** 2, 0, None).mean()             # counts^2 per axis
     rate_rms_dps = float(np.sqrt(rate_var)) / Kg
     # accelerometer excess variance across the gravity direction
@@ -321,7 +322,7 @@ def motion(acc: SensorObs | None, gyr: SensorObs | None, seg_rows_shared: bool) 
     if angle_deg <= 0 and rate_rms_dps > 0:
         f_rms = B / np.sqrt(3.0)
         angle_deg = rate_rms_dps / (2 * np.pi * f_rms)
-    # per-segment statistic: gyro rate excess (counts^2); predicted 0 before,
+    # per-block statistic: gyro rate excess (counts^2); predicted 0 before,
     # the other fold's mean after
     stat = np.clip(gvar - sig_g ** 2, 0, None).mean(axis=1)
     fold = _folds(len(stat))
@@ -335,5 +336,5 @@ def motion(acc: SensorObs | None, gyr: SensorObs | None, seg_rows_shared: bool) 
           "tremor_angle_rms_deg": round(angle_deg, 4)}
     return Screen("accel+gyro", "motion", p, angle_deg, ev,
                   {"rms_deg": round(angle_deg, 5), "bandwidth_hz": round(B, 3)},
-                  stat, np.zeros(len(stat)), after, "gyro rate variance above noise per pose "
-                  "(counts^2)", True)
+                  stat, np.zeros(len(stat)), after, "gyro rate variance above noise per "
+                  "still block (counts^2)", True)

@@ -7,8 +7,11 @@ Per sensor, one of four regimes decides what the observations are:
   orientations): one magnitude residual per pose mean, weighted by its noise;
   candidates ``cross_axis``, ``nonlinearity``, ``bias_drift``.
 * ``sweep``  (magnetometer without enough poses): one magnitude residual per
-  reading; candidates as above plus ``field_disturbance`` as a field
-  magnitude that moves with time.
+  reading; candidates ``cross_axis``, ``nonlinearity`` and
+  ``field_disturbance`` as a field magnitude that moves with time (a
+  drifting hard iron cannot be told from a changing field without a
+  reference, so ``bias_drift`` is left to poses); consecutive readings
+  share slow leftovers, so small terms get a cluster-robust Wald test.
 * ``single`` (accelerometer or magnetometer in one or a few orientations):
   per axis, block means = a constant per orientation + drift; candidate
   ``bias_drift``.
@@ -21,8 +24,9 @@ added to the current model and F-tested against it; the most significant one
 is kept if its p-value is below the per-test level the engine passes in
 (``alpha``, Bonferroni over every test of the diagnosis).  The held-out gain
 of each kept term is then measured by K-fold cross-validation over
-interleaved poses or time blocks: held-out rms of the residual of the final
-model without the term / with it (both refitted on the other folds).
+interleaved poses, time blocks or (sweeps) readings: held-out rms of the
+residual of the final model without the term / with it (both refitted on
+the other folds).
 """
 from __future__ import annotations
 
@@ -36,7 +40,8 @@ from .prepare import SensorObs
 MIN_POSES = 12            # orientations needed for magnitude (calibration) terms
 KFOLD = 5
 SWEEP_CHUNK_S = 2.0       # time chunk of sweep data for held-out folds
-MAX_SWEEP_POINTS = 6000   # sweeps are thinned to this many readings
+MAX_SWEEP_POINTS = 3000   # sweeps are thinned to this many readings
+HELDOUT_NFEV = 12         # held-out refits start at the full fit: a few steps suffice
 MIN_DOF = 5
 
 
@@ -97,7 +102,7 @@ def _causes(spec) -> set:
     return {cause_of(it) for it in spec}
 
 
-def _spec_fit(sensor, K, X, T, W, spec: frozenset, trange, Jf, start=None):
+def _spec_fit(sensor, K, X, T, W, spec: frozenset, trange, Jf, start=None, max_nfev=None):
     causes = _causes(spec)
     family = "full" if "cross_axis" in causes else "paper"
     extras = []
@@ -107,19 +112,63 @@ def _spec_fit(sensor, K, X, T, W, spec: frozenset, trange, Jf, start=None):
         extras.append(F.DriftExtra(*trange, _size(spec, "bias_drift", F.DRIFT_J)))
     if "field_disturbance" in causes:
         extras.append(F.FieldExtra(*trange, _size(spec, "field_disturbance", Jf)))
-    return F.fit_magnitude(sensor, K, X, T, W, family=family, extras=extras, start=start)
+    return F.fit_magnitude(sensor, K, X, T, W, family=family, extras=extras, start=start,
+                           max_nfev=max_nfev)
 
 
 def drift_sizes(duration: float, max_params: int, per_axis: int = 3) -> list[int]:
-    """Basis sizes tried for a drift: a smooth one (warm-up, linear) and a
-    finer one (random walk; one function per ~10 s), as the data allow."""
+    """Basis sizes tried for a drift: a smooth one (linear, slow warm-up), one
+    function per ~30 s (a fast warm-up) and one per ~10 s (a random walk), as
+    the data allow."""
     small = F.DRIFT_J
-    large = int(np.clip(round(duration / 10.0), 8, 40))
-    large = min(large, max_params // per_axis)
-    return [small] + ([large] if large > small else [])
+    cap = max_params // per_axis
+    out = [small]
+    for j in (int(np.clip(round(duration / 30.0), 6, 20)),
+              int(np.clip(round(duration / 10.0), 8, 40))):
+        j = min(j, cap)
+        if j > out[-1]:
+            out.append(j)
+    return out
 
 
-def _greedy(candidates: dict, fits: dict, fit_fn, n_obs: int, alpha: float, tests: list):
+def lag1(r: np.ndarray, T: np.ndarray) -> tuple[float, float]:
+    """Pooled lag-1 autocorrelation of residuals in time order (columns are
+    separate series) and its z-score under white residuals."""
+    r = np.asarray(r, float)
+    if r.ndim == 1:
+        r = r[:, None]
+    o = np.argsort(T, kind="stable")
+    x = r[o] - r[o].mean(axis=0)
+    num = float(np.sum(x[1:] * x[:-1]))
+    den = float(np.sum(x * x))
+    if den <= 0 or len(x) < 3:
+        return 0.0, 0.0
+    rho = num / den
+    return rho, rho * np.sqrt((len(x) - 1) * x.shape[1])
+
+
+NW_LAG_S = 1.0            # Newey-West window for correlated sweep residuals
+
+
+def inflation(fit, resid_fn, lags: int) -> float:
+    """Long-run variance ratio of the (time-ordered) weighted residuals:
+    1 + 2 sum_k (1 - k/(L+1)) rho_k over L lags (Newey-West, Bartlett
+    weights).  1 for white residuals; > 1 when leftovers are correlated, so
+    that contrasts that vary slowly are not over-trusted."""
+    if resid_fn is None or lags < 1:
+        return 1.0
+    r = resid_fn(fit)
+    r = r - r.mean()
+    d = float(r @ r)
+    if d <= 0 or len(r) < 4 * lags:
+        return 1.0
+    k = np.arange(1, lags + 1)
+    rho = np.array([r[j:] @ r[:-j] / d for j in k])
+    return float(max(1.0, 1.0 + 2.0 * np.sum((1.0 - k / (lags + 1.0)) * rho)))
+
+
+def _greedy(candidates: dict, fits: dict, fit_fn, n_obs: int, alpha: float, tests: list,
+            resid_fn=None, lags: int = 0, robust_fn=None):
     """Forward selection.  ``candidates``: cause -> list of spec items (variants;
     a cause's p-value is its best variant's times the number of variants)."""
     cur = frozenset()
@@ -140,12 +189,31 @@ def _greedy(candidates: dict, fits: dict, fit_fn, n_obs: int, alpha: float, test
                 dof = n_obs - f1.p
                 if dof < MIN_DOF or not getattr(f1, "ok", True):
                     continue
-                Fv, p = F.f_test(f0.rss, f1.rss, q, dof)
+                rob = robust_fn(f1, cause) if robust_fn is not None else None
+                if rob is not None:
+                    Fv, p = rob
+                else:
+                    Fv, p = F.f_test(f0.rss, f1.rss, q, dof)
+                    kap = inflation(f1, resid_fn, lags)
+                    if kap > 1.0:
+                        from scipy import stats as _st
+                        Fv = Fv / kap
+                        p = float(_st.f.sf(Fv, q, max(1, int(dof / kap))))
                 rec = TestRecord(rnd, cause, q, Fv, min(1.0, p * len(variants)), dof,
                                  F.delta_bic(f0.rss, f1.rss, q, n_obs), f0.rss, f1.rss)
                 rec.item = item
-                if cbest is None or (rec.p, rec.dbic) < (cbest.p, cbest.dbic):
+                # among a cause's variants (basis sizes) the significant one with
+                # the lowest AIC: the size is resolution, not another finding
+                rec.aic = float(n_obs * np.log(max(f1.rss, 1e-300) / max(f0.rss, 1e-300))
+                                + 2 * q)
+                if cbest is None:
                     cbest = rec
+                else:
+                    sig_new, sig_old = rec.p < alpha, cbest.p < alpha
+                    if (sig_new and not sig_old) or (sig_new == sig_old and (
+                            (sig_new and rec.aic < cbest.aic)
+                            or (not sig_new and rec.p < cbest.p))):
+                        cbest = rec
             if cbest is None:
                 continue
             tests.append(cbest)
@@ -175,6 +243,8 @@ def magnitude_points(obs: SensorObs, regime: str, drop_rows: np.ndarray | None =
     if regime == "poses":
         segs = obs.segs
         keep = np.ones(len(segs), bool)
+        if segs.n_bad is not None:
+            keep &= segs.n_bad <= 0.01 * segs.n          # overflow codes inside the pose
         if drop_rows is not None:
             for i, g in enumerate(segs.rows):
                 if drop_rows[g].mean() > 0.01:
@@ -197,13 +267,25 @@ def magnitude_points(obs: SensorObs, regime: str, drop_rows: np.ndarray | None =
     T = obs.t[idx]
     var = np.tile(obs.sigma ** 2, (len(idx), 1))
     chunk = np.floor((T - T[0]) / SWEEP_CHUNK_S).astype(int)
-    fold = chunk % KFOLD
+    # interleaved readings: a held-out reading lies between fitted ones, so a
+    # field that moves with time is checked at its own resolution
+    fold = np.arange(len(idx)) % KFOLD
     return {"X": X, "T": T, "var": var, "fold": fold, "group": chunk, "n": np.ones(len(idx)),
             "dropped": int((~ok).sum()), "step": step}
 
 
 def field_basis_size(duration: float) -> int:
     return int(np.clip(round(duration / 5.0), 4, 40))
+
+
+def field_sizes(duration: float, n_points: int) -> list[int]:
+    """Field-magnitude time bases tried on a sweep: one function per ~5 s and
+    one per second (a wander with fast components), as the points allow."""
+    out = [field_basis_size(duration)]
+    fine = int(min(round(duration), 200, n_points // 20))
+    if fine > 2 * out[0]:
+        out.append(fine)
+    return out
 
 
 def analyse_magnitude(obs: SensorObs, regime: str, candidates: list[str], alpha: float,
@@ -228,16 +310,37 @@ def analyse_magnitude(obs: SensorObs, regime: str, candidates: list[str], alpha:
             sizes = drift_sizes(trange[1] - trange[0], (k - fit0.p) // 2)
             cand[c] = [f"bias_drift:{j}" for j in sizes]
         elif c == "field_disturbance":
-            cand[c] = [f"field_disturbance:{Jf}"]
+            cand[c] = [f"field_disturbance:{j}" for j in field_sizes(trange[1] - trange[0], k)]
         else:
             cand[c] = [c]
     tests = []
+    # sweeps: consecutive readings share slow leftovers; the F-test is deflated
+    # sweeps: consecutive readings share leftovers (a field that moves faster
+    # than any basis follows): terms with few parameters get a cluster-robust
+    # Wald test (clusters of NW_LAG_S), the others an F-test deflated by the
+    # residuals' long-run variance ratio
+    resid_fn = robust_fn = None
+    lags = 0
+    if regime == "sweep" and k > 1:
+        resid_fn = (lambda f: W * f.residuals(X, T))
+        lags = int(round(NW_LAG_S / max(np.median(np.diff(T)), 1e-6)))
+        clusters = np.floor((T - T[0]) / NW_LAG_S).astype(int)
+        robust_fn = (lambda f, cause: F.robust_wald(f, X, T, W, f.new_param_index(cause),
+                                                    clusters))
     cur, accepted = _greedy(cand, fits, lambda spec, start: _spec_fit(
-        obs.sensor, obs.K, X, T, W, spec, trange, Jf, start=start), k, alpha, tests)
+        obs.sensor, obs.K, X, T, W, spec, trange, Jf, start=start), k, alpha, tests,
+        resid_fn, lags, robust_fn)
     final = fits[cur]
     st = Structure(obs.sensor, regime, unit, accepted, tests, fit0, final, fits,
                    dict(pts, W=W, V=V, trange=trange, Jf=Jf))
-    st.excess = F.chi2_excess(final.rss, k - final.p)
+    if regime == "sweep":
+        # a sweep's noise level is not known well enough for a chi-square: test
+        # whether the leftover is white instead (structure shows as correlation)
+        rho, z = lag1(W * final.residuals(X, T), T)
+        from scipy import stats as _st
+        st.excess = (1.0 / max(1.0 - rho, 1e-6), float(_st.norm.sf(z)))
+    else:
+        st.excess = F.chi2_excess(final.rss, k - final.p)
     st.noise_floor = float(np.sqrt(np.mean(V)))
     _heldout_magnitude(st, obs)
     return st
@@ -264,7 +367,7 @@ def _heldout_magnitude(st: Structure, obs: SensorObs):
             if tr.sum() - start.p < 1:
                 continue
             fk = _spec_fit(st.sensor, obs.K, X[tr], T[tr], W[tr], spec, pts["trange"],
-                           pts["Jf"], start=start)
+                           pts["Jf"], start=start, max_nfev=HELDOUT_NFEV)
             r[te] = fk.residuals(X[te], T[te])
         out[spec] = float(np.sqrt(np.nanmean(r * r)))
     for c in st.accepted:
@@ -453,3 +556,59 @@ def saturation_gain(st: Structure, obs: SensorObs, clip_rows: np.ndarray, limits
     b = float(np.sqrt(np.nanmean(rb ** 2)))
     a = float(np.sqrt(np.nanmean(ra ** 2)))
     return (b / a if a > 0 else float("inf")), b, a
+
+
+# ---------------------------------------------------------------------------
+# random walk on top of a smooth drift (linear models)
+# ---------------------------------------------------------------------------
+def random_walk(st: Structure, obs: SensorObs) -> dict | None:
+    """Per axis, the random-walk intensity left on top of the fitted design:
+    block means y = X beta + w(t) + e, w a Brownian motion (variance s^2 t), e
+    the known noise of each mean; s^2 by restricted maximum likelihood.
+    Returns the whitened chi-square of the residuals under that model and
+    sigma (counts/sqrt(s)) per axis."""
+    pts = st.points
+    Xd, _, _ = _design(pts, frozenset(st.accepted), pts["trange"])
+    T = pts["T"] - pts["T"].min()
+    B = np.minimum(T[:, None], T[None, :])
+    k, p = Xd.shape
+    if k - p < MIN_DOF:
+        return None
+    from scipy.optimize import minimize_scalar
+    sig = np.zeros(3)
+    chi2 = 0.0
+    for a in range(3):
+        y = pts["Y"][:, a]
+        D = np.diag(1.0 / pts["W"][:, a] ** 2)
+
+        def nll(ls, y=y, D=D):
+            S = D + np.exp(ls) * B
+            try:
+                L = np.linalg.cholesky(S)
+            except np.linalg.LinAlgError:
+                return 1e30
+            Xw = np.linalg.solve(L, Xd)
+            yw = np.linalg.solve(L, y)
+            XtX = Xw.T @ Xw
+            beta = np.linalg.lstsq(Xw, yw, rcond=None)[0]
+            r = yw - Xw @ beta
+            sign, ld = np.linalg.slogdet(XtX)
+            return float(np.sum(np.log(np.diag(L))) + 0.5 * ld + 0.5 * r @ r)
+
+        base = float(np.median(1.0 / pts["W"][:, a] ** 2)) / max(T.max(), 1e-9)
+        lo, hi = np.log(base * 1e-6), np.log(base * 1e4)
+        res = minimize_scalar(nll, bounds=(lo, hi), method="bounded")
+        s2 = float(np.exp(res.x))
+        if nll(lo) <= res.fun + 1e-9:
+            s2 = 0.0
+        S = D + s2 * B
+        L = np.linalg.cholesky(S)
+        Xw = np.linalg.solve(L, Xd)
+        yw = np.linalg.solve(L, y)
+        beta = np.linalg.lstsq(Xw, yw, rcond=None)[0]
+        r = yw - Xw @ beta
+        chi2 += float(r @ r)
+        sig[a] = np.sqrt(s2)
+    dof = 3 * (k - p) - 3
+    return {"sigma_counts_per_sqrt_s": sig, "chi2": chi2, "dof": dof,
+            "excess": F.chi2_excess(chi2, dof)}

@@ -15,7 +15,11 @@ Which rows are used
   static poses; both are fitted when present (``mag_sets``) and ``R`` is the
   calibration (it covers the sphere densely) unless it has fewer than
   ``MIN_SWEEP`` samples.  A session without any labels (an imported sweep) is
-  treated as ``R``.  Overflowed readings (-4096) are dropped.
+  treated as ``R``.  Overflowed readings (-4096) are dropped.  A set that
+  cannot determine a model by the quality gate's limits (fewer than six
+  distinct poses, directions not around the centre, a sweep covering under
+  half the sphere) is not fitted: a gate warning when another set is, the
+  reason the magnetometer is refused when none is.
 """
 from __future__ import annotations
 
@@ -100,11 +104,15 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
                                   ga_options, kfold, gyro_matrix, still)
 
     # magnetometer ----------------------------------------------------------------
-    sets = mag_sets(data)
+    all_sets = mag_data_sets(data)
+    sets = {k: rows for k, (rows, why) in all_sets.items() if why is None}
+    unfit = [f"set {k} not fitted: {why}" for k, (_, why) in all_sets.items() if why]
     if not data.has("mag").any():
         board.settings["skipped"]["mag"] = "no magnetometer data in the session"
-    elif not sets:
+    elif not all_sets:
         board.settings["insufficient"]["mag"] = "needs a rotation sweep or static poses"
+    elif not sets:
+        board.settings["insufficient"]["mag"] = "; ".join(unfit)
     else:
         main = "R" if "R" in sets and sets["R"].sum() >= MIN_SWEEP else "O"
         if main not in sets:
@@ -124,12 +132,19 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
                 "validation": sc.validation, "used": name == main}
             if name == main:
                 board.mag = sc
+        if unfit:
+            board.mag.quality.setdefault("warnings", []).extend(unfit)
     return board
 
 
-def mag_sets(data: SessionData) -> dict:
-    """Rows of each magnetometer data set, ``{"O": mask, "R": mask}`` (see the
-    module doc); overflowed readings left out, sets under 10 rows dropped."""
+def mag_data_sets(data: SessionData, limits: _gate.GateLimits = _gate.LIMITS) -> dict:
+    """Every magnetometer data set of the session, ``{"R": (mask, why), "O":
+    (mask, why)}`` (see the module doc; overflowed readings left out, sets
+    under 10 rows dropped).  ``why`` is None for a set that can determine a
+    model, else why it cannot: the quality gate's orientation, hull and
+    coverage limits applied before the fit (``gate.set_metrics``), at least
+    ``min_orientations`` static poses for O and ``min_mag_coverage`` of the
+    sphere for R."""
     ok = data.has("mag") & ~(data.sensor("mag") == HMC5883L_OVERFLOW).any(axis=1)
     sets = {}
     if (data.label == LABEL_ROT).any():
@@ -138,7 +153,21 @@ def mag_sets(data: SessionData) -> dict:
         sets["R"] = ok & (data.label == LABEL_NONE)
     if (data.label >= 1).any():
         sets["O"] = ok & (data.label >= 1)
-    return {k: v for k, v in sets.items() if v.sum() >= 10}
+    out = {}
+    for name, rows in sets.items():
+        if rows.sum() < 10:
+            continue
+        u = data.sensor("mag")[rows] / data.scales["mag"]
+        q = _gate.set_metrics(u, data.label[rows] if name == "O" else None)
+        why = _gate.coverage_reasons(q, limits.min_orientations, limits)
+        out[name] = (rows, "; ".join(why) if why else None)
+    return out
+
+
+def mag_sets(data: SessionData) -> dict:
+    """Rows of each magnetometer data set that can determine a model,
+    ``{"O": mask, "R": mask}`` (``mag_data_sets`` without the others)."""
+    return {k: rows for k, (rows, why) in mag_data_sets(data).items() if why is None}
 
 
 # ---------------------------------------------------------------------------

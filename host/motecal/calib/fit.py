@@ -16,7 +16,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from . import ga as _ga
-from .identify import Identifiability, analyse
+from .identify import Identifiability, analyse, independent_columns
 from .models import MagnitudeModel
 
 MAX_SWEEP_POINTS = 250      # surrogate size for unlabelled (rotation) data
@@ -93,11 +93,39 @@ LM_TOL = 1e-12
 
 def polish(model: MagnitudeModel, theta0, u, max_nfev=None):
     """Levenberg-Marquardt (MINPACK, analytic Jacobian) on every sample.
-    Returns (theta, nfev)."""
-    res = least_squares(model.residuals, np.asarray(theta0, float), jac=model.jacobian,
-                        args=(u,), method="lm", xtol=LM_TOL, ftol=LM_TOL, gtol=1e-15,
-                        max_nfev=max_nfev or 60 * (len(theta0) + 1))
-    return res.x, res.nfev
+    Returns (theta, nfev).
+
+    A model with redundant parameters (``model.redundant``: the paper's
+    angles only multiply scales or each other, so its Jacobian is singular
+    everywhere) is polished in a gauge: the parameters whose Jacobian columns
+    at ``theta0`` add nothing (``identify.independent_columns``, in parameter
+    order) are set to their nominal value -- the angles to 0, where the others
+    still reach every fit the model can -- and only the rest move, unscaled
+    (``x_scale=1``: the default column scaling crawls when an angle's optimum
+    is 0, where its column vanishes).  This keeps the singular Jacobian out of
+    MINPACK, whose steps on one read uninitialised memory: the same input gave
+    results differing in the last bits from run to run."""
+    theta0 = np.asarray(theta0, float)
+    max_nfev = max_nfev or 60 * (len(theta0) + 1)
+    keep = independent_columns(model.jacobian(theta0, u)) if model.redundant else None
+    if keep is None or keep.all():
+        res = least_squares(model.residuals, theta0, jac=model.jacobian, args=(u,),
+                            method="lm", xtol=LM_TOL, ftol=LM_TOL, gtol=1e-15,
+                            max_nfev=max_nfev)
+        return res.x, res.nfev
+    start = np.where(keep, theta0, model.default)
+    if not keep.any():
+        return start, 0
+
+    def full(x):
+        th = start.copy()
+        th[keep] = x
+        return th
+
+    res = least_squares(lambda x: model.residuals(full(x), u), start[keep],
+                        jac=lambda x: model.jacobian(full(x), u)[:, keep], method="lm",
+                        xtol=LM_TOL, ftol=LM_TOL, gtol=1e-15, max_nfev=max_nfev, x_scale=1.0)
+    return full(res.x), res.nfev
 
 
 def _escaped(theta, lo, hi) -> bool:

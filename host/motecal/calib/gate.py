@@ -30,6 +30,14 @@ Reasons (and the metric behind each):
 
 A sensor the session cannot calibrate at all (missing, or no static poses in
 a rotation session) is a warning: it is simply left out of the result.
+
+The orientation, hull and coverage limits are also checked *before* a
+magnetometer data set is fitted (``set_metrics`` + ``coverage_reasons``, used
+by ``board.mag_data_sets``): a set of static poses needs
+``min_orientations`` distinct orientations around the centre of the
+best-fitting sphere, a sweep ``min_mag_coverage`` of the sphere around it.
+A set that fails is not fitted (it cannot determine the model; a single
+pose used to stall the least squares for seconds).
 """
 from __future__ import annotations
 
@@ -112,6 +120,65 @@ def sphere_coverage(dirs, radius_deg: float = 25.0) -> float:
     return float(np.mean(cos.max(axis=1) >= np.cos(np.deg2rad(radius_deg))))
 
 
+def sphere_centre(x) -> np.ndarray | None:
+    """Centre of the sphere best fitting the points x (n, 3): linear least
+    squares on |x|^2 = 2 c.x + k.  None when the points cannot determine one
+    (fewer than four, or all in one plane)."""
+    x = np.asarray(x, float)
+    if len(x) < 4:
+        return None
+    M = np.c_[2 * x, np.ones(len(x))]
+    sol, _, rank, _ = np.linalg.lstsq(M, np.einsum("ij,ij->i", x, x), rcond=None)
+    return sol[:3] if rank == 4 else None
+
+
+def set_metrics(x, label=None) -> dict:
+    """The gate's metrics of a data set *before* calibration (x in nominal
+    units).  The offsets are not known yet, so directions are taken from the
+    centre of the best-fitting sphere: to each static pose's mean (label
+    given: ``distinct_orientations``, ``hull_depth``) or to the samples of a
+    sweep (at most 2000, evenly strided: ``hull_depth``, ``coverage``).  Points
+    that determine no sphere count as not surrounding anything (depth -1)."""
+    x = np.asarray(x, float)
+    if label is not None:
+        poses, inv = np.unique(label, return_inverse=True)
+        sums = np.zeros((len(poses), 3))
+        np.add.at(sums, inv, x)
+        pts = sums / np.bincount(inv, minlength=len(poses))[:, None]
+    else:
+        pts = x[:: max(1, len(x) // 2000)]
+    centre = sphere_centre(pts)
+    dirs = pts - (centre if centre is not None else pts.mean(axis=0))
+    q = {"hull_depth": hull_depth(dirs) if centre is not None else -1.0}
+    if label is not None:
+        q["distinct_orientations"] = distinct_directions(dirs)
+    else:
+        q["coverage"] = sphere_coverage(dirs)
+    return q
+
+
+def coverage_reasons(q: dict, need: int, lim: GateLimits = LIMITS,
+                     model: str | None = None) -> list:
+    """Why the orientations or directions described by q (any of
+    ``distinct_orientations``, ``hull_depth``, ``coverage``) cannot determine a
+    model needing ``need`` distinct orientations; empty when they can.  The
+    gate's reasons, word for word, without the sensor name."""
+    out = []
+    if "distinct_orientations" in q and q["distinct_orientations"] < need:
+        out.append(f"too few distinct orientations: {q['distinct_orientations']} "
+                   f"(at least {need}{' for ' + model if model else ''}; poses closer than "
+                   f"{lim.distinct_deg:g} deg count once)")
+    if "hull_depth" in q and q["hull_depth"] < lim.min_hull_depth:
+        out.append(f"poses too clustered: the directions do not surround the "
+                   f"origin (hull depth {q['hull_depth']:.2f} < {lim.min_hull_depth:g}; "
+                   f"add poses on the opposite side)")
+    if "coverage" in q and q["coverage"] < lim.min_mag_coverage:
+        out.append(f"the readings cover too little of the sphere "
+                   f"({100 * q['coverage']:.0f}% of directions, need "
+                   f"{100 * lim.min_mag_coverage:.0f}%)")
+    return out
+
+
 def pose_spread(x, label) -> dict:
     """Largest per-axis standard deviation of each pose: {label: sd}."""
     out = {}
@@ -145,25 +212,13 @@ class GateDecision:
 def _check_sensor(name, sc, lim: GateLimits, reasons, warnings):
     q = sc.quality or {}
     unit_ = sc.unit
-    if "distinct_orientations" in q:
-        need = max(lim.min_orientations, int(q.get("identifiable_params", 0)))
-        if q["distinct_orientations"] < need:
-            reasons.append(f"{name}: too few distinct orientations: {q['distinct_orientations']} "
-                           f"(at least {need} for {sc.model}; poses closer than "
-                           f"{lim.distinct_deg:g} deg count once)")
-    if "hull_depth" in q and q["hull_depth"] < lim.min_hull_depth:
-        reasons.append(f"{name}: poses too clustered: the directions do not surround the "
-                       f"origin (hull depth {q['hull_depth']:.2f} < {lim.min_hull_depth:g}; "
-                       f"add poses on the opposite side)")
+    need = max(lim.min_orientations, int(q.get("identifiable_params", 0)))
+    reasons += [f"{name}: {r}" for r in coverage_reasons(q, need, lim, model=sc.model)]
     if q.get("not_still"):
         bad = q["not_still"]
         lab = ", ".join(str(p) for p in list(bad)[:8]) + (" ..." if len(bad) > 8 else "")
         reasons.append(f"{name}: non-still data in static poses {lab} (per-axis sd above "
                        f"{q.get('still_limit')} {unit_}; re-log those poses)")
-    if "coverage" in q and q["coverage"] < lim.min_mag_coverage:
-        reasons.append(f"{name}: the readings cover too little of the sphere "
-                       f"({100 * q['coverage']:.0f}% of directions, need "
-                       f"{100 * lim.min_mag_coverage:.0f}%)")
     if "rms_rel" in q and name in lim.max_rms_rel and q["rms_rel"] > lim.max_rms_rel[name]:
         what = "the field is not constant (disturbed place or moving magnets?)" \
             if name == "mag" else "the board was not still or the model does not fit"

@@ -11,6 +11,11 @@ angles only multiply the scales.
 Standard deviations use ``sigma^2 (J^T J)^+``; for identifiable parameters
 this is the same for every generalised inverse, for the others it is
 meaningless and reported as NaN.
+
+``independent_columns`` picks, in parameter order, a largest set of columns
+that are independent at the same tolerance: for a model with redundant
+parameters the least-squares polish moves only those (``fit.polish``) and
+sets the others to their nominal value.
 """
 from __future__ import annotations
 
@@ -75,3 +80,20 @@ def analyse(J: np.ndarray, names) -> Identifiability:
     cov_s = (Vt.T * inv) @ Vt
     cov = cov_s / np.outer(scale, scale)
     return Identifiability(list(names), rank, s_full, ident, null, cov)
+
+
+def independent_columns(J: np.ndarray) -> np.ndarray:
+    """Bool per column: the column adds a direction the earlier kept columns do
+    not span (greedy in parameter order).  On the column-normalised Jacobian
+    that is ``|R_jj| > RANK_RTOL`` of its QR factor (R_jj is the part of
+    column j orthogonal to all earlier columns, and a dropped column lies in
+    the span of the kept ones); an all-zero column is never kept.  For the
+    paper model with angles this keeps the offsets and scales (6 of 9).  J may
+    be any shape; its columns are the parameters."""
+    J = np.asarray(J, float)
+    norms = np.linalg.norm(J, axis=0)
+    R = np.linalg.qr(J / np.where(norms > 0, norms, 1.0), mode="r")
+    diag = np.zeros(J.shape[1])
+    k = min(R.shape)
+    diag[:k] = np.abs(np.diag(R)[:k])
+    return (diag > RANK_RTOL) & (norms > 0)

@@ -119,6 +119,13 @@ class MagnitudeModel:
         return self.sensor == "mag" and self.gauge == "det" and "scales" in self.groups
 
     @property
+    def redundant(self) -> bool:
+        """Some parameters only re-parametrise others by construction (the
+        paper's angles multiply scales or each other): the Jacobian is
+        rank-deficient everywhere (see ``fit.polish``)."""
+        return "angles" in self.groups
+
+    @property
     def free_field(self) -> bool:
         return self.sensor == "mag" and self.gauge == "det"
 

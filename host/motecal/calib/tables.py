@@ -2,27 +2,41 @@
 ``motecal report`` and the benchmark).
 
 * ``table1`` -- accelerometer: error (MSE of the magnitude, g^2) and
-  lowest/highest magnitude before and after, for every parameter subset of
-  the paper model and for the full model.
+  lowest/highest magnitude before and after, for every combination of the
+  paper model's offsets, scales and angles (``ACCEL_ROWS``, as the paper
+  tried) and for the full model.
 * ``table2`` -- gyroscope: eq. 6 before and after, the biases (deg/s).
 * ``table3`` -- magnetometer, per data set (O: static poses, R: rotation):
   fitted field (gauss), error with offsets only and with all parameters
-  (paper model) and with the full model, in gauss^2.
+  (paper model) and with the full model, in gauss^2.  A set that cannot
+  determine a model (``board.mag_data_sets``: the quality gate's limits) is
+  not fitted; its row says why (``not_computable``).
+
+Every fitted model carries its identifiability at the optimum (numerical
+rank of the Jacobian, ``identify.analyse``): ``rank`` of ``params`` in
+Table I, ``rank_<key>`` of ``params_<key>`` in Table III.  For the paper's
+angles that is 6 of 9: they change nothing because they cannot.
 
 Each returns a list of dicts (one per row); ``markdown`` formats them.
 """
 from __future__ import annotations
+
+import itertools
 
 import numpy as np
 
 from ..session import SessionData
 from . import fit as _fit
 from . import gyro as _gyro
-from .board import mag_sets
-from .models import make_model
+from .board import mag_data_sets
+from .identify import analyse
+from .models import PARAM_GROUPS, make_model
 
-ACCEL_ROWS = (("offsets",), ("scales",), ("offsets", "scales"),
-              ("offsets", "scales", "angles"))
+# every non-empty combination of the paper's parameter groups
+ACCEL_ROWS = tuple(c for k in (1, 2, 3) for c in itertools.combinations(PARAM_GROUPS, k))
+MAG_FITS = (("offsets", "paper", ("offsets",)),
+            ("all", "paper", ("offsets", "scales", "angles")),
+            ("full", "full", None))
 
 
 def _mag_stats(model, theta, u):
@@ -31,19 +45,25 @@ def _mag_stats(model, theta, u):
     return float(np.mean((m - H) ** 2)), float(m.min()), float(m.max()), float(H)
 
 
+def _fit_row(mdl, u, label, seed):
+    """GA + polish; (error, min, max, H, rank) at the optimum."""
+    s = _fit.ga_optimize(mdl, u, label, seed=seed)
+    rank = analyse(mdl.jacobian(s.theta, u), mdl.names).rank
+    return _mag_stats(mdl, s.theta, u) + (rank,)
+
+
 def table1(data: SessionData, seed=0) -> list[dict]:
     rows = (data.label >= 1) & data.has("accel")
     u = data.sensor("accel")[rows] / data.scales["accel"]
     label = data.label[rows]
     m0 = np.linalg.norm(u, axis=1)
     out = [{"parameters": "before", "error": float(np.mean((m0 - 1) ** 2)),
-            "min": float(m0.min()), "max": float(m0.max())}]
+            "min": float(m0.min()), "max": float(m0.max()), "rank": None, "params": None}]
     for groups in ACCEL_ROWS + (None,):
         mdl = make_model("accel", "full" if groups is None else "paper", groups)
-        s = _fit.ga_optimize(mdl, u, label, seed=seed)
-        e, lo, hi, _ = _mag_stats(mdl, s.theta, u)
+        e, lo, hi, _, rank = _fit_row(mdl, u, label, seed)
         out.append({"parameters": "full model" if groups is None else " + ".join(groups),
-                    "error": e, "min": lo, "max": hi})
+                    "error": e, "min": lo, "max": hi, "rank": rank, "params": mdl.d})
     return out
 
 
@@ -57,18 +77,21 @@ def table2(data: SessionData, seed=0) -> list[dict]:
 
 def table3(data: SessionData, seed=0) -> list[dict]:
     out = []
-    for name, rows in mag_sets(data).items():
+    for name, (rows, why) in mag_data_sets(data).items():
+        row = {"set": name, "n": int(rows.sum())}
         u = data.sensor("mag")[rows] / data.scales["mag"]
         label = data.label[rows] if name == "O" else None
-        row = {"set": name, "n": int(rows.sum())}
-        for key, fam, groups in (("offsets", "paper", ("offsets",)),
-                                 ("all", "paper", ("offsets", "scales", "angles")),
-                                 ("full", "full", None)):
+        for key, fam, groups in MAG_FITS:
             mdl = make_model("mag", fam, groups)
-            s = _fit.ga_optimize(mdl, u, label, seed=seed)
-            e, _, _, H = _mag_stats(mdl, s.theta, u)
+            if why is None:
+                e, _, _, H, rank = _fit_row(mdl, u, label, seed)
+            else:
+                e = H = rank = None
             row[f"error_{key}"] = e
             row[f"field_{key}"] = H
+            row[f"rank_{key}"] = rank
+            row[f"params_{key}"] = mdl.d
+        row["not_computable"] = why
         out.append(row)
     return out
 

@@ -46,7 +46,7 @@ B = ".3f"       # biases
 
 TABLE1_COLUMNS = [
     Column("mote", "mote"), Column("parameters", "parameters"),
-    Column("model", "model"),
+    Column("model", "model"), Column("identifiable", "identifiable parameters"),
     Column("error_before", "error before (g²)", E), Column("error_after", "error after (g²)", E),
     Column("min_before", "lowest magnitude before (g)", M),
     Column("max_before", "highest magnitude before (g)", M),
@@ -62,10 +62,15 @@ TABLE3_COLUMNS = [
     Column("mote", "mote"), Column("set", "data set"), Column("samples", "samples"),
     Column("field_offsets", "field, offsets only (gauss)", M),
     Column("error_offsets", "error, offsets only (gauss²)", E),
+    Column("identifiable_offsets", "identifiable, offsets only"),
     Column("field_all", "field, all paper parameters (gauss)", M),
     Column("error_all", "error, all paper parameters (gauss²)", E),
+    Column("identifiable_all", "identifiable, all paper parameters"),
     Column("field_full", "field, full model (gauss)", M),
-    Column("error_full", "error, full model (gauss²)", E)]
+    Column("error_full", "error, full model (gauss²)", E),
+    Column("identifiable_full", "identifiable, full model"),
+    Column("not_computable", "not computable")]
+TABLE3_FITS = ("offsets", "all", "full")
 CAL_COLUMNS = [
     Column("mote", "mote"), Column("sensor", "sensor"), Column("model", "model"),
     Column("dataset", "data"), Column("samples", "samples"), Column("poses", "poses"),
@@ -76,8 +81,10 @@ CAL_COLUMNS = [
     Column("min_after", "lowest magnitude after", M), Column("max_after", "highest magnitude after", M),
     Column("field_gauss", "field (gauss)", M)]
 
-MODEL_OF = {"offsets": "paper", "scales": "paper", "offsets + scales": "paper",
-            "offsets + scales + angles": "paper", "full model": "full (ours)"}
+
+def _identifiable(rank, params):
+    """'6 of 9': identifiable parameters (Jacobian rank at the optimum) of all."""
+    return None if rank is None else f"{int(rank)} of {int(params)}"
 
 
 def _plural(n: int, word: str) -> str:
@@ -157,7 +164,7 @@ def _usable(data: SessionData) -> dict:
 
 def _engine_tables(mr: MoteReport, seed: int, log) -> None:
     from ..calib import tables as CT
-    from ..calib.board import mag_sets
+    from ..calib.board import mag_data_sets
     data, m = mr.data, mr.mote
     ok = _usable(data)
     if ok["table1"]:
@@ -167,7 +174,8 @@ def _engine_tables(mr: MoteReport, seed: int, log) -> None:
         for r in rows[1:]:
             mr.table1.append({
                 "mote": m, "parameters": r["parameters"],
-                "model": MODEL_OF.get(r["parameters"], "paper"),
+                "model": "full (ours)" if r["parameters"] == "full model" else "paper",
+                "identifiable": _identifiable(r["rank"], r["params"]),
                 "error_before": _f(before["error"]), "error_after": _f(r["error"]),
                 "min_before": _f(before["min"]), "max_before": _f(before["max"]),
                 "min_after": _f(r["min"]), "max_after": _f(r["max"])})
@@ -182,13 +190,20 @@ def _engine_tables(mr: MoteReport, seed: int, log) -> None:
                                                        "b_x", "b_y", "b_z")}})
     else:
         mr.notes.append("Table II: fewer than 10 still (labelled) gyroscope samples")
+    sets = mag_data_sets(data)
     if ok["table3"]:
-        log(f"mote {m}: Table III (magnetometer, data sets {', '.join(mag_sets(data))})")
+        log(f"mote {m}: Table III (magnetometer, data sets {', '.join(sets)})")
         for r in CT.table3(data, seed=seed):
-            mr.table3.append({"mote": m, "set": r["set"], "samples": int(r["n"]),
-                              **{k: _f(r[k]) for k in (
-                                  "field_offsets", "error_offsets", "field_all", "error_all",
-                                  "field_full", "error_full")}})
+            row = {"mote": m, "set": r["set"], "samples": int(r["n"]),
+                   "not_computable": r["not_computable"]}
+            for k in TABLE3_FITS:
+                row[f"field_{k}"] = _f(r[f"field_{k}"])
+                row[f"error_{k}"] = _f(r[f"error_{k}"])
+                row[f"identifiable_{k}"] = _identifiable(r[f"rank_{k}"], r[f"params_{k}"])
+            mr.table3.append(row)
+    elif sets:
+        mr.notes.append("Table III: no magnetometer data set can determine a model ("
+                        + "; ".join(f"{k}: {why}" for k, (_, why) in sets.items()) + ")")
     else:
         mr.notes.append("Table III: no magnetometer data set (static poses O or rotation R)")
 
@@ -376,8 +391,12 @@ def _tables(reports: list[MoteReport]) -> list[Table]:
         out.append(Table("table1_accel", "Table I: accelerometer", TABLE1_COLUMNS, t1, [
             "error = mean over all static-pose samples of (|a| - 1 g)^2; before = counts / "
             "datasheet scale; after = the model fitted by the GA + least-squares polish",
-            "model 'paper' = eqs. 1-5 with the listed parameter groups; 'full (ours)' = bias + "
-            "lower-triangular matrix (9 parameters, identifiable)",
+            "model 'paper' = eqs. 1-5 with the listed parameter groups (every combination, "
+            "as the paper tried); 'full (ours)' = bias + lower-triangular matrix (9 "
+            "parameters, identifiable)",
+            "identifiable parameters = numerical rank of the Jacobian at the optimum "
+            "(calib.identify) of the number fitted: the rest can be traded without changing "
+            "any residual",
             "angles: " + ANGLE_NOTE, PAPER_TABLE1]))
     t2 = [r for mr in reports for r in mr.table2]
     if t2:
@@ -391,7 +410,11 @@ def _tables(reports: list[MoteReport]) -> list[Table]:
             "O = labelled static poses, R = rotation capture (label 'rot'; an unlabelled "
             "sweep counts as R); field = fitted ('optimized') magnitude in gauss",
             "error = mean of (|m| - field)^2; offsets only -> all paper parameters (offsets, "
-            "scales, angles) -> full model (ours)",
+            "scales, angles) -> full model (ours); identifiable = Jacobian rank at the "
+            "optimum of the number fitted (the field counts)",
+            "not computable: a set the quality gate's limits say cannot determine a model "
+            "(too few distinct orientations, directions not around the centre, a sweep "
+            "covering too little of the sphere) is not fitted",
             "gauge: det(A) = 1 in nominal units (the geometric-mean scale is the datasheet "
             "gain), so the field is in gauss as far as that gain is right",
             PAPER_TABLE3]))

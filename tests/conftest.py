@@ -1,5 +1,7 @@
 """Shared test set-up."""
 import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # before numpy: see motecal/__init__.py
 import sys
 from pathlib import Path
 

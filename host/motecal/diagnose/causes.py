@@ -62,7 +62,9 @@ CAUSES = {c.id: c for c in (
           "\"static\" poses that were not still",
           "inside still segments, accelerometer changes over 64 ms follow the turn the "
           "gyroscope measured (d f = -dtheta x f): slope z-test; needs both sensors on one "
-          "clock",
+          "clock.  In one orientation, an accelerometer drift that turns the reading "
+          "without changing its length (length change < 0.3x the vector change) is a slow "
+          "tilt, not a bias drift",
           "tremor >= 0.05 deg rms, bandwidth 3 Hz"),
     Cause("field_disturbance", ("mag",), "field_disturbance",
           "the magnetic field magnitude or direction changes between or within poses "
@@ -137,6 +139,11 @@ def summary(sensor: str, cause: str, ev: dict, params: dict, gain, before=None, 
             f"about {ev.get('update_rate_hz', 0):.3g} Hz but is read at "
             f"{ev.get('read_rate_hz', 0):.3g} Hz."),
         "motion": lambda: (
+            f"The board tilted slowly while \"still\": the accelerometer reading turned by "
+            f"{_fmt(ev.get('angle_rms_deg'), 'deg')} rms while its length changed "
+            f"{ev.get('length_to_vector_change', 0):.2g}x as much as the vector (a bias drift "
+            f"would change the length as much; F = {ev.get('F', 0):.1f}, p = "
+            f"{ev.get('p', 1):.2g})." if ev.get("slow_tilt") else
             f"The \"still\" poses were not still: inside them the accelerometer turns the way "
             f"the gyroscope says (slope {ev.get('slope_accel_on_gyro', 0):.2f}, z = "
             f"{ev.get('z', 0):.1f}); tremor about {_fmt(ev.get('tremor_angle_rms_deg'), 'deg')} "

@@ -18,7 +18,7 @@ import textwrap
 from pathlib import Path
 
 from ..errors import UserError
-from .gain import DEFAULT_ALPHA, MIN_GAIN, per_test_alpha
+from .gain import DEFAULT_ALPHA, MIN_FOLD_WINS, per_test_alpha
 
 
 def register(subparsers):
@@ -75,7 +75,7 @@ def render(d) -> str:
     out.append("")
     out.append(f"2-4. Causes, extension and gain ({d.n_tests} tests; a finding needs "
                f"p < {d.alpha:g}/{d.n_tests} = {level:.2g}, and a fitted term a held-out "
-               f"gain >= {MIN_GAIN:g}):")
+               f"gain > 1 in >= {MIN_FOLD_WINS} of 5 folds):")
     if d.clean:
         out.append("   clean: nothing beyond the paper's starting model.")
     for f in d.findings:

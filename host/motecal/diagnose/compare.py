@@ -197,12 +197,37 @@ def trajectory_like(data: SessionData, diag) -> tuple[SampledTrajectory, np.ndar
     return traj, t_sim
 
 
+JITTER_CV = 0.5       # sample intervals this irregular are arrival times, not sample times
+
+
+def read_times(data: SessionData, t_sim: np.ndarray) -> np.ndarray:
+    """The times the simulator reads each row at: the row times, except that a
+    sensor on its own clock whose intervals are very irregular (coefficient of
+    variation > JITTER_CV: times the host received bursts, not when the chip
+    sampled) is read evenly at its mean rate over the same span."""
+    out = t_sim.copy()
+    present = np.column_stack([data.has(s) for s in ("accel", "gyro", "mag")])
+    for k in range(3):
+        own = present[:, k] & (present.sum(axis=1) == 1)
+        idx = np.flatnonzero(own)
+        if len(idx) < 10:
+            continue
+        dt = np.diff(t_sim[idx])
+        if dt.mean() > 0 and dt.std() / dt.mean() > JITTER_CV:
+            out[idx] = np.linspace(t_sim[idx[0]], t_sim[idx[-1]], len(idx))
+    return out
+
+
 def simulate_like(data: SessionData, model_json: dict, traj, t_sim, seed: int = 0) -> SessionData:
-    """The session simulated with ``model_json`` along ``traj`` at the row times."""
+    """The session simulated with ``model_json`` along ``traj`` at the rows'
+    read times (``read_times``)."""
     model = SimModel.from_json(model_json, model_json.get("name", "<diagnosis>"))
     mote = data.motes[0]
     board = model.board(mote, seed)
-    raw = board.sampler(traj, seed).read(t_sim).astype(float)
+    tr = read_times(data, t_sim)
+    order = np.argsort(tr, kind="stable")
+    raw = np.empty((len(tr), 9))
+    raw[order] = board.sampler(traj, seed).read(tr[order]).astype(float)
     for s, sl in (("accel", slice(0, 3)), ("gyro", slice(3, 6)), ("mag", slice(6, 9))):
         miss = ~data.has(s)
         raw[miss, sl] = np.nan
@@ -331,7 +356,7 @@ def distance(meas: dict, sim: dict) -> tuple[float, dict]:
 # ---------------------------------------------------------------------------
 def halves(data: SessionData) -> np.ndarray:
     """Bool mask of half A: even poses, and even CHUNK_S stretches of the
-    other rows; half B is the rest."""
+    other rows (see below); half B is the rest."""
     lab = data.label
     rate = session_rate(data)
     t = data.t if np.all(np.isfinite(data.t)) else np.arange(len(data)) / rate
@@ -339,8 +364,10 @@ def halves(data: SessionData) -> np.ndarray:
     a = chunk % 2 == 0
     pose = lab >= 1
     a[pose] = lab[pose] % 2 == 0
-    # a single pose (idle) is split by time instead
-    if len(np.unique(lab[pose])) < 4:
+    # a single pose (idle), or poses that are separate recordings (files: their
+    # times are not one clock), are split by time inside each instead
+    files = (data.meta or {}).get("files") or []
+    if len(np.unique(lab[pose])) < 4 or len(files) > 1:
         a[pose] = chunk[pose] % 2 == 0
     return a
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from ..calib.gate import distinct_directions
+from ..calib.gate import distinct_directions, hull_depth
 from ..errors import QualityError, UserError
 from ..session import SessionData
 from . import causes as C
@@ -116,16 +116,31 @@ def regime(obs: SensorObs) -> str | None:
         return "still" if obs.blocks is not None else None
     if nseg >= ST.MIN_POSES and distinct_directions(obs.segs.mean) >= ST.MIN_POSES:
         return "poses"
-    if s == "mag" and obs.moving is not None and obs.moving.sum() >= MIN_SWEEP_ROWS:
+    if s == "mag" and obs.moving is not None and obs.moving.sum() >= MIN_SWEEP_ROWS \
+            and sweep_surrounds(obs):
         return "sweep"
     if nseg >= 1:
         return "single"
     return None
 
 
+MIN_SWEEP_HULL = 0.2    # a sweep's directions must surround its centre this deep
+
+
+def sweep_surrounds(obs: SensorObs) -> bool:
+    """Do the readings' directions (from the mid-range centre) surround it?
+    A turn about one axis draws a circle: offsets and scales along that axis
+    are then not identifiable and no calibration term can be tested."""
+    x = obs.x[~obs.overflow]
+    if len(x) < 10:
+        return False
+    c = 0.5 * (np.percentile(x, 1, axis=0) + np.percentile(x, 99, axis=0))
+    return hull_depth((x - c)[:: max(1, len(x) // 2000)]) >= MIN_SWEEP_HULL
+
+
 CANDIDATES = {
     "poses": ["cross_axis", "nonlinearity", "bias_drift"],
-    "sweep": ["cross_axis", "nonlinearity", "field_disturbance"],
+    "sweep": ["cross_axis", "field_disturbance"],
     "single": ["bias_drift"],
     "still": ["g_sensitivity", "bias_drift"],
 }
@@ -178,10 +193,10 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
     screens: list[SC.Screen] = []
     notes: list[str] = []
 
-    def decide(sensor, cause, p, g, practical=True, fitted=True):
+    def decide(sensor, cause, p, g, practical=True, fitted=True, wins=None):
         if force is not None:
             return (sensor, cause) in force
-        return G.accepted(p, a_test, g if fitted else None, practical)
+        return G.accepted(p, a_test, g if fitted else None, practical, wins)
 
     def record(sensor, cause, p, kept, **kw):
         tests.append({"sensor": sensor, "cause": cause, "p": _num(p), "level": _num(a_test),
@@ -238,7 +253,10 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
             continue
         r = regime(o)
         if r is None:
-            notes.append(f"{s}: no still segments and no sweep: only the raw-reading screens ran")
+            why = ("a sweep that does not surround the sphere (a turn about one axis)"
+                   if s == "mag" and o.moving is not None and o.moving.sum() >= MIN_SWEEP_ROWS
+                   else "no still segments and no sweep")
+            notes.append(f"{s}: {why}: only the raw-reading screens ran")
             continue
         cands = [c for (ss, c) in plan if ss == s and c in CANDIDATES[r]]
         level = a_test
@@ -269,7 +287,8 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
         for c in st.causes:
             before, after = st.heldout.get(c, (None, None))
             g = before / after if before and after else None
-            ok = decide(s, c, min(t.p for t in st.tests if t.cause == c), g)
+            ok = decide(s, c, min(t.p for t in st.tests if t.cause == c), g,
+                        wins=st.fold_wins.get(c))
             for t in tests:
                 if t["sensor"] == s and t["cause"] == c:
                     t["kept"] = ok
@@ -277,10 +296,26 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
                 findings.append(_structure_finding(s, c, st, o, g, before, after))
             else:
                 notes.append(f"{s}: {c} passed the F-test but not the held-out check "
-                             f"(gain {g if g is None else round(g, 3)}); not kept")
+                             f"(gain {g if g is None else round(g, 3)}, better in "
+                             f"{st.fold_wins.get(c)} of {ST.KFOLD} folds); not kept")
         fd = _excess_finding(s, st, o, sobs, structures, a_test, record, mot, force)
         if fd is not None:
             findings.append(fd)
+
+    # one orientation: an accelerometer "drift" that turns the reading without
+    # changing its length is the board tilting (motion), not a bias
+    for i, f in enumerate(findings):
+        if f.sensor == "accel" and f.cause == "bias_drift" and \
+                structures["accel"].regime == "single":
+            tilt = _tilt(sobs["accel"])
+            f.evidence.update(tilt)
+            if tilt["length_to_vector_change"] < TILT_RATIO:
+                params = {"rms_deg": round(tilt["angle_rms_deg"], 5),
+                          "bandwidth_hz": round(max(0.02, 2.0 / max(tilt["segment_s"], 1.0)), 4)}
+                ev = dict(f.evidence, slow_tilt=True)
+                summ = C.summary("accel", "motion", {**ev, "what": "slow"}, params, f.gain,
+                                 ev.get("heldout_rms_before"), ev.get("heldout_rms_after"), "g")
+                findings[i] = Finding("accel", "motion", summ, ev, params, f.gain)
 
     # saturation in static poses: the gain on the pose means (censored)
     for sc in screens:
@@ -301,6 +336,10 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
                    "heldout_rms_before": b, "heldout_rms_after": a})
         if sc.cause == "motion":
             ev["sensors"] = ["accel", "gyro"]
+            tilt = next((f for f in findings if f.cause == "motion"), None)
+            if tilt is not None:               # a slow tilt already named: add the tremor
+                tilt.evidence["tremor"] = ev
+                continue
         findings.append(Finding(sensor, sc.cause, C.summary(sensor, sc.cause, ev, sc.params,
                                                             sc.gain(), b, a), ev, sc.params,
                                 sc.gain()))
@@ -352,6 +391,36 @@ def _accel_for_blocks(g: SensorObs, acc_st, acc: SensorObs | None):
         fit = acc_st.fit0
         return fit.calibrate(out, np.zeros(len(out)))
     return out / acc.K
+
+
+TILT_RATIO = 0.3        # length change / vector change below which a drift is a tilt
+
+
+def _tilt(o: SensorObs) -> dict:
+    """How the block means move inside each still segment: rms change of the
+    vector, of its length, and of its direction (deg)."""
+    b = o.blocks
+    dv, dl, ang, span = [], [], [], []
+    for si in np.unique(b.seg):
+        m = b.seg == si
+        if m.sum() < 3:
+            continue
+        v = b.mean[m]
+        c = v.mean(axis=0)
+        dv.append(np.sum((v - c) ** 2, axis=1))
+        L = np.linalg.norm(v, axis=1)
+        dl.append((L - L.mean()) ** 2)
+        u = v / L[:, None]
+        cu = c / np.linalg.norm(c)
+        ang.append(np.degrees(np.arccos(np.clip(u @ cu, -1, 1))) ** 2)
+        span.append(b.t[m].max() - b.t[m].min())
+    if not dv:
+        return {"length_to_vector_change": 1.0, "angle_rms_deg": 0.0, "segment_s": 1.0}
+    vec = np.sqrt(np.mean(np.concatenate(dv)))
+    length = np.sqrt(np.mean(np.concatenate(dl)))
+    return {"length_to_vector_change": float(length / vec) if vec > 0 else 1.0,
+            "angle_rms_deg": float(np.sqrt(np.mean(np.concatenate(ang)))),
+            "segment_s": float(np.median(span))}
 
 
 def _structure_finding(s, c, st: ST.Structure, o: SensorObs, g, before, after) -> Finding:
@@ -653,6 +722,9 @@ def _models(data, obs, sobs, structures, findings, screens, mot):
             else:
                 b = np.median(o.x, axis=0) * scale
                 start_terms = ext_terms = [{"term": "linear", "b": X._r(b)}]
+        if (s, "bias_drift") in kept and s in ("accel", "mag") and st is not None \
+                and st.regime == "single":
+            ext_terms.append({"term": "bias_drift", **kept[(s, "bias_drift")].params})
         if (s, "bias_drift") in kept:
             # the random walk measured on top of the smooth drift
             for t in ext_terms:
@@ -671,7 +743,7 @@ def _models(data, obs, sobs, structures, findings, screens, mot):
     if incl is not None:
         env["inclination_deg"] = round(incl, 3)
     board_terms = []
-    if mot is not None and ("accel", "motion") in kept:
+    if ("accel", "motion") in kept:
         board_terms.append({"term": "motion", **kept[("accel", "motion")].params})
     mote = data.motes[0]
     start = X.model_json(f"{data.name}-paper", mote, rate, dict(env), sensors_start, [],
@@ -691,7 +763,8 @@ def _magnitude_fits(o: SensorObs, st):
     if o.segs is not None and len(o.segs) >= 6:
         f = F.fit_magnitude(o.sensor, o.K, o.segs.mean, o.segs.t, np.ones(len(o.segs)))
         return f, f
-    if o.sensor == "mag" and o.moving is not None and o.moving.sum() >= MIN_SWEEP_ROWS:
+    if o.sensor == "mag" and o.moving is not None and o.moving.sum() >= MIN_SWEEP_ROWS \
+            and sweep_surrounds(o):
         x = o.x[~o.overflow]
         f = F.fit_magnitude(o.sensor, o.K, x, o.t[~o.overflow], np.ones(len(x)))
         return f, f

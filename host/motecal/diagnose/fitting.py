@@ -449,7 +449,7 @@ def robust_wald(fit: MagnitudeFit, x, t, w, idx: np.ndarray, clusters: np.ndarra
     as independent.  Returns (F = W / q, p) with F(q, G - 1), G clusters."""
     q = len(idx)
     G = len(np.unique(clusters))
-    if q == 0 or G - 1 < 4 * q:
+    if q == 0 or G < 10 * q:          # too few clusters for a q x q robust covariance
         return None
     J = w[:, None] * fit.jacobian(x, t)
     r = w * fit.residuals(x, t)

@@ -190,9 +190,9 @@ def saturation(obs: SensorObs, chip_limits: tuple | None = None) -> Screen | Non
     conservative allowance for the slope of the distribution).  Clipping also
     needs at least ``SAT_MIN_COUNT`` readings and ``SAT_MIN_RATIO`` times the
     neighbours' mean; any overflow code is direct evidence."""
-    if obs.n < 20:
-        return None
     x = obs.x[~obs.overflow]
+    if obs.n < 20 or len(x) < 20:
+        return None
     hits = []
     best_p = 1.0
     for a in range(3):

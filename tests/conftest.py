@@ -8,8 +8,21 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parent.parent
-SHARED = REPO.parent / "shared"
-MEASURED = Path(os.environ.get("MOTECAL_MEASURED", SHARED / "data" / "measured"))
+
+
+def _find_measured() -> Path:
+    """$MOTECAL_MEASURED, else shared/data/measured beside the checkout or above it."""
+    if os.environ.get("MOTECAL_MEASURED"):
+        return Path(os.environ["MOTECAL_MEASURED"])
+    for d in REPO.parents:
+        cand = d / "shared" / "data" / "measured"
+        if cand.is_dir():
+            return cand
+    return REPO.parent / "shared" / "data" / "measured"
+
+
+MEASURED = _find_measured()
+SHARED = MEASURED.parent.parent
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 

@@ -2,7 +2,7 @@
  * Hmc5883lC -- public component of one HMC5883L magnetometer (always 0x1E):
  * SplitControl configures it (or puts it to sleep), ReadNow<ninedof_xyz_t>
  * reads its three axes in counts from any context (async).  Each instance
- * is its own client of the arbitrated I2C bus (HplNineDofI2CC, 400 kHz), for
+ * is its own client of the arbitrated I2C bus (HplNineDofI2CC, fast mode, 364 kHz), for
  * a chip on its own; on the 9DOF board NineDofBoardC wires the three logic
  * modules to one shared client instead (NineDofBusP).
  *

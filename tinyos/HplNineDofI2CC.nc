@@ -1,7 +1,7 @@
 /*
  * HplNineDofI2CC -- binds a 9DOF chip (or the whole board, NineDofBoardC)
  * to the iris I2C master: a client of Atm128I2CMasterC (arbitrated, powered
- * on demand) whose Resource runs the bus at 400 kHz (NineDofI2CSpeedP).  The only platform-specific part of
+ * on demand) whose Resource runs the bus in fast mode, 364 kHz (NineDofI2CSpeedP).  The only platform-specific part of
  * the board drivers, in the manner of tos/platforms/ucmini/chips/sht21.
  *
  * @author motecal

@@ -1,7 +1,7 @@
 /*
  * NineDofBoardP -- the 9DOF board as one sensor: SplitControl configures the
  * three chips one after the other; ReadNow reads the nine axes of one
- * instant, the three chips back to back on the 400 kHz bus, and returns
+ * instant, the three chips back to back on the fast-mode (364 kHz) bus, and returns
  * them as one record (ax..mz, counts).
  *
  * Each operation holds the board's bus (Bus = NineDofBusP.Hold) from start

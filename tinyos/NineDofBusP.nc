@@ -1,7 +1,7 @@
 /*
  * NineDofBusP -- the 9DOF board's share of the I2C bus.
  *
- * One client of the iris I2C master (HplNineDofI2CC, 400 kHz) for the whole
+ * One client of the iris I2C master (HplNineDofI2CC, fast mode, 364 kHz) for the whole
  * board.  The board (NineDofBoardP) holds it for a whole operation through
  * Hold: one arbitration, one bus power-up and one bit-rate setting for the
  * three reads of a sample, instead of one per chip.  While the board holds

@@ -1,12 +1,13 @@
 /*
- * NineDofI2CSpeedP -- runs the I2C bus at NINEDOF_I2C_HZ (400 kHz).
+ * NineDofI2CSpeedP -- runs the I2C bus at most at NINEDOF_I2C_HZ (380 kHz: TWBR = 3, 364 kHz).
  *
  * The stock HplAtm128I2CBusP sets TWBR for a 7.37 MHz clock and 50 kHz when
  * the bus is powered, which on an 8 MHz iris is about 55 kHz.  The bus is
  * powered on every grant (AsyncPowerManagerP starts it when a client gets
  * it), so this decorator of one client's Resource writes the bit-rate
  * register each time that client has the bus, before its first transfer.
- * SCL = F_CPU / (16 + 2 * TWBR), prescaler 1: TWBR = 2 at 8 MHz.
+ * SCL = F_CPU / (16 + 2 * TWBR), prescaler 1: TWBR = 3 at 8 MHz (see ninedof_board.h
+ * for why not 2 = 400 kHz: SCL low must stay >= 1.3 us).
  *
  * @author motecal
  */

@@ -108,9 +108,16 @@ void ninedof_board_record(const uint8_t acc[6], const uint8_t gyro[6],
 /* ---------------------------------------------------------------------- */
 /* I2C bit rate (ATmega1281 TWI: SCL = F_CPU / (16 + 2 * TWBR * 4^TWPS))    */
 /* ---------------------------------------------------------------------- */
+/* NINEDOF_I2C_HZ is the fastest SCL allowed; TWBR is rounded up so the bus
+ * never runs faster.  All three chips are fast-mode (400 kHz) parts, but
+ * fast mode also asks SCL low >= 1.3 us, and the TWI's SCL is about half
+ * low: at TWBR = 2 (exactly 400 kHz at 8 MHz) that is 1.25 us, and less on
+ * a fast RC oscillator.  380 kHz gives TWBR = 3: 364 kHz, SCL low ~1.375 us,
+ * within the limit for a CPU clock up to 5 % fast. */
 #ifndef NINEDOF_I2C_HZ
-#define NINEDOF_I2C_HZ 400000UL   /* all three chips support fast mode */
+#define NINEDOF_I2C_HZ 380000UL
 #endif
-#define NINEDOF_TWBR(fcpu, scl) ((uint8_t)((((fcpu) / (scl)) - 16UL) / 2UL))
+#define NINEDOF_TWBR(fcpu, scl) \
+  ((uint8_t)((((fcpu) + (scl) - 1UL) / (scl) - 16UL + 1UL) / 2UL))
 
 #endif /* NINEDOF_BOARD_H */

@@ -105,10 +105,22 @@ static void test_board(void)
         !ninedof_itg3200_id_ok(0x00) && !ninedof_itg3200_id_ok(0xE5));
   CHECK(ninedof_hmc5883l_id_ok(id) && !ninedof_hmc5883l_id_ok(bad_id));
 
-  /* 400 kHz at 8 MHz: TWBR = 2, exact; the stock driver's 65 gives ~55 kHz */
+  /* TWBR is rounded up: SCL never faster than asked.  400 kHz at 8 MHz:
+   * TWBR = 2, exact; the default 380 kHz limit gives TWBR = 3 (364 kHz,
+   * SCL low >= 1.3 us); the stock driver's 65 gives ~55 kHz at 8 MHz */
   CHECK(NINEDOF_TWBR(8000000UL, 400000UL) == 2);
   CHECK(8000000UL / (16UL + 2UL * NINEDOF_TWBR(8000000UL, 400000UL)) == 400000UL);
-  CHECK(NINEDOF_TWBR(7372800UL, 50000UL) == 65);
+  CHECK(NINEDOF_TWBR(8000000UL, NINEDOF_I2C_HZ) == 3);
+  CHECK(NINEDOF_TWBR(8000000UL, 380000UL) == 3);
+  CHECK(NINEDOF_TWBR(7372800UL, 50000UL) == 66);
+  {
+    uint32_t scl;
+    for (scl = 50000UL; scl <= 400000UL; scl += 10000UL) {
+      uint8_t t = NINEDOF_TWBR(8000000UL, scl);
+      CHECK(8000000UL / (16UL + 2UL * t) <= scl);            /* never faster */
+      CHECK(t == 0 || 8000000UL / (16UL + 2UL * (t - 1)) > scl); /* tightest */
+    }
+  }
   /* the HMC5883L trigger writes MODE = single measurement */
   CHECK(NINEDOF_HMC5883L_TRIGGER[0] == HMC5883L_MODE &&
         (NINEDOF_HMC5883L_TRIGGER[1] & 3) == 1);

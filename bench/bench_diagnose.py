@@ -33,10 +33,13 @@ from motecal.diagnose import plant as P  # noqa: E402
 from motecal.diagnose.engine import diagnose  # noqa: E402
 
 
+SCALE = 1.0
+
+
 def run_case(case):
     kind, keys, seed = case
     rng = np.random.default_rng([seed, 7919])
-    plants = [P.make_plant(c, s, rng) for c, s in keys]
+    plants = [P.make_plant(c, s, rng, SCALE) for c, s in keys]
     t0 = time.time()
     ses = P.simulate(plants, kind, seed)
     d = diagnose(ses, simulate=False)
@@ -54,6 +57,11 @@ def run_case(case):
             ratios.append(np.nan)
     return {"kind": kind, "keys": keys, "seed": seed, "named": named, "extra": extra,
             "ratios": ratios, "sizes": [p.size for p in plants], "time": dt}
+
+
+def _set_scale(s):
+    global SCALE
+    SCALE = s
 
 
 def cases(per: int, n_clean: int, n_pairs: int, seed0: int):
@@ -87,12 +95,16 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--only", help="only (cause, sensor) keys containing this text")
+    ap.add_argument("--scale", type=float, default=1.0,
+                    help="plant sizes x this (e.g. 0.5 probes below the thresholds)")
     a = ap.parse_args(argv)
+    global SCALE
+    SCALE = a.scale
     cs = cases(a.per, a.clean, a.pairs, a.seed)
     if a.only:
         cs = [c for c in cs if c[1] and any(a.only in f"{k[0]}:{k[1]}" for k in c[1])]
     t0 = time.time()
-    with Pool(a.jobs) as pool:
+    with Pool(a.jobs, initializer=_set_scale, initargs=(a.scale,)) as pool:
         res = pool.map(run_case, cs, chunksize=1)
     wall = time.time() - t0
     planted = [r for r in res if len(r["keys"]) == 1]

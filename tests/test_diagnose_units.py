@@ -87,6 +87,7 @@ def test_drift_sizes_and_time_basis():
     B = F.time_basis(np.linspace(0, 10, 11), 0, 10, 4)
     assert B.shape == (11, 4) and abs(B[:, 0].mean()) < 1e-12
     assert ST.drift_sizes(300, 200) == [4, 10, 30]
+    assert ST.drift_sizes(300, 37) == [4, 10, 12]
     assert ST.drift_sizes(60, 30, per_axis=1) == [4, 6, 8]
 
 

@@ -7,8 +7,8 @@ Each planted term goes where the diagnosis' forward chain has it (see
 ``extend``): ``cross_axis`` before the paper's ``scale_offset``, the others
 after it, ``field_disturbance`` first, so the truth is exactly representable.
 
-``THRESHOLDS`` are the documented detectability thresholds: sizes are drawn
-log-uniformly from [threshold, SPAN x threshold].
+``causes.THRESHOLDS`` are the documented detectability thresholds: sizes are
+drawn log-uniformly from [threshold, SPAN x threshold].
 """
 from __future__ import annotations
 
@@ -21,33 +21,10 @@ from ..session import SessionData
 from ..sim.model import SimModel, load_model
 from ..sim.physics import K_NOMINAL
 from ..sim.trajectory import make_trajectory
+from .causes import THRESHOLDS  # noqa: F401 - the documented thresholds live with the vocabulary
 
 SPAN = 3.0
 
-# (cause, sensor): (session kind, threshold, unit of the size)
-THRESHOLDS = {
-    ("cross_axis", "accel"): ("static80", 0.004, "max |symmetric coupling|"),
-    ("cross_axis", "mag"): ("static80", 0.004, "max |symmetric coupling|"),
-    ("nonlinearity", "accel"): ("static80", 0.006, "max |q|, |c3|, |a|"),
-    ("nonlinearity", "mag"): ("static80", 0.012, "max |q|, |c3|, |a|"),
-    ("bias_drift", "accel"): ("static80", 0.02, "slope, counts/s"),
-    ("bias_drift", "mag"): ("static80", 0.02, "slope, counts/s"),
-    ("bias_drift", "gyro"): ("static80", 10.0, "warm-up amplitude, counts"),
-    ("bias_drift", "gyro-idle"): ("idle", 0.15, "random walk sigma, counts/sqrt(s)"),
-    ("g_sensitivity", "gyro"): ("static80", 0.04, "max |G|, deg/s per g"),
-    ("saturation", "accel"): ("static80", 0.05, "depth of the limit below the axis' largest "
-                                                "reading, g"),
-    ("saturation", "gyro"): ("static80", 0.2, "depth of the limit below the axis' largest "
-                                              "reading, fraction of it"),
-    ("saturation", "mag"): ("static80", 0.05, "depth of the limit below the axis' largest "
-                                              "reading, gauss"),
-    ("stale_samples", "accel"): ("idle", 0.1, "1 - update/read rate"),
-    ("stale_samples", "gyro"): ("static80", 0.1, "1 - update/read rate"),
-    ("stale_samples", "mag"): ("static80", 0.1, "1 - update/read rate"),
-    ("motion", "accel"): ("static80", 0.07, "rms tremor, deg"),
-    ("field_disturbance", "mag"): ("static80", 0.0005, "pose_rms_gauss, gauss"),
-    ("field_disturbance", "mag-rotation"): ("rotation", 0.003, "rms_gauss (wander), gauss"),
-}
 
 
 @dataclass

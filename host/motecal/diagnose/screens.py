@@ -16,7 +16,10 @@ from .prepare import SensorObs, unique_updates
 
 # practical floors: below these an effect is not reported even when significant
 STALE_MIN_EXCESS = 0.02        # repeated-reading fraction above chance
-SAT_MIN_COUNT = 5              # readings at the limit
+SAT_MIN_COUNT = 10             # readings at an arbitrary limit
+SAT_MIN_COUNT_FULL_SCALE = 3   # readings at a chip's full-scale code
+FULL_SCALE_CODES = (32767.0, -32767.0, -32768.0, 4095.0, -4096.0, 2047.0, -2048.0)
+MOTION_SLOPE = (0.3, 3.0)      # a real turn moves the accelerometer ~1x the gyro's prediction
 SAT_MIN_RATIO = 4.0            # count at the limit / mean count of the 20 values inside it
 SAT_NEIGHBOURS = 20
 MOTION_LAG_S = 0.064           # accelerometer change over this lag is compared with the gyro's
@@ -187,9 +190,10 @@ def saturation(obs: SensorObs, chip_limits: tuple | None = None) -> Screen | Non
     Test per axis and side: under a smooth distribution the count at the
     extreme value is comparable to the counts just inside it; the p-value is
     Poisson with twice the neighbours' mean count as the expectation (a
-    conservative allowance for the slope of the distribution).  Clipping also
-    needs at least ``SAT_MIN_COUNT`` readings and ``SAT_MIN_RATIO`` times the
-    neighbours' mean; any overflow code is direct evidence."""
+    conservative allowance for the slope of the distribution, at least 1).
+    Clipping also needs ``SAT_MIN_RATIO`` times the neighbours' mean and at
+    least ``SAT_MIN_COUNT`` readings (``SAT_MIN_COUNT_FULL_SCALE`` at a chip's
+    full-scale code); any overflow code is direct evidence."""
     x = obs.x[~obs.overflow]
     if obs.n < 20 or len(x) < 20:
         return None
@@ -198,10 +202,11 @@ def saturation(obs: SensorObs, chip_limits: tuple | None = None) -> Screen | Non
     for a in range(3):
         for side in (1, -1):
             L, c, lam = _pileup(x[:, a], side)
-            lam2 = max(2.0 * lam, 0.5)
+            lam2 = max(2.0 * lam, 1.0)
             p = float(stats.poisson.sf(c - 1, lam2)) if c > 0 else 1.0
             ratio = c / max(lam, 0.25)
-            if c >= SAT_MIN_COUNT and ratio >= SAT_MIN_RATIO:
+            need = SAT_MIN_COUNT_FULL_SCALE if L in FULL_SCALE_CODES else SAT_MIN_COUNT
+            if c >= need and ratio >= SAT_MIN_RATIO:
                 hits.append({"axis": "xyz"[a], "side": "high" if side > 0 else "low",
                              "limit_counts": L, "count": c, "neighbour_mean": round(lam, 3),
                              "p": p})
@@ -334,7 +339,8 @@ def motion(acc: SensorObs | None, gyr: SensorObs | None, seg_rows_shared: bool) 
           "lag_s": round(L / rate, 4), "segments": len(seg_stats),
           "tremor_rate_rms_dps": round(rate_rms_dps, 4),
           "tremor_angle_rms_deg": round(angle_deg, 4)}
+    plausible = MOTION_SLOPE[0] < abs(beta) < MOTION_SLOPE[1]
     return Screen("accel+gyro", "motion", p, angle_deg, ev,
                   {"rms_deg": round(angle_deg, 5), "bandwidth_hz": round(B, 3)},
                   stat, np.zeros(len(stat)), after, "gyro rate variance above noise per "
-                  "still block (counts^2)", True)
+                  "still block (counts^2)", plausible)

@@ -122,7 +122,8 @@ def _spec_fit(sensor, K, X, T, W, spec: frozenset, trange, Jf, start=None, max_n
 def drift_sizes(duration: float, max_params: int, per_axis: int = 3) -> list[int]:
     """Basis sizes tried for a drift: a smooth one (linear, slow warm-up), one
     function per ~30 s (a fast warm-up) and one per ~10 s (a random walk), as
-    the data allow."""
+    the data allow (at most ``max_params`` parameters: a sixth of the points,
+    so that the drift cannot follow everything else that varies with time)."""
     small = F.DRIFT_J
     cap = max_params // per_axis
     out = [small]
@@ -206,9 +207,11 @@ def _greedy(candidates: dict, fits: dict, fit_fn, n_obs: int, alpha: float, test
                                  F.delta_bic(f0.rss, f1.rss, q, n_obs), f0.rss, f1.rss)
                 rec.item = item
                 # among a cause's variants (basis sizes) the significant one with
-                # the lowest AIC: the size is resolution, not another finding
+                # the lowest BIC: the size is resolution, not another finding (a
+                # random walk finer than the chosen basis is measured afterwards,
+                # see random_walk)
                 rec.aic = float(n_obs * np.log(max(f1.rss, 1e-300) / max(f0.rss, 1e-300))
-                                + 2 * q)
+                                + q * np.log(n_obs))
                 if cbest is None:
                     cbest = rec
                 else:
@@ -312,7 +315,7 @@ def analyse_magnitude(obs: SensorObs, regime: str, candidates: list[str], alpha:
     cand = {}
     for c in candidates:
         if c == "bias_drift":
-            sizes = drift_sizes(trange[1] - trange[0], (k - fit0.p) // 2)
+            sizes = drift_sizes(trange[1] - trange[0], (k - fit0.p) // 6)
             cand[c] = [f"bias_drift:{j}" for j in sizes]
         elif c == "field_disturbance":
             cand[c] = [f"field_disturbance:{j}" for j in field_sizes(trange[1] - trange[0], k)]
@@ -460,7 +463,7 @@ def analyse_linear(obs: SensorObs, candidates: list[str], alpha: float,
     cand = {}
     for c in candidates:
         if c == "bias_drift":
-            sizes = drift_sizes(trange[1] - trange[0], (k - fits[frozenset()].p // 3) // 2, 1)
+            sizes = drift_sizes(trange[1] - trange[0], (k - fits[frozenset()].p // 3) // 6, 1)
             cand[c] = [f"bias_drift:{j}" for j in sizes]
         else:
             cand[c] = [c]

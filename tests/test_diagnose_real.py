@@ -22,7 +22,7 @@ EXPECTED = {
         {("accel", "motion"), ("gyro", "bias_drift"), ("mag", "bias_drift")},
     "sensorstick-boards/razor2/razor2_acc_*.raw":
         {("accel", "bias_drift"), ("accel", "stale_samples"), ("gyro", "bias_drift")},
-    "sensorstick-boards/razor1/razor1_gyr_xyz.raw": set(),
+    "sensorstick-boards/razor1/razor1_gyr_xyz.raw": {("gyro", "bias_drift")},
     "sensorstick-boards/razor2/razor2_gyr_xyz.raw": set(),
     "mpu6050-hmc5883l-timestamped/full-sphere":
         {("gyro", "saturation"), ("mag", "cross_axis"), ("mag", "field_disturbance"),

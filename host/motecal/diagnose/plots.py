@@ -49,10 +49,18 @@ def _magnitude_panels(ax, st, cause, o):
     ax[0].set_xlabel(xl)
     ax[0].set_ylabel(f"magnitude residual ({st.unit})")
     ax[0].legend(fontsize=7)
-    ax[1].plot(T - T.min(), rw, ".", ms=3, label=f"without {cause}")
-    ax[1].plot(T - T.min(), r1, ".", ms=3, label="extended model")
-    ax[1].set_xlabel("time (s)")
-    ax[1].set_ylabel(f"residual ({st.unit})")
+    if cause in ("bias_drift", "field_disturbance"):
+        sd = np.sqrt(st.points["V"])
+        bins = np.linspace(-6, 6, 49)
+        ax[1].hist(np.clip(rw / sd, -6, 6), bins=bins, alpha=0.6, label=f"without {cause}")
+        ax[1].hist(np.clip(r1 / sd, -6, 6), bins=bins, alpha=0.6, label="extended model")
+        ax[1].set_xlabel("residual / its noise")
+        ax[1].legend(fontsize=7)
+    else:
+        ax[1].plot(T - T.min(), rw, ".", ms=3, label=f"without {cause}")
+        ax[1].plot(T - T.min(), r1, ".", ms=3, label="extended model")
+        ax[1].set_xlabel("time (s)")
+        ax[1].set_ylabel(f"residual ({st.unit})")
 
 
 def _linear_panels(ax, st, cause, o):

@@ -12,7 +12,7 @@ from motecal.diagnose import gain as G
 from motecal.diagnose import screens as SC
 from motecal.diagnose import structure as ST
 from motecal.diagnose.compare import SampledTrajectory, distance, read_times
-from motecal.diagnose.prepare import SensorObs, sensor_obs, unique_updates
+from motecal.diagnose.prepare import sensor_obs, unique_updates
 from motecal.session import SessionData
 from motecal.sim import SimModel, load_model
 

@@ -1,0 +1,18 @@
+"""Model discrepancy: what the simulation gets wrong, the cause, the extended
+model and its gain (``motecal diagnose``; see docs/readme/diagnosis.md).
+
+* ``prepare``   -- per sensor: rows, still segments (poses), time blocks, noise;
+* ``fitting``   -- nested models (calib's magnitude models + simulator terms),
+  least squares, F / robust Wald tests;
+* ``structure`` -- calibration-type causes: greedy nested selection, held-out gains;
+* ``screens``   -- raw-reading causes: stale samples, saturation, motion;
+* ``causes``    -- the documented vocabulary and detectability thresholds;
+* ``gain``      -- the criterion (Bonferroni level, held-out check);
+* ``extend``    -- the extended model as a simulator model file;
+* ``compare``   -- the same session re-simulated, statistics side by side;
+* ``engine``    -- the four questions in order (``diagnose``);
+* ``plant``     -- hidden effects for the tests and the bench;
+* ``plots``, ``cli`` -- ``--report`` pictures and the command.
+"""
+from .causes import CAUSES  # noqa: F401
+from .engine import Diagnosis, Finding, diagnose  # noqa: F401

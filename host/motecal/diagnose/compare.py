@@ -34,13 +34,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..session import NOMINAL_CHIPS, NOMINAL_SCALES, LABEL_ROT, SessionData
+from ..session import NOMINAL_CHIPS, NOMINAL_SCALES, SessionData
 from ..sim.model import SimModel
 from ..sim.trajectory import Trajectory, up_to_rotation
 from . import fitting as F
 from . import screens as SC
 from . import structure as ST
-from .prepare import SensorObs, all_obs, recording_parts, session_rate
+from .prepare import SensorObs, all_obs, session_rate
 
 SMOOTH_S = 0.08
 CHUNK_S = 4.0

@@ -25,7 +25,7 @@ base calibration, in the order the extended model file lists them after
 Gyroscope and single-orientation data: linear
 ---------------------------------------------
 Per axis, segment means m = b + K G a + drift(t): ordinary weighted linear
-least squares (``LinearModel``).
+least squares (``fit_linear``).
 """
 from __future__ import annotations
 
@@ -33,7 +33,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
-from scipy.optimize import least_squares
 
 from ..calib.fit import polish
 from ..calib.models import MagnitudeModel, make_model, theta_from_affine

@@ -40,7 +40,7 @@ from ..sim.trajectory import Trajectory, up_to_rotation
 from . import fitting as F
 from . import screens as SC
 from . import structure as ST
-from .prepare import SensorObs, all_obs, session_rate
+from .prepare import SensorObs, all_obs, sample_times, session_rate
 
 SMOOTH_S = 0.08
 CHUNK_S = 4.0
@@ -135,9 +135,7 @@ def trajectory_like(data: SessionData, diag) -> tuple[SampledTrajectory, np.ndar
     """The rig's trajectory estimated from the data; returns it and the
     simulator times of the rows (seconds from the first row)."""
     rate = session_rate(data)
-    t = data.t.astype(float)
-    if not np.all(np.isfinite(t)):
-        t = np.arange(len(data)) / rate
+    t = sample_times(data)
     order = np.argsort(t, kind="stable")
     if np.any(order != np.arange(len(t))):
         raise ValueError("rows must be in time order")
@@ -359,7 +357,7 @@ def halves(data: SessionData) -> np.ndarray:
     other rows (see below); half B is the rest."""
     lab = data.label
     rate = session_rate(data)
-    t = data.t if np.all(np.isfinite(data.t)) else np.arange(len(data)) / rate
+    t = sample_times(data)
     chunk = np.floor((t - t[0]) / CHUNK_S).astype(int)
     a = chunk % 2 == 0
     pose = lab >= 1

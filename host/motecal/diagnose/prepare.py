@@ -108,11 +108,27 @@ def recording_parts(data: SessionData) -> np.ndarray:
     return part
 
 
+def sample_times(data: SessionData) -> np.ndarray:
+    """Per row, the time the sample was taken (s): ``t`` when it is one.  A
+    logged session's ``t`` may be when the host received a batch (rows of a
+    batch share it, and it is compressed when the simulator runs faster than
+    real time); the mote samples at exactly its rate, so ``seq / rate`` is
+    then the sample time."""
+    rate = session_rate(data)
+    t = np.asarray(data.t, float)
+    seq_t = (data.seq - data.seq[0]) / rate if len(data) else np.zeros(0)
+    if len(t) < 2:
+        return np.nan_to_num(t)
+    if not np.all(np.isfinite(t)):
+        return seq_t.astype(float)
+    # batches: many rows share one receive time
+    if np.mean(np.diff(t) <= 0) > 0.2 and np.all(np.diff(data.seq) > 0):
+        return seq_t.astype(float)
+    return t
+
+
 def _times(data: SessionData, rows: np.ndarray, rate: float) -> np.ndarray:
-    t = data.t[rows]
-    if np.all(np.isfinite(t)):
-        return t.astype(float)
-    return np.arange(len(rows)) / rate
+    return sample_times(data)[rows]
 
 
 def _runs(mask: np.ndarray):

@@ -255,3 +255,16 @@ def test_json_has_exactly_the_issue_keys():
     assert j["clean"] is True and j["findings"] == []
     json.dumps(j)
     SimModel.from_json(j["model"], "extended")            # a valid simulator model
+
+
+def test_sample_times_from_seq_when_t_is_batch_receive_time():
+    from motecal.diagnose.prepare import sample_times
+    n = 600
+    raw = np.zeros((n, 9))
+    seq = np.arange(n) + 100
+    t_recv = np.repeat(np.arange(n // 6) * 0.01, 6)          # 6 samples per frame, fast host
+    d = SessionData("b", raw, np.ones(n, np.int32), seq, t_recv, np.zeros(n, np.int32),
+                    np.zeros(n, np.uint8), meta={"rate_hz": 125.0})
+    assert np.allclose(sample_times(d), np.arange(n) / 125.0)
+    d.t = np.arange(n) / 100.0                                # a real clock is kept
+    assert np.allclose(sample_times(d), d.t)

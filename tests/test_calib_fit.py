@@ -14,15 +14,9 @@ import pytest
 
 from motecal.calib import fit
 from motecal.calib.models import PARAM_GROUPS, make_model, theta_from_affine
+from motecal.sphere import fibonacci_sphere
 
 NOISE = 0.005
-
-
-def fibonacci(n):
-    i = np.arange(n) + 0.5
-    phi = np.arccos(1 - 2 * i / n)
-    th = np.pi * (1 + 5 ** 0.5) * i
-    return np.c_[np.cos(th) * np.sin(phi), np.sin(th) * np.sin(phi), np.cos(phi)]
 
 
 def make_data(A, c, H=1.0, *, poses=40, per=100, sweep=0, noise=NOISE, seed=0):
@@ -33,7 +27,8 @@ def make_data(A, c, H=1.0, *, poses=40, per=100, sweep=0, noise=NOISE, seed=0):
         d /= np.linalg.norm(d, axis=1, keepdims=True)
         label = None
     else:
-        d = np.repeat(fibonacci(poses), per, axis=0)
+        # the lattice mirrored in y: the directions these tolerances were set on
+        d = np.repeat(fibonacci_sphere(poses) * [1, -1, 1], per, axis=0)
         label = np.repeat(np.arange(1, poses + 1), per)
     v = H * d + noise * rng.standard_normal(d.shape)
     return np.linalg.solve(A, (v - c).T).T, label

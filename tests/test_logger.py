@@ -6,11 +6,10 @@ import pytest
 
 from motecal import protocol as P
 from motecal import sources as S
-from motecal.guide import (GuidedFlow, PoseCapture, RotationCapture, SphereCoverage,
-                           describe_up, sketch_up)
-from motecal.sim.trajectory import fibonacci_sphere
+from motecal.guide import GuidedFlow, PoseCapture, RotationCapture, describe_up, sketch_up
 from motecal.logger import LinkTracker, Logger, MoteLink, decode_sample_frames
 from motecal.session import LABEL_ROT
+from motecal.sphere import SphereCoverage, fibonacci_sphere
 from motecal.store import open_store
 from test_logger_streams import pose_trajectory, sample_frames
 

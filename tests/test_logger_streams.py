@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from motecal import protocol as P
-from motecal.sim.trajectory import fibonacci_sphere
+from motecal.sphere import fibonacci_sphere
 
 G = 256.0            # ADXL345 counts per g
 GYRO = 14.375        # ITG3200 counts per deg/s

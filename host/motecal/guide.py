@@ -13,7 +13,8 @@ The decisions live here, as explicit state machines, one per followed mote
   accept/reject point is ``PoseCapture._consider``.
 * ``RotationCapture`` (``--guided rotation``): labels rows ``rot`` from the
   start until ``samples`` rows or until the magnetometer directions (around a
-  running sphere-fit centre) hit ``coverage`` of equal-area sphere cells.
+  running sphere-fit centre) hit ``coverage`` of equal-area sphere cells
+  (``sphere.coverage``, 10 x 10 cells: the number the quality gate checks).
 
 In interactive use a pose is only captured after the person confirmed it
 (``arm``: Enter); non-interactive flows are always armed and advance whenever
@@ -31,9 +32,9 @@ from enum import Enum
 
 import numpy as np
 
-from .calib.gate import unit
 from .session import LABEL_ROT, NOMINAL_SCALES
-from .sim.trajectory import fibonacci_sphere     # the suggested poses: the simulator's lattice
+from .sphere import (COVERAGE_BANDS, COVERAGE_SECTORS, SphereCoverage, angle_deg,
+                     fibonacci_sphere, sphere_centre, unit)
 from .still import StillDetector, StillThresholds
 
 DEFAULT_POSES = 80
@@ -47,55 +48,8 @@ MAG_OVERFLOW = -4096
 
 
 # --------------------------------------------------------------------------
-# Directions and coverage
+# Describing a direction
 # --------------------------------------------------------------------------
-def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Angles between unit vectors a (..., 3) and b (..., 3), degrees."""
-    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1.0, 1.0)))
-
-
-class SphereCoverage:
-    """Equal-area cells on the unit sphere: ``bands`` equal-height z bands
-    (equal area, Archimedes) times ``sectors`` equal azimuth sectors, as
-    MotionCal counts the gaps in a magnetometer sweep."""
-
-    def __init__(self, bands: int = 10, sectors: int = 10):
-        self.bands, self.sectors = bands, sectors
-        self.hits = np.zeros(bands * sectors, np.int64)
-
-    @property
-    def cells(self) -> int:
-        return self.bands * self.sectors
-
-    def cell_of(self, v: np.ndarray) -> np.ndarray:
-        v = unit(np.atleast_2d(v))
-        band = np.clip(((1.0 - v[:, 2]) / 2.0 * self.bands).astype(int), 0, self.bands - 1)
-        az = (np.arctan2(v[:, 1], v[:, 0]) + math.pi) / (2 * math.pi)
-        sector = np.clip((az * self.sectors).astype(int), 0, self.sectors - 1)
-        return band * self.sectors + sector
-
-    def reset(self):
-        self.hits[:] = 0
-
-    def add(self, v: np.ndarray) -> None:
-        if len(np.atleast_2d(v)):
-            np.add.at(self.hits, self.cell_of(v), 1)
-
-    @property
-    def fraction(self) -> float:
-        return float((self.hits > 0).mean())
-
-    def map(self, mark: np.ndarray | None = None) -> list[str]:
-        """Text map, top row = +Z band: '#' hit, '.' empty, 'o' the cell of ``mark``."""
-        grid = (self.hits > 0).reshape(self.bands, self.sectors)
-        m = int(self.cell_of(mark)[0]) if mark is not None else -1
-        rows = []
-        for b in range(self.bands):
-            rows.append("".join("o" if b * self.sectors + s == m else ("#" if grid[b, s] else ".")
-                                for s in range(self.sectors)))
-        return rows
-
-
 _AXES = (("+X", np.array([1.0, 0, 0])), ("-X", np.array([-1.0, 0, 0])),
          ("+Y", np.array([0, 1.0, 0])), ("-Y", np.array([0, -1.0, 0])),
          ("+Z", np.array([0, 0, 1.0])), ("-Z", np.array([0, 0, -1.0])))
@@ -111,7 +65,7 @@ def describe_up(d: np.ndarray) -> str:
     dots = [float(d @ a) for _, a in _AXES]
     i = int(np.argmax(dots))
     name, axis = _AXES[i]
-    tilt = math.degrees(math.acos(max(-1.0, min(1.0, dots[i]))))
+    tilt = float(angle_deg(d, axis))
     if tilt < 5.0:
         return f"{name} face up, level"
     horiz = d - dots[i] * axis
@@ -358,18 +312,16 @@ class PoseCapture:
 # --------------------------------------------------------------------------
 # Rotation sweep
 # --------------------------------------------------------------------------
-def sphere_centre(m: np.ndarray) -> np.ndarray:
-    """Centre of the best sphere through points m (n, 3): linear least squares
-    on |m|^2 = 2 c.m + k; falls back to the mid-range for too few points."""
+MIN_FIT_POINTS = 20          # fewer readings: the sweep's centre is the mid-range
+
+
+def sweep_centre(m: np.ndarray) -> np.ndarray:
+    """Centre of a magnetometer sweep m (n, 3): the best-fitting sphere's
+    (``sphere.sphere_centre``), the mid-range while too few readings or too
+    flat a set determine none."""
     m = np.asarray(m, float)
-    mid = (m.max(axis=0) + m.min(axis=0)) / 2.0
-    if len(m) < 20:
-        return mid
-    a = np.column_stack([2.0 * m, np.ones(len(m))])
-    sol, _, rank, sv = np.linalg.lstsq(a, (m * m).sum(axis=1), rcond=None)
-    if rank < 4 or sv[-1] < 1e-6 * sv[0]:
-        return mid
-    return sol[:3]
+    c = sphere_centre(m) if len(m) >= MIN_FIT_POINTS else None
+    return (m.max(axis=0) + m.min(axis=0)) / 2.0 if c is None else c
 
 
 class RotationCapture:
@@ -379,7 +331,8 @@ class RotationCapture:
 
     def __init__(self, mote: int, *, samples: int = DEFAULT_ROT_SAMPLES,
                  coverage: float = DEFAULT_COVERAGE, auto: bool = True,
-                 bands: int = 10, sectors: int = 10, refit_every: int = 250):
+                 bands: int = COVERAGE_BANDS, sectors: int = COVERAGE_SECTORS,
+                 refit_every: int = 250):
         self.mote = mote
         self.samples = samples
         self.target_coverage = coverage
@@ -414,7 +367,7 @@ class RotationCapture:
         self._mag = np.vstack([self._mag, mag[good]])
         if len(self._mag) - self._fitted_at >= self.refit_every or self.count >= self.samples:
             self._fitted_at = len(self._mag)
-            self.centre = sphere_centre(self._mag)
+            self.centre = sweep_centre(self._mag)
             self.coverage.reset()
             self.coverage.add(self._mag - self.centre)
         frac = self.coverage.fraction

@@ -49,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import UserError
+from ..sphere import unit
 
 PARAM_GROUPS = ("offsets", "scales", "angles")
 MODEL_FAMILIES = ("paper", "full")
@@ -203,7 +204,7 @@ class MagnitudeModel:
         """Analytic Jacobian of residuals(theta, u): shape (n, d)."""
         A, c, H = self.affine(np.asarray(theta, float))
         v = u @ A.T + c
-        nv = v / np.linalg.norm(v, axis=1, keepdims=True)
+        nv = unit(v)
         M = self.affine_jacobian(theta)                   # (13, d)
         # dr/dA_ij = n_i u_j ; dr/dc_i = n_i ; dr/dH = -1
         G = (nv[:, :, None] * u[:, None, :]).reshape(len(u), 9)

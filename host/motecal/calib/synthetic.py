@@ -20,6 +20,7 @@ import copy
 import numpy as np
 
 from ..session import SessionData
+from ..sphere import unit
 from .models import lower_factor
 
 PAPER_POSES = 80
@@ -89,8 +90,7 @@ def true_affine(physical_truth: dict, sensor: str):
 
 def fresh_directions(n: int = 2000, seed: int = 12345) -> np.ndarray:
     rng = np.random.default_rng(seed)
-    v = rng.standard_normal((n, 3))
-    return v / np.linalg.norm(v, axis=1, keepdims=True)
+    return unit(rng.standard_normal((n, 3)))
 
 
 def vector_error(sc, physical_truth: dict, magnitude: float = 1.0,

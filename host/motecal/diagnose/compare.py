@@ -37,6 +37,7 @@ from scipy.spatial.transform import Rotation
 from ..session import NOMINAL_CHIPS, NOMINAL_SCALES, SessionData
 from ..sim.model import SimModel
 from ..sim.trajectory import Trajectory, up_to_rotation
+from ..sphere import angle_deg, unit
 from . import fitting as F
 from . import screens as SC
 from . import structure as ST
@@ -100,11 +101,6 @@ class SampledTrajectory(Trajectory):
         return {"keyframes": int(len(self.t_key))}
 
 
-def _unit(v):
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.where(n > 0, n, 1.0)
-
-
 def _calibrated(o: SensorObs, st) -> np.ndarray:
     """Calibrated readings of a magnitude sensor (its starting fit), or nominal."""
     fit = None
@@ -128,7 +124,7 @@ def _per_row(data: SessionData, o: SensorObs, v: np.ndarray, t_all: np.ndarray) 
         sm = np.column_stack([np.convolve(v[:, a], k, mode="same") for a in range(3)])
         v[o.moving] = sm[o.moving]
     out = np.column_stack([np.interp(t_all, o.t, v[:, a]) for a in range(3)])
-    return _unit(out)
+    return unit(out)
 
 
 def trajectory_like(data: SessionData, diag) -> tuple[SampledTrajectory, np.ndarray]:
@@ -146,12 +142,12 @@ def trajectory_like(data: SessionData, diag) -> tuple[SampledTrajectory, np.ndar
     obs = diag.obs
     g_b = b_b = None
     if "accel" in obs:
-        g_b = _per_row(data, obs["accel"], _unit(_calibrated(obs["accel"],
-                                                             diag.structures.get("accel"))),
+        g_b = _per_row(data, obs["accel"], unit(_calibrated(obs["accel"],
+                                                            diag.structures.get("accel"))),
                        t_sim + t[0])
     if "mag" in obs:
-        b_b = _per_row(data, obs["mag"], _unit(_calibrated(obs["mag"],
-                                                           diag.structures.get("mag"))),
+        b_b = _per_row(data, obs["mag"], unit(_calibrated(obs["mag"],
+                                                          diag.structures.get("mag"))),
                        t_sim + t[0])
     n = len(t)
     # every row of a pose sees the pose's directions
@@ -160,13 +156,13 @@ def trajectory_like(data: SessionData, diag) -> tuple[SampledTrajectory, np.ndar
         m = lab0 == p
         for v in (g_b, b_b):
             if v is not None:
-                v[m] = _unit(v[m].mean(axis=0))
+                v[m] = unit(v[m].mean(axis=0))
     if g_b is not None and b_b is not None:
         # TRIAD: body (g, g x b) <-> world (z, z x B)
         ez = np.array([0.0, 0.0, 1.0])
-        t2w = _unit(np.cross(ez, Bw))
+        t2w = unit(np.cross(ez, Bw))
         W = np.column_stack([ez, t2w, np.cross(ez, t2w)])
-        t2b = _unit(np.cross(g_b, b_b))
+        t2b = unit(np.cross(g_b, b_b))
         Bm = np.stack([g_b, t2b, np.cross(g_b, t2b)], axis=2)      # columns
         R = W[None] @ np.transpose(Bm, (0, 2, 1))
     elif g_b is not None:
@@ -291,7 +287,7 @@ def session_stats(data: SessionData) -> dict:
             q = np.percentile(rs, [5, 95])
             st["resid_q05"] = (float(q[0]), "unit")
             st["resid_q95"] = (float(q[1]), "unit")
-            u = _unit(fit.calibrate(X, T))
+            u = unit(fit.calibrate(X, T))
             D = np.column_stack([u[:, 0] * u[:, 1], u[:, 0] * u[:, 2], u[:, 1] * u[:, 2],
                                  u[:, 0] ** 3, u[:, 1] ** 3, u[:, 2] ** 3])
             st["r2_direction"] = (_r2(res, D), "r2")
@@ -321,7 +317,7 @@ def session_stats(data: SessionData) -> dict:
                 continue
             ga = fa.calibrate(oa.x[m].mean(axis=0)[None], np.array([oa.t[m].mean()]))[0]
             bm = fm.calibrate(om.x[g].mean(axis=0)[None], np.array([om.t[g].mean()]))[0]
-            angs.append(np.degrees(np.arccos(np.clip(_unit(ga) @ _unit(bm), -1, 1))))
+            angs.append(float(angle_deg(ga, bm)))
         if len(angs) >= 4:
             out["mag"]["dip_sd_deg"] = (float(np.std(angs)), "deg")
     return out

@@ -15,9 +15,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from ..calib.gate import distinct_directions, hull_depth
+from ..calib.gate import hull_depth
 from ..errors import QualityError, UserError
 from ..session import SessionData
+from ..sphere import angle_deg, distinct_directions, unit
 from . import causes as C
 from . import extend as X
 from . import fitting as F
@@ -410,9 +411,7 @@ def _tilt(o: SensorObs) -> dict:
         dv.append(np.sum((v - c) ** 2, axis=1))
         L = np.linalg.norm(v, axis=1)
         dl.append((L - L.mean()) ** 2)
-        u = v / L[:, None]
-        cu = c / np.linalg.norm(c)
-        ang.append(np.degrees(np.arccos(np.clip(u @ cu, -1, 1))) ** 2)
+        ang.append(angle_deg(v, c) ** 2)
         span.append(b.t[m].max() - b.t[m].min())
     if not dv:
         return {"length_to_vector_change": 1.0, "angle_rms_deg": 0.0, "segment_s": 1.0}
@@ -663,8 +662,7 @@ def _dip_test(st: ST.Structure, sobs, structures) -> dict | None:
         vb.append(np.mean(mag.sigma_eff ** 2) / mag.K ** 2 / len(rows) / H ** 2)
     if len(gvec) < 8:
         return None
-    gu = np.array(gvec) / np.linalg.norm(gvec, axis=1, keepdims=True)
-    bu = np.array(bvec) / np.linalg.norm(bvec, axis=1, keepdims=True)
+    gu, bu = unit(gvec), unit(bvec)
     sd = np.sqrt(np.array(vg) + np.array(vb))           # rad, per pose
 
     from scipy.optimize import least_squares
@@ -672,16 +670,16 @@ def _dip_test(st: ST.Structure, sobs, structures) -> dict | None:
 
     def res(p):
         R = Rotation.from_rotvec(p[:3]).as_matrix()
-        ang = np.arccos(np.clip(np.sum(gu * (bu @ R.T), axis=1), -1, 1))
+        ang = np.radians(angle_deg(gu, bu @ R.T))
         return (ang - p[3]) / sd
 
-    ang0 = np.arccos(np.clip(np.sum(gu * bu, axis=1), -1, 1))
+    ang0 = np.radians(angle_deg(gu, bu))
     sol = least_squares(res, np.r_[0, 0, 0, ang0.mean()])
     rss = float(sol.fun @ sol.fun)
     dof = len(gu) - 4
     ratio, p = F.chi2_excess(rss, dof)
     R = Rotation.from_rotvec(sol.x[:3]).as_matrix()
-    ang = np.arccos(np.clip(np.sum(gu * (bu @ R.T), axis=1), -1, 1))
+    ang = np.radians(angle_deg(gu, bu @ R.T))
     return {"dip_deg": float(np.degrees(sol.x[3]) - 90.0), "dip_sd_deg": float(np.degrees(np.std(ang))),
             "dip_excess_ratio": ratio, "dip_p": p,
             "accel_mag_rotation_deg": float(np.degrees(np.linalg.norm(sol.x[:3])))}
@@ -785,7 +783,7 @@ def _inclination(structures, sobs):
             continue
         ga = a.fit.calibrate(acc.x[sel].mean(axis=0)[None], np.array([acc.t[sel].mean()]))[0]
         bm = m.fit.calibrate(mag.segs.mean[gi][None], np.array([mag.segs.t[gi]]))[0]
-        dots.append(ga @ bm / np.linalg.norm(ga) / np.linalg.norm(bm))
+        dots.append(float(unit(ga) @ unit(bm)))
     if not dots:
         return None
     return float(np.degrees(np.arcsin(np.clip(-np.mean(dots), -1, 1))))

@@ -36,6 +36,7 @@ from scipy import stats
 
 from ..calib.fit import polish
 from ..calib.models import MagnitudeModel, make_model, theta_from_affine
+from ..sphere import unit
 
 DRIFT_J = 4          # drift basis functions per axis
 
@@ -283,7 +284,7 @@ class MagnitudeFit:
         Jb = self.base.jacobian(tb, u)
         A, c, H = self.base.affine(tb)
         v = u @ A.T + c
-        nv = v / np.linalg.norm(v, axis=1, keepdims=True)
+        nv = unit(v)
         g = (nv @ A) / self.K                        # d r / d y (counts), (n, 3)
         cols = [Jb]
         # walk outwards: the extra undone last (first in forward order) is innermost

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from ..sphere import unit
 from . import fitting as F
 from . import structure as ST
 
@@ -28,8 +29,7 @@ def _magnitude_panels(ax, st, cause, o):
     r1 = st.fit.residuals(X, T)
     without = st.fits.get(frozenset(c for c in st.accepted if ST.cause_of(c) != cause))
     rw = without.residuals(X, T) if without is not None else r0
-    u = st.fit.calibrate(X, T)
-    u = u / np.linalg.norm(u, axis=1, keepdims=True)
+    u = unit(st.fit.calibrate(X, T))
     if cause == "cross_axis":
         A, c, H = st.fit.affine()
         M = np.linalg.inv(A)

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import sphere as S
 from . import fitting as F
 from .prepare import SensorObs
 
@@ -238,7 +239,7 @@ def residual_variance(fit: F.MagnitudeFit, X, T, var_counts) -> np.ndarray:
     of the raw point per axis (counts^2)."""
     A, c, H = fit.affine()
     v = fit.calibrate(X, T)
-    nv = v / np.linalg.norm(v, axis=1, keepdims=True)
+    nv = S.unit(v)
     g = (nv @ A) / fit.K                         # d|v| / d raw counts
     return np.sum(g * g * var_counts, axis=1)
 
@@ -451,7 +452,7 @@ def analyse_linear(obs: SensorObs, candidates: list[str], alpha: float,
         candidates = [c for c in candidates if c != "g_sensitivity"]
     else:
         # g-sensitivity needs orientations that span the sphere
-        Fu = pts["F"] / np.linalg.norm(pts["F"], axis=1, keepdims=True)
+        Fu = S.unit(pts["F"])
         if np.linalg.matrix_rank(Fu - Fu.mean(axis=0), tol=0.2) < 3:
             candidates = [c for c in candidates if c != "g_sensitivity"]
 

@@ -48,6 +48,7 @@ from scipy.spatial.transform import Rotation
 
 from ..errors import UserError
 from ..session import LABEL_NONE, LABEL_ROT
+from ..sphere import fibonacci_sphere, unit
 
 KINDS = ("static80", "rotation", "idle", "free")
 STANDARD_G = 9.80665                     # m/s^2 per g
@@ -103,19 +104,10 @@ def _zyx_matrix(a, b, c):
     return R
 
 
-def fibonacci_sphere(n: int) -> np.ndarray:
-    """n unit vectors evenly spread over the sphere (Fibonacci lattice)."""
-    i = np.arange(n) + 0.5
-    z = 1.0 - 2.0 * i / n
-    phi = i * np.pi * (3.0 - np.sqrt(5.0))
-    r = np.sqrt(1.0 - z * z)
-    return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
-
-
 def up_to_rotation(up_body: np.ndarray, yaw: float) -> np.ndarray:
     """Body->world rotation that puts body vector ``up_body`` on world z, then
     turns the board by ``yaw`` (rad) about world z."""
-    u = np.asarray(up_body, float) / np.linalg.norm(up_body)
+    u = unit(up_body)
     z = np.array([0.0, 0.0, 1.0])
     axis = np.cross(u, z)
     s, c = np.linalg.norm(axis), float(u @ z)

@@ -431,4 +431,3 @@ def test_still_runs_split_on_label_and_gaps():
     ok = np.ones(len(label), bool)
     runs = F.still_runs(label, seq, ok)
     assert [len(r) for r in runs] == [10, 10, 10]
-    assert F.coverage_fraction(np.eye(3)) == pytest.approx(3 / (F.COVER_LAT * F.COVER_LON))

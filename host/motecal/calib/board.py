@@ -18,7 +18,7 @@ Which rows are used
   treated as ``R``.  Overflowed readings (-4096) are dropped.  A set that
   cannot determine a model by the quality gate's limits (fewer than six
   distinct poses, directions not around the centre, a sweep covering under
-  half the sphere) is not fitted: a gate warning when another set is, the
+  80 % of the sphere's equal-area cells) is not fitted: a gate warning when another set is, the
   reason the magnetometer is refused when none is.
 """
 from __future__ import annotations
@@ -31,6 +31,7 @@ from .. import __version__
 from ..errors import UserError
 from ..session import (HMC5883L_OVERFLOW, LABEL_NONE, LABEL_ROT, NOMINAL_CHIPS, UNITS,
                        SessionData)
+from ..sphere import coverage, distinct_directions, unit
 from ..still import StillThresholds
 from . import fit as _fit
 from . import gate as _gate
@@ -233,16 +234,15 @@ def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss,
     if label is not None:
         poses = np.unique(label)
         means = np.array([v[label == p].mean(axis=0) for p in poses])
-        q["distinct_orientations"] = _gate.distinct_directions(means)
+        q["distinct_orientations"] = distinct_directions(means)
         q["hull_depth"] = _gate.hull_depth(means)
         spread = _gate.pose_spread(counts / lsb, label)
         q["worst_pose_sd"] = max(spread.values()) if spread else 0.0
         q["not_still"] = [p for p, s in spread.items() if s > still_limit]
         q["still_limit"] = still_limit
-    else:
+    else:                      # a sweep: how much of the sphere it covers
         q["hull_depth"] = _gate.hull_depth(v[:: max(1, len(v) // 2000)])
-    if sensor == "mag":
-        q["coverage"] = _gate.sphere_coverage(v)
+        q["coverage"] = coverage(v)
     validation = kfold_validation(mdl, fr.theta, u, label, kfold, fr.ident.rank)
     validation["mse_fit"] = fr.mse
     sc = SensorCalibration(
@@ -299,7 +299,7 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
         for p in poses:
             sel = (data.label == p) & data.has("accel")
             if sel.any():
-                grav[int(p)] = _gate.unit(accel.apply(acc[sel]).mean(axis=0))
+                grav[int(p)] = unit(accel.apply(acc[sel]).mean(axis=0))
         moves = _gyro.find_moves(data.label, data.t, data.seq, data.sensor("gyro") / lsb,
                                  data.sensor("gyro"), grav, data.meta.get("rate_hz") or 125.0,
                                  part=_recording_parts(data))

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import sphere as S
 from ..errors import QualityError, UserError
 from ..protocol import NINEDOF_RATE_HZ
 from ..session import SENSOR_SLICES, UNITS, SessionData
@@ -292,8 +293,8 @@ def _fig_sensor(mr: MoteReport, sensor: str, out: Path) -> list:
 
 
 def _fig_coverage(mr: MoteReport, out: Path) -> list:
-    from ..calib import gate as G
     from ..calib.board import mag_sets
+    from ..calib.gate import LIMITS
     data = mr.data
     sets = []
     for sensor in ("accel", "mag"):
@@ -307,18 +308,19 @@ def _fig_coverage(mr: MoteReport, out: Path) -> list:
                 continue
             counts = data.sensor(sensor)[rows]
             v = sc.apply(counts) if sc is not None else counts / data.scales[sensor]
-            cov = G.sphere_coverage(v)
-            sets.append((f"{sensor} {set_name} (gate coverage {cov:.0%})", v))
+            sets.append((f"{sensor} {set_name}", v))
     if not sets:
         return []
     f = F.coverage(out / f"mote{mr.mote}_coverage.png", sets,
                    f"Coverage of directions, mote {mr.mote}")
     return [H.FigureRef(f.name, "Coverage of directions",
-                        f"Samples per cell of an equal-area grid ({F.COVER_LAT} bands in "
-                        f"sin(latitude) x {F.COVER_LON} in longitude) of the calibrated "
-                        f"direction; 'gate coverage' is the quality gate's metric "
-                        f"(calib.gate.sphere_coverage: share of 100 evenly spread directions "
-                        f"with a sample within 25 deg).")]
+                        f"Samples per cell of the sphere's equal-area grid "
+                        f"({S.COVERAGE_BANDS} equal-height bands x {S.COVERAGE_SECTORS} "
+                        f"sectors of longitude) of the calibrated direction; coverage is "
+                        f"the share of cells holding a sample: the number the logger "
+                        f"shows while a board is turned, and which the quality gate "
+                        f"asks of a magnetometer sweep (at least "
+                        f"{LIMITS.min_mag_coverage:.0%}).")]
 
 
 def _rate(data: SessionData, sensor: str, rows: np.ndarray) -> float:

@@ -16,14 +16,12 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from .. import sphere as S
+
 DPI = 100
 MAX_POINTS = 6000                 # scatter plots draw at most this many points
 MAX_POINTS_3D = 4000
 SET_COLORS = {"O": "tab:blue", "R": "tab:orange", "all": "tab:blue"}
-
-# equal-area coverage grid: COVER_LON longitude bins x COVER_LAT bins in sin(latitude)
-COVER_LON = 36
-COVER_LAT = 18
 
 
 # ------------------------------------------------------------------ helpers
@@ -55,23 +53,6 @@ def directions(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     lon = np.arctan2(v[:, 1], v[:, 0])
     lat = np.arcsin(np.clip(v[:, 2] / r, -1.0, 1.0))
     return lon, lat
-
-
-def coverage_counts(v: np.ndarray) -> np.ndarray:
-    """Samples per cell of the equal-area grid (COVER_LAT, COVER_LON)."""
-    lon, lat = directions(v)
-    i = np.clip(((np.sin(lat) + 1) / 2 * COVER_LAT).astype(int), 0, COVER_LAT - 1)
-    j = np.clip(((lon + np.pi) / (2 * np.pi) * COVER_LON).astype(int), 0, COVER_LON - 1)
-    counts = np.zeros((COVER_LAT, COVER_LON), int)
-    np.add.at(counts, (i, j), 1)
-    return counts
-
-
-def coverage_fraction(v: np.ndarray) -> float:
-    """Fraction of the sphere's equal-area cells holding at least one direction."""
-    if len(v) == 0:
-        return 0.0
-    return float((coverage_counts(v) > 0).mean())
 
 
 def _groups(sets: np.ndarray | None, idx: np.ndarray):
@@ -228,20 +209,22 @@ def residual_sphere(path, before: np.ndarray, after: np.ndarray, ref_before: flo
 
 
 def coverage(path, sets: list[tuple[str, np.ndarray]], title: str) -> Path:
-    """Samples per equal-area cell of the sphere of directions, one map per set;
-    the title of each gives the fraction of cells with at least one sample."""
+    """Samples per equal-area cell of the sphere of directions (``sphere``'s
+    cells), one map per set; the title of each gives its coverage, the share
+    of cells with at least one sample (the number the logger and the quality
+    gate use)."""
     fig = _figure(6 * len(sets), 4.6)
-    lon_e = np.linspace(-np.pi, np.pi, COVER_LON + 1)
-    lat_e = np.arcsin(np.linspace(-1, 1, COVER_LAT + 1))
+    lon_e, z_e = S.cell_edges()
+    lat_e = np.arcsin(z_e[::-1])                  # ascending: bands bottom (-Z) up
     for k, (name, v) in enumerate(sets):
         ax = fig.add_subplot(1, len(sets), k + 1, projection="mollweide")
-        counts = coverage_counts(v)
+        counts = S.coverage_counts(v)[::-1]
         masked = np.ma.masked_equal(counts, 0)
         mesh = ax.pcolormesh(lon_e, lat_e, masked, cmap="viridis", shading="flat")
         ax.grid(alpha=0.4)
         ax.tick_params(labelsize=7)
-        ax.set_title(f"{name}: {len(v)} samples, {(counts > 0).mean():.0%} of "
-                     f"{COVER_LAT * COVER_LON} cells", fontsize=10, pad=12)
+        ax.set_title(f"{name}: {len(v)} samples, coverage {(counts > 0).mean():.0%} of "
+                     f"{counts.size} cells", fontsize=10, pad=12)
         cb = fig.colorbar(mesh, ax=ax, orientation="horizontal", shrink=0.7, pad=0.08)
         cb.set_label("samples per cell", fontsize=8)
         cb.ax.tick_params(labelsize=7)

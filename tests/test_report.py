@@ -412,18 +412,6 @@ def test_no_traceback_through_the_command(tmp_path):
 
 # ------------------------------------------------------------------ pure helpers
 
-def test_allan_deviation_of_white_noise():
-    rng = np.random.default_rng(0)
-    sigma, rate = 0.5, 100.0
-    runs = [rng.normal(0.0, sigma, (4000, 3)) for _ in range(3)]
-    tau, adev, terms = F.allan_deviation(runs, rate)
-    # white rate noise: sigma(tau) = sigma / sqrt(tau * rate)
-    expect = sigma / np.sqrt(tau * rate)
-    sel = tau < 2.0
-    assert np.allclose(adev[sel], expect[sel, None], rtol=0.1)
-    assert terms[0] == 3 * (4000 - 1)
-
-
 def test_still_runs_split_on_label_and_gaps():
     label = np.array([1] * 10 + [0] * 3 + [2] * 10 + [2] * 10)
     seq = np.arange(len(label))

@@ -38,6 +38,7 @@ from ..session import NOMINAL_CHIPS, NOMINAL_SCALES, SessionData
 from ..sim.model import SimModel
 from ..sim.trajectory import Trajectory, up_to_rotation
 from ..sphere import angle_deg, unit
+from ..stats import allan_deviation
 from . import fitting as F
 from . import screens as SC
 from . import structure as ST
@@ -249,12 +250,13 @@ def _r2(y, X):
 
 
 def _allan(x: np.ndarray, rate: float, tau_s: float) -> float:
+    """Overlapping Allan deviation at ``tau_s`` (rms over the axes); NaN when
+    x holds fewer than three averaging times."""
     m = int(round(tau_s * rate))
-    k = len(x) // m
-    if m < 1 or k < 3:
+    if m < 1 or len(x) < 3 * m:
         return np.nan
-    means = x[: k * m].reshape(k, m, -1).mean(axis=1)
-    return float(np.sqrt(0.5 * np.mean(np.diff(means, axis=0) ** 2)))
+    _, adev, _ = allan_deviation([x], rate, m=[m])
+    return float(np.sqrt(np.mean(adev[0] ** 2)))
 
 
 def session_stats(data: SessionData) -> dict:

@@ -24,6 +24,7 @@ from .. import sphere as S
 from ..errors import QualityError, UserError
 from ..protocol import NINEDOF_RATE_HZ
 from ..session import SENSOR_SLICES, UNITS, SessionData
+from ..stats import allan_deviation
 from . import figures as F
 from . import html as H
 from .tables import Column, Table, write as write_table
@@ -347,7 +348,7 @@ def _fig_allan(mr: MoteReport, out: Path) -> list:
     g = data.sensor("gyro")
     series = [sc.apply(g[r]) if sc is not None else g[r] / data.scales["gyro"] for r in runs]
     rate = _rate(data, "gyro", np.flatnonzero(data.has("gyro")))
-    tau, adev, _ = F.allan_deviation(series, rate)
+    tau, adev, _ = allan_deviation(series, rate)
     if len(tau) < 2:
         return []
     lengths = np.array([len(r) for r in runs])

@@ -267,43 +267,6 @@ def still_runs(label: np.ndarray, seq: np.ndarray, ok: np.ndarray, t: np.ndarray
     return [r for r in runs if len(r) >= min_len]
 
 
-def allan_deviation(runs: list[np.ndarray], rate_hz: float, n_tau: int = 30):
-    """Overlapping Allan deviation pooled over still runs.
-
-    ``runs`` is a list of (n_i, k) rate arrays sampled at ``rate_hz``; for each
-    averaging time tau = m / rate the squared second differences of the
-    integrated signal are summed over every run long enough for m and divided
-    by their total number; tau goes up to a quarter of the longest run.  Returns ``(tau (T,), adev (T, k), terms (T,))``.
-    """
-    runs = [np.asarray(r, float) for r in runs if len(r) >= 3]
-    if not runs:
-        return np.zeros(0), np.zeros((0, 3)), np.zeros(0, int)
-    k = runs[0].shape[1]
-    longest = max(len(r) for r in runs)
-    m_max = max(1, (longest - 1) // 4)   # tau up to a quarter of the longest run (>= 2
-    #                                     independent averages; longer taus are mostly noise)
-    ms = np.unique(np.round(np.logspace(0, np.log10(max(m_max, 1)), n_tau)).astype(int))
-    ms = ms[ms >= 1]
-    thetas = [np.vstack([np.zeros((1, k)), np.cumsum(r, axis=0)]) / rate_hz for r in runs]
-    taus, adev, terms = [], [], []
-    for m in ms:
-        tau = m / rate_hz
-        s = np.zeros(k)
-        cnt = 0
-        for th in thetas:
-            if len(th) < 2 * m + 1:
-                continue
-            d = th[2 * m:] - 2 * th[m:-m] + th[:-2 * m]
-            s += (d * d).sum(axis=0)
-            cnt += len(d)
-        if cnt == 0:
-            continue
-        taus.append(tau)
-        adev.append(np.sqrt(s / (2 * tau * tau * cnt)))
-        terms.append(cnt)
-    return np.array(taus), np.array(adev), np.array(terms)
-
-
 def allan(path, tau: np.ndarray, adev: np.ndarray, unit: str, title: str,
           note: str = "") -> Path:
     fig = _figure(7, 5)

@@ -342,7 +342,7 @@ def test_argument_mistakes_are_one_line(tmp_path, capsys):
              (base + ["--duration", "-3"], "must be > 0"),
              (base + ["--duration", "soon"], "not a number"),
              (base + ["--guided", "dance"], "invalid choice"),
-             (base + ["--mote", "70000"], "0..65535"),
+             (base + ["--mote", "70000"], "1..65534"),
              (base + ["--board", "7"], "MOTE=BOARD"),
              (base + ["--guided", "rotation", "--coverage", "1.5"], "fraction"),
              (base + ["--baud", "0"], "must be > 0")]

@@ -12,6 +12,7 @@ import importlib
 import sys
 
 from . import __doc__ as motecal_doc, __version__
+from .cliargs import description
 from .errors import UserError
 
 # Subcommands in the order of the data path: name -> (module, one-line help).
@@ -45,7 +46,7 @@ def _command_word(argv: list[str]) -> str | None:
 
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     """The parser; with ``argv``, only the named command's module is loaded."""
-    parser = _Parser(prog="motecal", description=motecal_doc.splitlines()[0])
+    parser = _Parser(prog="motecal", description=description(motecal_doc))
     parser.add_argument("--version", action="version", version=f"motecal {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     word = _command_word(argv) if argv is not None else None

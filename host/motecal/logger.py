@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import math
 import signal
 import sys
 import threading
@@ -30,6 +29,7 @@ import numpy as np
 
 from . import protocol as P
 from . import sources as S
+from .cliargs import mote_id, positive
 from .errors import UserError
 from .guide import (DEFAULT_COVERAGE, DEFAULT_MIN_ANGLE, DEFAULT_POSE_SAMPLES, DEFAULT_POSES,
                     DEFAULT_ROT_SAMPLES, GuidedFlow)
@@ -724,33 +724,11 @@ class _KeyReader(threading.Thread):
 # --------------------------------------------------------------------------
 # Command line
 # --------------------------------------------------------------------------
-def _positive(kind):
-    def parse(text):
-        try:
-            v = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-        if not v > 0 or (isinstance(v, float) and not math.isfinite(v)):
-            raise argparse.ArgumentTypeError(f"must be > 0: {text!r}")
-        return v
-    return parse
-
-
-def _mote_id(text):
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a mote id: {text!r}") from None
-    if not 0 <= v <= 0xFFFF:
-        raise argparse.ArgumentTypeError(f"mote id must be 0..65535: {text!r}")
-    return v
-
-
 def _board(text):
     mote, sep, board = text.partition("=")
     if not sep or not board:
         raise argparse.ArgumentTypeError(f"want MOTE=BOARD, not {text!r}")
-    return _mote_id(mote), board
+    return mote_id(mote), board
 
 
 def register(sub) -> None:
@@ -762,29 +740,29 @@ def register(sub) -> None:
     p.add_argument("--port", help="device, pyserial URL (socket://, rfc2217://, loop://), "
                                   "serial@DEV:BAUD, sf@HOST:PORT or a recorded file; "
                                   "default: $MOTECOM")
-    p.add_argument("--baud", type=_positive(int), help="baud rate (default 250000)")
+    p.add_argument("--baud", type=positive(int), help="baud rate (default 250000)")
     p.add_argument("--db", required=True, help="database: sqlite file or postgresql:// URL")
     p.add_argument("--session", required=True, help="session name")
     p.add_argument("--append", action="store_true", help="add to an existing session")
     p.add_argument("--guided", choices=("static80", "rotation"), help="guide a person")
     p.add_argument("--kind", choices=("free", "idle", "static80", "rotation"),
                    help="session kind when not guided (default free)")
-    p.add_argument("--mote", type=_mote_id, help="mote the guided flow follows (default all)")
-    p.add_argument("--duration", type=_positive(float), help="stop after SECONDS")
+    p.add_argument("--mote", type=mote_id, help="mote the guided flow follows (default all)")
+    p.add_argument("--duration", type=positive(float), help="stop after SECONDS")
     p.add_argument("--yes", action="store_true",
                    help="non-interactive: advance whenever a new still pose appears")
     p.add_argument("--notes", help="free text stored with the session")
     p.add_argument("--board", type=_board, action="append", default=[], metavar="MOTE=BOARD",
                    help="which sensor board sits on which mote (repeatable)")
     g = p.add_argument_group("guided flow")
-    g.add_argument("--poses", type=_positive(int), default=DEFAULT_POSES)
-    g.add_argument("--pose-samples", type=_positive(int), default=DEFAULT_POSE_SAMPLES)
-    g.add_argument("--min-angle", type=_positive(float), default=DEFAULT_MIN_ANGLE,
+    g.add_argument("--poses", type=positive(int), default=DEFAULT_POSES)
+    g.add_argument("--pose-samples", type=positive(int), default=DEFAULT_POSE_SAMPLES)
+    g.add_argument("--min-angle", type=positive(float), default=DEFAULT_MIN_ANGLE,
                    help="degrees a new pose must be from every earlier one")
-    g.add_argument("--rot-samples", type=_positive(int), default=DEFAULT_ROT_SAMPLES)
-    g.add_argument("--coverage", type=_positive(float), default=DEFAULT_COVERAGE,
+    g.add_argument("--rot-samples", type=positive(int), default=DEFAULT_ROT_SAMPLES)
+    g.add_argument("--coverage", type=positive(float), default=DEFAULT_COVERAGE,
                    help="rotation stops at this fraction of sphere cells hit")
-    p.add_argument("--commit-every", type=_positive(float), default=0.25,
+    p.add_argument("--commit-every", type=positive(float), default=0.25,
                    help=argparse.SUPPRESS)
     p.set_defaults(func=run)
 

@@ -8,6 +8,7 @@ import sys
 import tempfile
 
 from . import importer
+from .cliargs import mote_id
 from .errors import UserError
 from .store import open_store
 
@@ -82,7 +83,7 @@ def register(sub) -> None:
     p.add_argument("--db", required=True, help="database: sqlite file or postgresql:// URL")
     p.add_argument("--session", required=True)
     p.add_argument("--csv", required=True, metavar="OUT", help="CSV file to write")
-    p.add_argument("--mote", type=int, help="only this mote")
+    p.add_argument("--mote", type=mote_id, help="only this mote")
     p.set_defaults(func=export)
 
     p = sub.add_parser("sessions", help="list the sessions in a database")

@@ -37,7 +37,6 @@ upload that fails (no answer, rejected, verification failed) exits 1.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
@@ -50,8 +49,8 @@ import numpy as np
 from . import fixedpoint as FP
 from . import protocol as P
 from . import sources as S
+from .cliargs import int_range, mote_id, positive
 from .errors import QualityError, UserError
-from .logger import _positive
 from .session import NOMINAL_SCALES, UNITS
 
 DEFAULT_TIMEOUT = 0.3        # s: a mote's reply, counted from the BaseStation's serial ack
@@ -792,49 +791,18 @@ def _open(spec: S.PortSpec) -> S.Source:
 # --------------------------------------------------------------------------
 # Command line
 # --------------------------------------------------------------------------
-def _mote_id(text):
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a mote id: {text!r}") from None
-    if not 1 <= v <= 0xFFFE:
-        raise argparse.ArgumentTypeError(f"mote id must be 1..65534 (0 is the "
-                                         f"BaseStation): {text!r}")
-    return v
-
-
-def _version(text):
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a version: {text!r}") from None
-    if not 1 <= v <= MAX_VERSION:
-        raise argparse.ArgumentTypeError(f"version must be 1..{MAX_VERSION}: {text!r}")
-    return v
-
-
-def _count(text):
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0: {text!r}")
-    return v
-
-
 def register(sub) -> None:
     p = sub.add_parser(
         "upload", help="send a calibration to a mote (fixed point, verified)",
-        description="Send a calibration (cal.json from `motecal calibrate`) through the "
+        description="Send a calibration (cal.json from motecal calibrate) through the "
                     "BaseStation to a mote, which then corrects its samples itself; "
                     "verified by reading the set back and by the flags of the next samples.")
     p.add_argument("cal", nargs="?", metavar="cal.json", help="calibration file")
     p.add_argument("--port", help="the BaseStation: device, pyserial URL, serial@DEV:BAUD "
                                   "or sf@HOST:PORT; default $MOTECOM")
-    p.add_argument("--baud", type=_positive(int), help="baud rate (default 250000)")
-    p.add_argument("--mote", type=_mote_id, help="target mote (default: the mote of cal.json)")
-    p.add_argument("--version", type=_version,
+    p.add_argument("--baud", type=positive(int), help="baud rate (default 250000)")
+    p.add_argument("--mote", type=mote_id, help="target mote (default: the mote of cal.json)")
+    p.add_argument("--version", type=int_range("version", 1, MAX_VERSION),
                    help="version of the new set, 1..65535 (default: the one in force + 1)")
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--dry-run", action="store_true",
@@ -842,9 +810,9 @@ def register(sub) -> None:
     mode.add_argument("--reset", action="store_true", help="put the mote back to raw output")
     mode.add_argument("--show", action="store_true",
                       help="read back and print the set in force (with cal.json: compare)")
-    p.add_argument("--timeout", type=_positive(float), default=DEFAULT_TIMEOUT,
+    p.add_argument("--timeout", type=positive(float), default=DEFAULT_TIMEOUT,
                    help=f"seconds to wait for each reply of the mote ({DEFAULT_TIMEOUT:g})")
-    p.add_argument("--retries", type=_count, default=DEFAULT_RETRIES,
+    p.add_argument("--retries", type=int_range("whole number", 0), default=DEFAULT_RETRIES,
                    help=f"repeats of a message that gets no reply ({DEFAULT_RETRIES})")
     p.add_argument("--force", action="store_true",
                    help="upload a calibration the quality gate refused")
@@ -922,7 +890,7 @@ def add_calibrate_options(parser) -> None:
                    help="send each accepted calibration to its mote and verify it")
     g.add_argument("--port", help="with --upload: the BaseStation (device, pyserial URL, "
                                   "serial@DEV:BAUD, sf@HOST:PORT); default $MOTECOM")
-    g.add_argument("--baud", type=_positive(int), help="with --upload: baud rate (250000)")
+    g.add_argument("--baud", type=positive(int), help="with --upload: baud rate (250000)")
 
 
 def calibrate_step(args):

@@ -24,6 +24,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ..cliargs import description, mote_id
 from ..errors import QualityError, UserError
 from .board import calibrate_board
 from .gate import decide
@@ -34,12 +35,12 @@ from .result import BoardCalibration
 def register(subparsers):
     p = subparsers.add_parser(
         "calibrate", help="calibrate accelerometer, gyroscope and magnetometer of a session",
-        description=__doc__.split("\n\n")[0])
+        description=description(__doc__))
     p.add_argument("--db", required=True, help="database (sqlite file or URL)")
     p.add_argument("--session", required=True, help="session name")
     p.add_argument("--out", required=True, help="calibration file (cal.json); see above for "
                                                 "several motes")
-    p.add_argument("--mote", type=int, help="calibrate only this mote")
+    p.add_argument("--mote", type=mote_id, help="calibrate only this mote")
     p.add_argument("--model", choices=MODEL_FAMILIES, default="full",
                    help="full: bias + lower-triangular matrix (default); paper: eqs. 1-5")
     p.add_argument("--params", help="paper model: comma-separated subset of "

@@ -17,6 +17,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+from ..cliargs import description, mote_id
 from ..errors import UserError
 from .gain import DEFAULT_ALPHA, MIN_FOLD_WINS, per_test_alpha
 
@@ -24,10 +25,10 @@ from .gain import DEFAULT_ALPHA, MIN_FOLD_WINS, per_test_alpha
 def register(subparsers):
     p = subparsers.add_parser(
         "diagnose", help="what the simulation gets wrong, the cause, the extended model, "
-                         "the gain", description=__doc__.split("\n\n")[0])
+                         "the gain", description=description(__doc__))
     p.add_argument("--db", required=True, help="database (sqlite file or URL)")
     p.add_argument("--session", required=True, help="session name")
-    p.add_argument("--mote", type=int, help="diagnose only this mote")
+    p.add_argument("--mote", type=mote_id, help="diagnose only this mote")
     p.add_argument("--json", metavar="OUT", help="write {clean, findings, model} as JSON")
     p.add_argument("--report", metavar="DIR", help="write evidence pictures and the full "
                                                      "diagnosis (diagnosis.json) into DIR")

@@ -6,6 +6,7 @@ import sys
 import time
 
 from .. import protocol as P
+from ..cliargs import positive
 from ..errors import UserError
 
 
@@ -21,16 +22,6 @@ def _host_port(text: str):
     if not 0 <= p <= 65535:
         raise argparse.ArgumentTypeError(f"port {p} outside 0..65535")
     return host, p
-
-
-def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not v > 0 or v == float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a positive number, not {text}")
-    return v
 
 
 def register(subparsers) -> None:
@@ -52,9 +43,9 @@ def register(subparsers) -> None:
                    help="static80 | rotation | idle | free, or several in a row separated "
                         "by commas, e.g. static80,static80 (static80)")
     p.add_argument("--seed", type=int, default=1, help="random seed (1)")
-    p.add_argument("--duration", type=_positive_float, default=None, metavar="S",
+    p.add_argument("--duration", type=positive(float), default=None, metavar="S",
                    help="simulated seconds (default: the session's natural length)")
-    p.add_argument("--baud", type=int, default=250000,
+    p.add_argument("--baud", type=positive(int), default=250000,
                    help="serial baud rate, 10 bits per byte (250000; iris stock 57600)")
     p.add_argument("--loss", type=float, default=0.0, metavar="P",
                    help="independent loss probability per radio frame, 0..1 (0)")
@@ -69,7 +60,7 @@ def register(subparsers) -> None:
                         "at boot, written when a mote stores a set")
     p.add_argument("--realtime", action="store_true",
                    help="pace the bytes at the line rate in wall time")
-    p.add_argument("--speed", type=_positive_float, default=None, metavar="X",
+    p.add_argument("--speed", type=positive(float), default=None, metavar="X",
                    help="pace at X times real time (implies pacing)")
     p.add_argument("--quiet", action="store_true", help="no summary on stderr")
     p.set_defaults(func=run)

@@ -9,24 +9,16 @@ trace, quality metrics) documents how that map was obtained.
 from __future__ import annotations
 
 import json
-import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import UserError
+from ..jsonable import finite as _num, jsonable as _jsonable
 
 FORMAT_VERSION = 1
 SENSORS = ("accel", "gyro", "mag")
-
-
-def _num(x):
-    """JSON-safe float (NaN/inf -> None)."""
-    if x is None:
-        return None
-    x = float(x)
-    return x if math.isfinite(x) else None
 
 
 def _unnum(x):
@@ -207,21 +199,3 @@ class BoardCalibration:
         except OSError as e:
             raise UserError(f"cannot read {path}: {e.strerror or e}") from None
         return cls.loads(text)
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.bool_, bool)):
-        return bool(x)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        return _num(x)
-    if hasattr(x, "__dataclass_fields__"):
-        return _jsonable(asdict(x))
-    return x

@@ -17,6 +17,7 @@ from scipy import stats
 
 from ..calib.gate import hull_depth
 from ..errors import QualityError, UserError
+from ..jsonable import finite, jsonable
 from ..session import SessionData
 from ..sphere import angle_deg, distinct_directions, unit
 from . import causes as C
@@ -85,26 +86,13 @@ class Diagnosis:
 
 
 def _num(x):
-    x = float(x)
-    if not np.isfinite(x):
-        return None
-    return float(f"{x:.6g}")
+    """A JSON number rounded to 6 significant digits (None for NaN/inf)."""
+    x = finite(x)
+    return None if x is None else float(f"{x:.6g}")
 
 
 def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, (np.bool_, bool)):
-        return bool(x)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        return _num(x)
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    return x
+    return jsonable(x, _num)
 
 
 # ---------------------------------------------------------------------------

@@ -181,13 +181,18 @@ def _integer(tok: str, path, line, what: str) -> int:
         raise _fail(path, line, f"{what} is not an integer: {tok!r}") from None
 
 
-def _read_text_lines(path) -> list[str]:
+def _read_bytes(path) -> bytes:
+    """A file's bytes; a directory or an unreadable file is a UserError."""
     try:
-        data = Path(path).read_bytes()
+        return Path(path).read_bytes()
     except IsADirectoryError:
         raise UserError(f"{path}: is a directory, expected a file") from None
     except OSError as e:
         raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
+
+
+def _read_text_lines(path) -> list[str]:
+    data = _read_bytes(path)
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as e:
@@ -561,12 +566,7 @@ def read_razor_text(paths, chip=None, kind="auto") -> SessionData:
 # ------------------------------------------------------------------ Razor float (magnetometer)
 
 def _float_values(path) -> np.ndarray:
-    try:
-        buf = Path(path).read_bytes()
-    except IsADirectoryError:
-        raise UserError(f"{path}: is a directory, expected a file") from None
-    except OSError as e:
-        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
+    buf = _read_bytes(path)
     if len(buf) == 0:
         raise UserError(f"{path}: empty file: no float32 samples")
     whole = len(buf) // 12

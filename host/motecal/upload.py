@@ -49,7 +49,7 @@ import numpy as np
 from . import fixedpoint as FP
 from . import protocol as P
 from . import sources as S
-from .cliargs import int_range, mote_id, positive
+from .cliargs import MOTE_ID_MAX, MOTE_ID_MIN, int_range, mote_id, positive
 from .errors import QualityError, UserError
 from .session import NOMINAL_SCALES, UNITS
 
@@ -611,8 +611,10 @@ def load_cal(path) -> CalFile:
         raise UserError(f"{path}: calibration format_version {fv!r} is not one this motecal "
                         f"reads (1..{FORMAT_VERSION})")
     mote = d.get("mote")
-    if isinstance(mote, bool) or not isinstance(mote, int) or not 0 <= mote <= 0xFFFF:
-        raise UserError(f"{path}: no mote id (\"mote\": an integer 1..65534)")
+    if isinstance(mote, bool) or not isinstance(mote, int) or \
+            not MOTE_ID_MIN <= mote <= MOTE_ID_MAX:
+        raise UserError(f"{path}: no mote id (\"mote\": an integer "
+                        f"{MOTE_ID_MIN}..{MOTE_ID_MAX})")
     gate = d.get("gate") or {}
     if not isinstance(gate, dict):
         raise UserError(f"{path}: \"gate\" is not an object")

@@ -311,15 +311,8 @@ def session_stats(data: SessionData) -> dict:
                                                       for k in range(3)])), "r2")
     if "accel" in cal and "mag" in cal:
         (fa, oa), (fm, om) = cal["accel"], cal["mag"]
-        angs = []
-        for g in om.segs.rows:
-            t0, t1 = om.t[g[0]], om.t[g[-1]]
-            m = (oa.t >= t0) & (oa.t <= t1)
-            if m.sum() < 5:
-                continue
-            ga = fa.calibrate(oa.x[m].mean(axis=0)[None], np.array([oa.t[m].mean()]))[0]
-            bm = fm.calibrate(om.x[g].mean(axis=0)[None], np.array([om.t[g].mean()]))[0]
-            angs.append(float(angle_deg(ga, bm)))
+        g, b, _, _ = ST.pose_vectors(oa, fa, om, fm)
+        angs = angle_deg(g, b)
         if len(angs) >= 4:
             out["mag"]["dip_sd_deg"] = (float(np.std(angs)), "deg")
     return out

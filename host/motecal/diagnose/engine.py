@@ -633,25 +633,15 @@ def _dip_test(st: ST.Structure, sobs, structures) -> dict | None:
     mag = sobs.get("mag")
     if acc is None or ast is None or ast.regime != "poses" or st.regime != "poses":
         return None
-    groups = st.points["group"]
-    gvec, bvec, vg, vb = [], [], [], []
     H = st.fit.field_magnitude()
-    for gi in groups:
-        rows = mag.segs.rows[gi]
-        t0, t1 = mag.t[rows[0]], mag.t[rows[-1]]
-        m = (acc.t >= t0) & (acc.t <= t1)
-        if m.sum() < 5:
-            continue
-        ga = ast.fit.calibrate(acc.x[m].mean(axis=0)[None], np.array([acc.t[m].mean()]))[0]
-        bm = st.fit.calibrate(mag.segs.mean[gi][None], np.array([mag.segs.t[gi]]))[0]
-        gvec.append(ga)
-        bvec.append(bm)
-        vg.append(np.mean(acc.sigma_eff ** 2) / acc.K ** 2 / m.sum())
-        vb.append(np.mean(mag.sigma_eff ** 2) / mag.K ** 2 / len(rows) / H ** 2)
+    gvec, bvec, n_acc, idx = ST.pose_vectors(acc, ast.fit, mag, st.fit, st.points["group"])
     if len(gvec) < 8:
         return None
+    n_mag = np.array([len(mag.segs.rows[gi]) for gi in idx])
+    vg = np.mean(acc.sigma_eff ** 2) / acc.K ** 2 / n_acc
+    vb = np.mean(mag.sigma_eff ** 2) / mag.K ** 2 / n_mag / H ** 2
     gu, bu = unit(gvec), unit(bvec)
-    sd = np.sqrt(np.array(vg) + np.array(vb))           # rad, per pose
+    sd = np.sqrt(vg + vb)                                 # rad, per pose
 
     from scipy.optimize import least_squares
     from scipy.spatial.transform import Rotation
@@ -762,16 +752,8 @@ def _inclination(structures, sobs):
     acc, mag = sobs.get("accel"), sobs.get("mag")
     if a is None or m is None or a.regime != "poses" or m.regime != "poses":
         return None
-    dots = []
-    for gi in m.points["group"]:
-        rows = mag.segs.rows[gi]
-        t0, t1 = mag.t[rows[0]], mag.t[rows[-1]]
-        sel = (acc.t >= t0) & (acc.t <= t1)
-        if sel.sum() < 5:
-            continue
-        ga = a.fit.calibrate(acc.x[sel].mean(axis=0)[None], np.array([acc.t[sel].mean()]))[0]
-        bm = m.fit.calibrate(mag.segs.mean[gi][None], np.array([mag.segs.t[gi]]))[0]
-        dots.append(float(unit(ga) @ unit(bm)))
-    if not dots:
+    g, b, _, _ = ST.pose_vectors(acc, a.fit, mag, m.fit, m.points["group"])
+    if not len(g):
         return None
+    dots = np.sum(unit(g) * unit(b), axis=1)
     return float(np.degrees(np.arcsin(np.clip(-np.mean(dots), -1, 1))))

@@ -244,6 +244,30 @@ def residual_variance(fit: F.MagnitudeFit, X, T, var_counts) -> np.ndarray:
     return np.sum(g * g * var_counts, axis=1)
 
 
+def pose_vectors(acc: SensorObs, acc_fit, mag: SensorObs, mag_fit, groups=None,
+                 min_accel: int = 5):
+    """Calibrated gravity and field of the magnetometer's still segments
+    (indices ``groups``, default all) that the accelerometer sampled at least
+    ``min_accel`` times within (its first to last row's time): the mean
+    accelerometer reading there and the segment's mean field, each calibrated
+    at its time.  Returns (g (n, 3), b (n, 3), accelerometer samples (n,),
+    segment index (n,))."""
+    groups = range(len(mag.segs.rows)) if groups is None else groups
+    g, b, n_acc, idx = [], [], [], []
+    for gi in groups:
+        rows = mag.segs.rows[gi]
+        sel = (acc.t >= mag.t[rows[0]]) & (acc.t <= mag.t[rows[-1]])
+        if sel.sum() < min_accel:
+            continue
+        g.append(acc_fit.calibrate(acc.x[sel].mean(axis=0)[None],
+                                   np.array([acc.t[sel].mean()]))[0])
+        b.append(mag_fit.calibrate(mag.segs.mean[gi][None], np.array([mag.segs.t[gi]]))[0])
+        n_acc.append(int(sel.sum()))
+        idx.append(int(gi))
+    return (np.array(g).reshape(-1, 3), np.array(b).reshape(-1, 3), np.array(n_acc, int),
+            np.array(idx, int))
+
+
 def magnitude_points(obs: SensorObs, regime: str, drop_rows: np.ndarray | None = None):
     """Points of the poses or sweep regime: X counts, T, raw variance per axis,
     fold and group (pose) ids."""

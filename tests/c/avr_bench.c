@@ -12,31 +12,7 @@
 #include "ninedof_cal.h"
 #include "ninedof_clock.h"
 #include "ninedof_sampling.h"
-
-static void out_c(char c)
-{
-  while (!(UCSR0A & _BV(UDRE0)))
-    ;
-  UDR0 = (uint8_t)c;
-}
-
-static void out_s(const char *s)
-{
-  while (*s)
-    out_c(*s++);
-}
-
-static void out_u16(uint16_t v)
-{
-  char buf[6];
-  uint8_t i = 0;
-  do {
-    buf[i++] = (char)('0' + v % 10);
-    v /= 10;
-  } while (v);
-  while (i)
-    out_c(buf[--i]);
-}
+#include "test_out.h"
 
 static uint16_t overhead;
 
@@ -85,9 +61,7 @@ int main(void)
   uint16_t i, t0, t1, addr;
   uint8_t v;
 
-  UCSR0A = _BV(U2X0);
-  UBRR0 = 0;
-  UCSR0B = _BV(TXEN0);
+  out_init();
   TCCR1A = 0;
   TCCR1B = _BV(CS10);                 /* timer 1 at clk/1: one count per cycle */
   t0 = TCNT1;
@@ -173,7 +147,6 @@ int main(void)
   MEASURE("clock_update", (void)ninedof_clock_next(&clk, 3 * 1024 - 5));
 
   out_s("END\n");
-  cli();
-  sleep_cpu();
+  out_end();
   return 0;
 }

@@ -13,32 +13,18 @@
 #include <string.h>
 
 #include "ninedof_cal.h"
+#include "test_out.h"
 #include "vectors.h"
-
-static void out_c(char c)
-{
-  while (!(UCSR0A & _BV(UDRE0)))
-    ;
-  UDR0 = (uint8_t)c;
-}
 
 static void out_hex8(uint8_t v)
 {
-  static const char digits[] = "0123456789abcdef";
-  out_c(digits[v >> 4]);
-  out_c(digits[v & 15]);
+  out_hex(&v, 1);
 }
 
 static void out_hex16(uint16_t v)
 {
   out_hex8((uint8_t)(v >> 8));
   out_hex8((uint8_t)v);
-}
-
-static void out_bytes(const uint8_t *p, uint16_t n)
-{
-  while (n--)
-    out_hex8(*p++);
 }
 
 static ninedof_calrx_t rx;
@@ -55,9 +41,7 @@ int main(void)
   uint16_t i, r, pos;
   uint8_t k;
 
-  UCSR0A = _BV(U2X0);
-  UBRR0 = 0;
-  UCSR0B = _BV(TXEN0);
+  out_init();
 
   /* 1. every calibration set over every record: C<status><records>; */
   for (i = 0; i < NCAL; i++) {
@@ -87,7 +71,7 @@ int main(void)
     out_c('R');
     out_hex8(rtype);
     out_hex8(n);
-    out_bytes(reply, n);
+    out_hex(reply, n);
     out_c(';');
   }
 
@@ -107,7 +91,7 @@ int main(void)
   /* 4. image and restore: I<image>; S<slot><next slot><next generation><flags>; */
   ninedof_calrx_image(&rx, 0x1234, img0);
   out_c('I');
-  out_bytes(img0, NINEDOF_IMAGE_SIZE);
+  out_hex(img0, NINEDOF_IMAGE_SIZE);
   out_c(';');
   memset(img1, 0xFF, sizeof(img1));
   {
@@ -126,7 +110,6 @@ int main(void)
   out_c('N');
   out_c('D');
   out_c('\n');
-  cli();
-  sleep_cpu();
+  out_end();
   return 0;
 }

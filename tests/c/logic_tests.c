@@ -15,62 +15,9 @@
 #include "ninedof_clock.h"
 #include "ninedof_sampling.h"
 
-#ifdef __AVR__
-#include <avr/interrupt.h>
-#include <avr/io.h>
-#include <avr/sleep.h>
-static void out_c(char c)
-{
-  while (!(UCSR0A & _BV(UDRE0)))
-    ;
-  UDR0 = (uint8_t)c;
-}
-static void out_init(void)
-{
-  UCSR0A = _BV(U2X0);
-  UBRR0 = 0;
-  UCSR0B = _BV(TXEN0);
-}
-static void out_end(void)
-{
-  cli();
-  sleep_cpu();
-}
-#else
-#include <stdio.h>
-static void out_c(char c) { putchar(c); }
-static void out_init(void) { }
-static void out_end(void) { fflush(stdout); }
-#endif
+#include "test_out.h"
 
 static uint16_t checks, failed;
-
-static void out_s(const char *s)
-{
-  while (*s)
-    out_c(*s++);
-}
-
-static void out_u16(uint16_t v)
-{
-  char buf[6];
-  uint8_t i = 0;
-  do {
-    buf[i++] = (char)('0' + v % 10);
-    v /= 10;
-  } while (v);
-  while (i)
-    out_c(buf[--i]);
-}
-
-static void out_hex(const uint8_t *p, uint16_t n)
-{
-  static const char digits[] = "0123456789abcdef";
-  while (n--) {
-    out_c(digits[*p >> 4]);
-    out_c(digits[*p++ & 15]);
-  }
-}
 
 #define CHECK(cond)                                                     \
   do {                                                                  \

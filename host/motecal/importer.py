@@ -268,7 +268,7 @@ def assign_labels(data: SessionData, kind: str = "auto", parts=None, pose_per_pa
         raise UserError(f"kind must be one of {', '.join(KINDS)}, not {kind!r}")
     n = len(data)
     parts = parts or [(0, n)]
-    rate = float(data.meta.get("rate_hz") or NINEDOF_RATE_HZ)
+    rate = data.rate()
     seg = np.zeros(n, np.int32)
     per_part = np.zeros(n, np.int32)
     missing, n_segments, max_segments = [], 0, 0

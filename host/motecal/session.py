@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .protocol import NINEDOF_RATE_HZ
+
 COLUMNS = ("ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz")
 SENSOR_SLICES = {"accel": slice(0, 3), "gyro": slice(3, 6), "mag": slice(6, 9)}
 UNITS = {"accel": "g", "gyro": "deg/s", "mag": "gauss"}
@@ -102,6 +104,23 @@ class SessionData:
     def has(self, name: str) -> np.ndarray:
         """Rows where that sensor has all three values."""
         return ~np.isnan(self.sensor(name)).any(axis=1)
+
+    def rate(self, sensor: str | None = None) -> float:
+        """Sample rate (Hz) of one sensor, or of the session: ``meta["rates_hz"]
+        [sensor]``, else ``meta["rate_hz"]``, else 1 / the median positive
+        interval between consecutive rows holding that sensor (every row;
+        intervals next to an unknown time do not count), else the firmware's
+        125 Hz."""
+        meta = self.meta or {}
+        rates = meta.get("rates_hz")
+        if sensor and isinstance(rates, dict) and rates.get(sensor):
+            return float(rates[sensor])
+        if meta.get("rate_hz"):
+            return float(meta["rate_hz"])
+        t = self.t[self.has(sensor)] if sensor else self.t
+        dt = np.diff(t)
+        dt = dt[np.isfinite(dt) & (dt > 0)]
+        return float(1.0 / np.median(dt)) if len(dt) else float(NINEDOF_RATE_HZ)
 
     def select(self, mask) -> "SessionData":
         mask = np.asarray(mask)

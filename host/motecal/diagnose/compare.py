@@ -42,7 +42,7 @@ from ..stats import allan_deviation
 from . import fitting as F
 from . import screens as SC
 from . import structure as ST
-from .prepare import SensorObs, all_obs, sample_times, session_rate
+from .prepare import SensorObs, all_obs, sample_times
 
 SMOOTH_S = 0.08
 CHUNK_S = 4.0
@@ -131,7 +131,7 @@ def _per_row(data: SessionData, o: SensorObs, v: np.ndarray, t_all: np.ndarray) 
 def trajectory_like(data: SessionData, diag) -> tuple[SampledTrajectory, np.ndarray]:
     """The rig's trajectory estimated from the data; returns it and the
     simulator times of the rows (seconds from the first row)."""
-    rate = session_rate(data)
+    rate = data.rate()
     t = sample_times(data)
     order = np.argsort(t, kind="stable")
     if np.any(order != np.arange(len(t))):
@@ -347,7 +347,7 @@ def halves(data: SessionData) -> np.ndarray:
     """Bool mask of half A: even poses, and even CHUNK_S stretches of the
     other rows (see below); half B is the rest."""
     lab = data.label
-    rate = session_rate(data)
+    rate = data.rate()
     t = sample_times(data)
     chunk = np.floor((t - t[0]) / CHUNK_S).astype(int)
     a = chunk % 2 == 0

@@ -667,9 +667,8 @@ def _dip_test(st: ST.Structure, sobs, structures) -> dict | None:
 # the models: fitted start model and the extension
 # ---------------------------------------------------------------------------
 def _models(data, obs, sobs, structures, findings, screens, mot):
-    from .prepare import session_rate
     kept = {(f.sensor, f.cause): f for f in findings}
-    rate = session_rate(data)
+    rate = data.rate()
     sensors_start, sensors_ext = {}, {}
     env = {"gravity_g": 1.0, "field_gauss": 0.48, "inclination_deg": 60.0,
            "declination_deg": 0.0}

@@ -82,21 +82,6 @@ class SensorObs:
         return self.sigma_eff[None, :] ** 2 / np.asarray(n, float)[:, None]
 
 
-def session_rate(data: SessionData, sensor: str | None = None) -> float:
-    meta = data.meta or {}
-    if sensor and isinstance(meta.get("rates_hz"), dict) and meta["rates_hz"].get(sensor):
-        return float(meta["rates_hz"][sensor])
-    if meta.get("rate_hz"):
-        return float(meta["rate_hz"])
-    t = data.t[np.isfinite(data.t)]
-    if len(t) > 2:
-        dt = np.diff(t)
-        dt = dt[dt > 0]
-        if len(dt):
-            return float(1.0 / np.median(dt))
-    return 125.0
-
-
 def recording_parts(data: SessionData) -> np.ndarray:
     """Per row, the recording (file) it came from: rows of different files are
     never differenced or joined into one segment."""
@@ -114,7 +99,7 @@ def sample_times(data: SessionData) -> np.ndarray:
     batch share it, and it is compressed when the simulator runs faster than
     real time); the mote samples at exactly its rate, so ``seq / rate`` is
     then the sample time."""
-    rate = session_rate(data)
+    rate = data.rate()
     t = np.asarray(data.t, float)
     seq_t = (data.seq - data.seq[0]) / rate if len(data) else np.zeros(0)
     if len(t) < 2:
@@ -265,7 +250,7 @@ def sensor_obs(data: SessionData, sensor: str, dedup: bool = False) -> SensorObs
     if not has.any():
         return None
     rows = np.flatnonzero(has)
-    rate = session_rate(data, sensor)
+    rate = data.rate(sensor)
     x = data.sensor(sensor)[rows].astype(float)
     code = OVERFLOW_CODES.get(sensor)
     overflow = np.all(x == code, axis=1) if code is not None else np.zeros(len(x), bool)

@@ -22,7 +22,6 @@ import numpy as np
 
 from .. import sphere as S
 from ..errors import QualityError, UserError
-from ..protocol import NINEDOF_RATE_HZ
 from ..session import SENSOR_SLICES, UNITS, SessionData
 from ..stats import allan_deviation
 from . import figures as F
@@ -324,19 +323,6 @@ def _fig_coverage(mr: MoteReport, out: Path) -> list:
                         f"{LIMITS.min_mag_coverage:.0%}).")]
 
 
-def _rate(data: SessionData, sensor: str, rows: np.ndarray) -> float:
-    """Sample rate of one sensor: the session's per-sensor ``rates_hz`` or
-    ``rate_hz``, else from the median interval of that sensor's rows."""
-    r = (data.meta.get("rates_hz") or {}).get(sensor) or data.meta.get("rate_hz")
-    if r:
-        return float(r)
-    dt = np.diff(data.t[rows])
-    dt = dt[np.isfinite(dt) & (dt > 0)]
-    if len(dt):
-        return float(1.0 / np.median(dt))
-    return float(NINEDOF_RATE_HZ)
-
-
 def _fig_allan(mr: MoteReport, out: Path) -> list:
     data = mr.data
     runs = F.still_runs(data.label, data.seq, data.has("gyro"), data.t)
@@ -347,7 +333,7 @@ def _fig_allan(mr: MoteReport, out: Path) -> list:
     sc = getattr(mr.board, "gyro", None) if mr.board is not None else None
     g = data.sensor("gyro")
     series = [sc.apply(g[r]) if sc is not None else g[r] / data.scales["gyro"] for r in runs]
-    rate = _rate(data, "gyro", np.flatnonzero(data.has("gyro")))
+    rate = data.rate("gyro")
     tau, adev, _ = allan_deviation(series, rate)
     if len(tau) < 2:
         return []

@@ -301,3 +301,15 @@ def test_same_seed_reproducible(board_session):
     a = calibrate_board(d, seed=9, kfold=0, gyro_matrix=False, created="t")
     b = calibrate_board(d, seed=9, kfold=0, gyro_matrix=False, created="t")
     assert a.to_json() == b.to_json()
+
+
+def test_gyro_matrix_from_a_logged_session_with_batch_receive_times(board_session):
+    """The logger stores when the host received each batch, not when each
+    sample was taken; the moves between poses are integrated on the mote's
+    own 125 Hz clock (seq), so the gyro matrix is still fitted."""
+    d = board_session.select(board_session.label >= 0)      # the static part
+    t_rx = np.repeat(d.t[::5], 5)[:len(d)] / 40.0            # batches, simulator 40x fast
+    logged = SessionData(d.name, d.raw, d.mote, d.seq, t_rx, d.label, d.flags, d.kind,
+                         d.scales, d.chips, {**d.meta, "rate_hz": 125.0})
+    b = calibrate_board(logged, seed=4, kfold=0)
+    assert b.gyro.model == "bias+matrix", b.gyro.quality

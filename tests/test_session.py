@@ -24,3 +24,22 @@ def test_rate_from_metadata_then_the_sensors_own_times():
     t2[::3] = np.nan                              # unknown times are left out
     assert np.isclose(_data(t2, raw, {}).rate("accel"), 100.0)
     assert _data(np.full(n, np.nan), raw, {}).rate() == 125.0
+
+
+def test_sample_times_from_seq_when_t_is_batch_receive_time():
+    """A logged session's t is when the host got each batch (5 rows share it,
+    compressed when the simulator runs fast): times come from seq per mote."""
+    n = 100
+    seq = np.r_[np.arange(1000, 1000 + n), np.arange(7, 7 + n)]
+    mote = np.r_[np.ones(n), np.full(n, 2)]
+    t_rx = np.repeat(np.arange(2 * n // 5) * 0.001, 5)       # batches of 5, 25x fast
+    d = SessionData("s", np.zeros((2 * n, 9)), mote, seq, t_rx, np.zeros(2 * n),
+                    np.zeros(2 * n), meta={"rate_hz": 125.0})
+    st = d.sample_times()
+    assert np.allclose(st[:n], np.arange(n) / 125.0) and np.allclose(st[n:], np.arange(n) / 125.0)
+    # real sample times are kept
+    t = np.arange(n) / 100.0 + 3.0
+    assert np.array_equal(_data(t, np.zeros((n, 9)), {}).sample_times(), t)
+    # unknown times: seq
+    assert np.allclose(_data(np.full(n, np.nan), np.zeros((n, 9)), {"rate_hz": 50.0})
+                       .sample_times(), np.arange(n) / 50.0)

@@ -122,6 +122,27 @@ class SessionData:
         dt = dt[np.isfinite(dt) & (dt > 0)]
         return float(1.0 / np.median(dt)) if len(dt) else float(NINEDOF_RATE_HZ)
 
+    def sample_times(self) -> np.ndarray:
+        """Per row, when the sample was taken (s): ``t`` when it is that.  A
+        logged session's ``t`` is when the host received the sample's batch
+        (rows of a batch share it, and it is compressed when the simulator
+        runs faster than real time); the mote samples at exactly its rate, so
+        ``(seq - first seq of that mote) / rate`` is then the sample time."""
+        t = np.asarray(self.t, float)
+        if len(t) < 2:
+            return np.nan_to_num(t)
+        seq_t = np.zeros(len(t))
+        for m in np.unique(self.mote):
+            sel = self.mote == m
+            seq_t[sel] = (self.seq[sel] - self.seq[sel].min()) / self.rate()
+        if not np.all(np.isfinite(t)):
+            return seq_t
+        one = [np.diff(self.seq[self.mote == m]) for m in np.unique(self.mote)]
+        batched = np.mean(np.diff(t) <= 0) > 0.2
+        if batched and all(np.all(d > 0) for d in one):
+            return seq_t
+        return t
+
     def select(self, mask) -> "SessionData":
         mask = np.asarray(mask)
         return SessionData(self.name, self.raw[mask], self.mote[mask], self.seq[mask],

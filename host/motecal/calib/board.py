@@ -300,7 +300,7 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
             sel = (data.label == p) & data.has("accel")
             if sel.any():
                 grav[int(p)] = unit(accel.apply(acc[sel]).mean(axis=0))
-        moves = _gyro.find_moves(data.label, data.t, data.seq, data.sensor("gyro") / lsb,
+        moves = _gyro.find_moves(data.label, data.sample_times(), data.seq, data.sensor("gyro") / lsb,
                                  data.sensor("gyro"), grav, data.meta.get("rate_hz") or 125.0,
                                  part=_recording_parts(data))
         if len(moves) >= _gyro.MIN_MOVES:

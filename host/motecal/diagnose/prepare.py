@@ -94,22 +94,8 @@ def recording_parts(data: SessionData) -> np.ndarray:
 
 
 def sample_times(data: SessionData) -> np.ndarray:
-    """Per row, the time the sample was taken (s): ``t`` when it is one.  A
-    logged session's ``t`` may be when the host received a batch (rows of a
-    batch share it, and it is compressed when the simulator runs faster than
-    real time); the mote samples at exactly its rate, so ``seq / rate`` is
-    then the sample time."""
-    rate = data.rate()
-    t = np.asarray(data.t, float)
-    seq_t = (data.seq - data.seq[0]) / rate if len(data) else np.zeros(0)
-    if len(t) < 2:
-        return np.nan_to_num(t)
-    if not np.all(np.isfinite(t)):
-        return seq_t.astype(float)
-    # batches: many rows share one receive time
-    if np.mean(np.diff(t) <= 0) > 0.2 and np.all(np.diff(data.seq) > 0):
-        return seq_t.astype(float)
-    return t
+    """Per row, when the sample was taken (SessionData.sample_times)."""
+    return data.sample_times()
 
 
 def _times(data: SessionData, rows: np.ndarray, rate: float) -> np.ndarray:

@@ -1,5 +1,5 @@
 """The diagnosis on the measured data sets (../shared/data/measured): the
-results documented in docs/readme/diagnosis.md, kept as expectations.
+results documented in README.md (Diagnosis), kept as expectations.
 (~30 s)"""
 import json
 

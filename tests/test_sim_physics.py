@@ -452,7 +452,7 @@ def test_simulate_other_kinds(kind):
 
 def test_readme_section_documents_every_term_and_parameter():
     from pathlib import Path
-    doc = (Path(__file__).resolve().parent.parent / "docs/readme/sim-model.md").read_text()
+    doc = (Path(__file__).resolve().parent.parent / "README.md").read_text()
     for tid, cls in TERMS.items():
         assert f"`{tid}`" in doc, tid
         for prm in cls.params:

@@ -130,6 +130,31 @@ def test_tracker_continues_an_appended_session():
     assert tr.motes[2].c["samples"] == 110 and tr.motes[2].c["lost"] == 3
 
 
+def test_appended_run_does_not_count_the_time_between_runs_as_lost():
+    """motecal log --append after the logger (and perhaps the mote) stopped:
+    the mote kept counting, or it rebooted and starts from 0 again."""
+    kept = LinkTracker(link={1: {"samples": 37561}}, last_seqs={1: 37560})
+    frames, _ = sample_frames({1: np.zeros((10, 9), np.int16)}, seq0={1: 50000})
+    rows = kept.samples(decode_sample_frames(_frames(b"".join(frames)))[0])
+    assert rows.seq.tolist() == list(range(50000, 50010))
+    assert kept.motes[1].c["lost"] == 0
+    rebooted = LinkTracker(link={1: {"samples": 37561}}, last_seqs={1: 37560})
+    frames, _ = sample_frames({1: np.zeros((10, 9), np.int16)}, seq0={1: 0})    # 27976 on
+    rows = rebooted.samples(decode_sample_frames(_frames(b"".join(frames)))[0])
+    assert rows.seq.tolist() == list(range(65536, 65546))     # after the stored records
+    c = rebooted.motes[1].c
+    assert c["lost"] == 0 and c["samples"] == 37571
+    # a mote restarted just behind the stored numbering
+    back = LinkTracker(link={1: {"samples": 101}}, last_seqs={1: 100})
+    frames, _ = sample_frames({1: np.zeros((5, 9), np.int16)}, seq0={1: 50})
+    rows = back.samples(decode_sample_frames(_frames(b"".join(frames)))[0])
+    assert rows.seq.tolist() == list(range(65586, 65591)) and back.motes[1].c["lost"] == 0
+    # and later gaps still count
+    frames, _ = sample_frames({1: np.zeros((10, 9), np.int16)}, seq0={1: 20})
+    rebooted.samples(decode_sample_frames(_frames(b"".join(frames)))[0])
+    assert rebooted.motes[1].c["lost"] == 10
+
+
 def test_tracker_interleaved_motes_and_status():
     raw = {m: np.arange(60 * 9).reshape(60, 9).astype(np.int16) + m for m in (1, 2, 3)}
     frames, sent = sample_frames(raw, seq0={1: 65500, 2: 0, 3: 40000}, status_every=4)

@@ -130,6 +130,11 @@ class MoteLink:
     is then continued after ``end``); otherwise it is rejected.  A frame
     corrupted in a way CRC-16 missed (1 in 65536) then cannot derail the
     numbering or invent a mote.
+
+    A link resumed from an earlier run (``last_seq``, ``motecal log --append``)
+    takes its first frame as the new start: what the mote sent while nobody
+    was logging is not link loss.  Its numbering continues after the stored
+    records, congruent to the mote's 16-bit sequence number.
     """
 
     def __init__(self, mote: int, counters: dict | None = None, last_seq: int | None = None):
@@ -144,6 +149,7 @@ class MoteLink:
             self.end = last_seq + 1
         self.holes: list[list[int]] = []        # [lo, hi) ranges not received
         self.suspect = None                     # (u, count, seq16, payload)
+        self.resumed = last_seq is not None     # the next frame starts this run
 
     def _gap(self, lo: int, hi: int):
         self.c["lost"] += hi - lo
@@ -161,6 +167,8 @@ class MoteLink:
         seq16 = np.asarray(seq16, np.int64)
         count = np.asarray(count, np.int64)
         self.c["frames"] += len(seq16)
+        if self.resumed and len(seq16):
+            self._resume(int(seq16[0]))
         if self.last16 is not None and self.suspect is None:
             prev = np.concatenate([[self.last16], seq16[:-1]])
             u = self.last_u + np.cumsum(_wrapdiff(seq16, prev))
@@ -177,6 +185,16 @@ class MoteLink:
                 self._prune()
                 return u, None, []
         return self._accept_slow(seq16, count, payload)
+
+    def _resume(self, s0: int) -> None:
+        """First frame of a resumed run: its records follow on without a gap.
+        (Whether the mote kept counting or restarted cannot be told from the
+        16-bit number alone; either way the numbering stays unique.)"""
+        self.resumed = False
+        d = int(_wrapdiff(s0, self.last16))
+        u0 = self.last_u + d if d >= 1 else self.end + (s0 - self.end) % 65536
+        self.end = u0
+        self.last_u, self.last16 = u0 - 1, (s0 - 1) & 0xFFFF
 
     def _take(self, u: int, c: int, s16: int, keep: list) -> None:
         """Records u..u+c-1 of a frame that fits (after any suspect decision)."""

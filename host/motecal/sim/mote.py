@@ -193,8 +193,10 @@ class SimMote:
         return True
 
     def on_frame(self, f) -> None:
-        """A data frame heard on the radio (any destination)."""
-        if f.dest != self.id or self.cal is None:
+        """A data frame heard on the radio (any destination).  Like TinyOS's
+        AM layer, the mote takes frames for its own address and broadcasts;
+        the calibration code then checks the mote id inside the message."""
+        if f.dest not in (self.id, P.AM_BROADCAST) or self.cal is None:
             return
         reply = self.cal.handle(f.am_type, bytes(f.payload))
         self._flags = int(self.cal.flags())

@@ -339,6 +339,25 @@ def test_logger_run_from_recorded_file(tmp_path):
         assert kinds.count("accepted") == 4 and kinds[-1] == "done"
 
 
+def test_plain_status_line_never_counts_past_the_last_pose(tmp_path):
+    import io
+    from motecal.logger import PlainDisplay
+    raw = pose_trajectory(n_poses=3, seed=11)[0]
+    frames, _ = sample_frames({1: raw}, seq0={1: 0})
+    rec = tmp_path / "rec.bin"
+    rec.write_bytes(b"".join(frames))
+    out = io.StringIO()
+    with open_store(str(tmp_path / "run.db"), create=True) as st:
+        w = st.open_session("r", kind="static80", meta={"source": str(rec)})
+        lg = Logger(S.parse_port(str(rec)), w, LinkTracker(), display=PlainDisplay(out, every=0),
+                    guide=GuidedFlow("static80", options=dict(poses=3)))
+        lg.run()
+    assert lg.guide.done
+    shown = [int(x) for x in __import__("re").findall(r"pose (\d+)/3", out.getvalue())]
+    assert shown and max(shown) == 3 and shown[-1] == 3
+    assert lg.guide.captures[1].status()["pose"] == 3
+
+
 def test_push_many_decides_like_push_row_by_row():
     from motecal.still import StillDetector
     rng = np.random.default_rng(12)

@@ -301,7 +301,8 @@ class PoseCapture:
         if self.phase is Phase.WAIT_STILL and not self.armed:
             phase = "place the board, then press Enter"
         return dict(kind=self.kind, mote=self.mote, phase=phase,
-                    pose=self.next_pose, poses=self.poses, captured=self.captured,
+                    pose=min(self.next_pose, self.poses), poses=self.poses,
+                    captured=self.captured,
                     samples=self.samples, armed=self.armed, warning=self.warning,
                     coverage=self.coverage.fraction,
                     target=None if self.done else describe_up(self.target),

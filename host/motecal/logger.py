@@ -682,7 +682,7 @@ def _guide_text(st: dict):
     from rich.text import Text
     lines = []
     if st["kind"] == "static80":
-        lines.append(f"mote {st['mote']}: pose {min(st['pose'], st['poses'])} of {st['poses']}"
+        lines.append(f"mote {st['mote']}: pose {st['pose']} of {st['poses']}"
                      f" - {st['phase']}"
                      + (f" ({st['captured']}/{st['samples']})" if st["captured"] else ""))
         if st["target"]:

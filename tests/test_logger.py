@@ -389,7 +389,9 @@ def test_argument_mistakes_are_one_line(tmp_path, capsys):
              (base + ["--mote", "70000"], "1..65534"),
              (base + ["--board", "7"], "MOTE=BOARD"),
              (base + ["--guided", "rotation", "--coverage", "1.5"], "fraction"),
-             (base + ["--baud", "0"], "must be > 0")]
+             (base + ["--baud", "0"], "must be > 0"),
+             (base[:3] + ["--session", ""] + base[5:], "not empty or blank"),
+             (base[:3] + ["--session", "  "] + base[5:], "not empty or blank")]
     for argv, msg in cases:
         assert cli.main(argv) == 2, argv
         err = capsys.readouterr().err

@@ -123,6 +123,18 @@ def test_unknown_session_lists_known_ones(tmp_path):
             st.load_session("alpha", mote=9)
 
 
+def test_empty_or_blank_session_names_are_refused(tmp_path):
+    with open_store(str(tmp_path / "m.db"), create=True) as st:
+        for name in ("", "   ", "\t\n"):
+            with pytest.raises(UserError, match="not empty or blank"):
+                st.open_session(name, kind="free")
+            with pytest.raises(UserError, match="not empty or blank"):
+                st.save_session(_session(name))
+        assert st.sessions() == []
+        st.save_session(_session(" x "))                  # blanks around a name are fine
+        assert [s["name"] for s in st.sessions()] == [" x "]
+
+
 def test_calibrations_latest_per_mote(tmp_path):
     with open_store(str(tmp_path / "m.db"), create=True) as st:
         st.save_session(_session())

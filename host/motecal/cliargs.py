@@ -7,6 +7,7 @@ one line on stderr (exit 2), as for every user error.
 * ``int_range(what, lo, hi)``: a whole number in lo..hi (hi None: no bound);
 * ``mote_id``: a sensing mote's id, 1..65534 (0 is the BaseStation, 65535 the
   broadcast address);
+* ``session_name``: a session name the store accepts (not empty or blank);
 * ``description(doc)``: a module docstring's first paragraph as plain text
   for ``--help`` (reStructuredText markup removed).
 """
@@ -50,6 +51,17 @@ def int_range(what: str, lo: int, hi: int | None = None, note: str = ""):
 
 mote_id = int_range("mote id", MOTE_ID_MIN, MOTE_ID_MAX,
                     " (0 is the BaseStation, 65535 broadcast)")
+
+
+def session_name(text):
+    """Argument type: a session name as the store accepts it
+    (``store.check_session_name``), checked before anything is opened."""
+    from .errors import UserError
+    from .store import check_session_name
+    try:
+        return check_session_name(text)
+    except UserError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 _ROLES = re.compile(r":[a-z]+:`([^`]*)`")          # :func:`x` -> x

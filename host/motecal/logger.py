@@ -29,7 +29,7 @@ import numpy as np
 
 from . import protocol as P
 from . import sources as S
-from .cliargs import mote_id, positive
+from .cliargs import mote_id, positive, session_name
 from .errors import UserError
 from .guide import (DEFAULT_COVERAGE, DEFAULT_MIN_ANGLE, DEFAULT_POSE_SAMPLES, DEFAULT_POSES,
                     DEFAULT_ROT_SAMPLES, GuidedFlow)
@@ -760,7 +760,7 @@ def register(sub) -> None:
                                   "default: $MOTECOM")
     p.add_argument("--baud", type=positive(int), help="baud rate (default 250000)")
     p.add_argument("--db", required=True, help="database: sqlite file or postgresql:// URL")
-    p.add_argument("--session", required=True, help="session name")
+    p.add_argument("--session", required=True, type=session_name, help="session name")
     p.add_argument("--append", action="store_true", help="add to an existing session")
     p.add_argument("--guided", choices=("static80", "rotation"), help="guide a person")
     p.add_argument("--kind", choices=("free", "idle", "static80", "rotation"),

@@ -78,6 +78,15 @@ LINE_COUNTERS = {
 INT16_MIN, INT16_MAX = -32768, 32767
 
 
+def check_session_name(name) -> str:
+    """A session name is text with something besides white space (an empty
+    name could not be asked for again); UserError otherwise."""
+    if not isinstance(name, str) or not name.strip():
+        raise UserError(f"session name {name!r}: a session needs a name that is not "
+                        "empty or blank")
+    return name
+
+
 # --------------------------------------------------------------------------
 # Schema and migrations.  Each migration is a list of statements; {int16},
 # {real}, {id_pk}, {wr} are filled in per backend.  Never edit a released
@@ -526,6 +535,7 @@ class Store:
         seq) must be unique.  An existing session of that name is a UserError
         unless ``replace``, which deletes it (and its calibrations) first.
         """
+        check_session_name(data.name)
         raw = np.asarray(data.raw, float)
         finite = np.isfinite(raw)
         if np.isinf(raw).any():
@@ -657,6 +667,7 @@ class Store:
                      scales: dict | None = None, chips: dict | None = None,
                      append: bool = False, commit_every: float = 0.25) -> "SessionWriter":
         """Start (or, with ``append``, continue) a live session; returns its writer."""
+        check_session_name(name)
         info = self._info(name)
         if info is not None and not append:
             raise UserError(f"session {name!r} already exists in {self.target} "

@@ -389,7 +389,11 @@ def test_argument_mistakes_are_one_line(tmp_path, capsys):
              (base + ["--mote", "70000"], "1..65534"),
              (base + ["--board", "7"], "MOTE=BOARD"),
              (base + ["--guided", "rotation", "--coverage", "1.5"], "fraction"),
-             (base + ["--baud", "0"], "must be > 0"),
+             (base + ["--baud", "0"], "baud rate must be a whole number 300..4000000"),
+             (base + ["--baud", "1"], "baud rate must be a whole number 300..4000000"),
+             (base + ["--guided", "static80", "--min-angle", "500"], "--min-angle must be within 0..90"),
+             (base + ["--guided", "static80", "--min-angle", "30"],
+              "the sphere has room for at most 58"),
              (base[:3] + ["--session", ""] + base[5:], "not empty or blank"),
              (base[:3] + ["--session", "  "] + base[5:], "not empty or blank")]
     for argv, msg in cases:

@@ -151,6 +151,8 @@ def test_loss_option_gaps(tmp_path):
     (["--loss", "1.5"], "--loss"),
     (["--loss", "-0.1"], "--loss"),
     (["--batch", "7"], "--batch"),
+    (["--baud", "0"], "baud rate must be a whole number 300..4000000, not 0"),
+    (["--baud", "1"], "baud rate must be a whole number 300..4000000, not 1"),
     (["--model", "BADJSON"], "invalid JSON"),
     (["--model", "/no/such/model.json"], "no such file"),
     ([], "choose one output"),

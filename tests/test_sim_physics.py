@@ -312,6 +312,10 @@ BAD_MODELS = [
     ('{"format": "motecal-sim-model", "version": 1, "environment": {"field_gauss": "a"}, '
      '"defaults": {}}', "environment.field_gauss"),
     ('[1, 2]', "JSON object"),
+    ('{"format": "motecal-sim-model", "version": 1, "defaults": {"clock_ppm": 1e9}}',
+     "defaults.clock_ppm: must be within +-1000 ppm"),
+    ('{"format": "motecal-sim-model", "version": 1, "boards": {"2": {"clock_ppm": '
+     '{"uniform": [0, 5000]}}}}', "boards.2.clock_ppm: must be within +-1000 ppm"),
 ]
 
 
@@ -323,6 +327,11 @@ def test_bad_model_file_gives_one_line_user_error(tmp_path, text, needle):
         load_model(str(p))
     msg = str(e.value)
     assert needle in msg and "\n" not in msg and str(p) in msg
+
+
+def test_a_drawn_clock_error_beyond_the_range_is_refused():
+    with pytest.raises(UserError, match=r"clock_ppm: must be within \+-1000 ppm"):
+        load_model("general").with_boards({4: {"clock_ppm": {"normal": [0, 1e6]}}}).board(4, 0)
 
 
 def test_missing_and_unreadable_model(tmp_path):

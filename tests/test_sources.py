@@ -56,8 +56,11 @@ def test_parse_port_forms(tmp_path):
     for text, msg in bad.items():
         with pytest.raises(S.PortError, match=msg):
             S.parse_port(text, 250000 if text and "57600" in text else None, env={})
-    with pytest.raises(S.PortError, match="bad baud"):
-        S.parse_port("/dev/ttyS0", -5)
+    for baud in (-5, 0, 1, 299, 4_000_001):                  # one rule for every baud rate
+        with pytest.raises(S.PortError, match="baud rate must be a whole number 300..4000000"):
+            S.parse_port("/dev/ttyS0", baud)
+    with pytest.raises(S.PortError, match="serial@/dev/ttyS0:1: baud rate must be"):
+        S.parse_port("serial@/dev/ttyS0:1")
 
 
 def test_loop_url_and_send():

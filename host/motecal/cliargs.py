@@ -8,6 +8,7 @@ one line on stderr (exit 2), as for every user error.
 * ``mote_id``: a sensing mote's id, 1..65534 (0 is the BaseStation, 65535 the
   broadcast address);
 * ``session_name``: a session name the store accepts (not empty or blank);
+* ``baud_rate``: a serial baud rate, 300..4000000 (``baud_problem``);
 * ``description(doc)``: a module docstring's first paragraph as plain text
   for ``--help`` (reStructuredText markup removed).
 """
@@ -19,6 +20,7 @@ import re
 
 MOTE_ID_MIN = 1
 MOTE_ID_MAX = 0xFFFE
+BAUD_MIN, BAUD_MAX = 300, 4_000_000      # serial rates: a port's, the simulator's line
 
 
 def positive(kind=float):
@@ -51,6 +53,27 @@ def int_range(what: str, lo: int, hi: int | None = None, note: str = ""):
 
 mote_id = int_range("mote id", MOTE_ID_MIN, MOTE_ID_MAX,
                     " (0 is the BaseStation, 65535 broadcast)")
+
+
+def baud_problem(value) -> str | None:
+    """Why ``value`` is no baud rate (None if it is one): the one rule of
+    ``--baud``, ``serial@DEV:BAUD`` and the simulator's line."""
+    if isinstance(value, bool) or not isinstance(value, int) \
+            or not BAUD_MIN <= value <= BAUD_MAX:
+        return f"baud rate must be a whole number {BAUD_MIN}..{BAUD_MAX}, not {value!r}"
+    return None
+
+
+def baud_rate(text):
+    """Argument type: a baud rate (``baud_problem``)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = text
+    problem = baud_problem(value)
+    if problem:
+        raise argparse.ArgumentTypeError(problem)
+    return value
 
 
 def session_name(text):

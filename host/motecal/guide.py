@@ -42,6 +42,7 @@ DEFAULT_POSE_SAMPLES = 200
 DEFAULT_MIN_ANGLE = 15.0
 DEFAULT_ROT_SAMPLES = 5000
 DEFAULT_COVERAGE = 0.9
+MAX_MIN_ANGLE = 90.0         # degrees: six poses (the +-axes) are 90 deg apart
 DEFAULT_SETTLE_S = 0.2       # the first rows of a still window are left out: the end of
 #                              a smooth move is indistinguishable from stillness
 MAG_OVERFLOW = -4096
@@ -99,6 +100,13 @@ def sketch_up(d: np.ndarray) -> list[str]:
             f" +-----+  tilt {arrow}",
             f" | {name:^3} | {right[0]}",
             " +-----+"]
+
+
+def max_poses(min_angle_deg: float) -> int:
+    """Most poses that can be pairwise ``min_angle_deg`` apart on the sphere
+    (an upper bound: caps of half that radius around each cannot overlap,
+    so n (1 - cos(angle / 2)) <= 2)."""
+    return int(2.0 / (1.0 - math.cos(math.radians(min_angle_deg) / 2.0)))
 
 
 # --------------------------------------------------------------------------

@@ -29,10 +29,10 @@ import numpy as np
 
 from . import protocol as P
 from . import sources as S
-from .cliargs import mote_id, positive, session_name
+from .cliargs import baud_rate, mote_id, positive, session_name
 from .errors import UserError
 from .guide import (DEFAULT_COVERAGE, DEFAULT_MIN_ANGLE, DEFAULT_POSE_SAMPLES, DEFAULT_POSES,
-                    DEFAULT_ROT_SAMPLES, GuidedFlow)
+                    DEFAULT_ROT_SAMPLES, MAX_MIN_ANGLE, GuidedFlow, max_poses)
 from .store import LINE_COUNTERS, LINK_COUNTERS, SessionWriter, open_store
 
 # Layout offsets inside an AM frame body (AM header + sample payload), from protocol
@@ -758,7 +758,7 @@ def register(sub) -> None:
     p.add_argument("--port", help="device, pyserial URL (socket://, rfc2217://, loop://), "
                                   "serial@DEV:BAUD, sf@HOST:PORT or a recorded file; "
                                   "default: $MOTECOM")
-    p.add_argument("--baud", type=positive(int), help="baud rate (default 250000)")
+    p.add_argument("--baud", type=baud_rate, help="baud rate (default 250000)")
     p.add_argument("--db", required=True, help="database: sqlite file or postgresql:// URL")
     p.add_argument("--session", required=True, type=session_name, help="session name")
     p.add_argument("--append", action="store_true", help="add to an existing session")
@@ -791,6 +791,13 @@ def _guide(args, interactive: bool) -> GuidedFlow | None:
     if args.guided == "static80":
         if args.pose_samples < 50:
             raise UserError("--pose-samples must be at least 50 (the stillness window)")
+        if not args.min_angle <= MAX_MIN_ANGLE:
+            raise UserError(f"--min-angle must be within 0..{MAX_MIN_ANGLE:g} degrees, "
+                            f"not {args.min_angle:g}")
+        if args.poses > max_poses(args.min_angle):
+            raise UserError(f"--poses {args.poses} cannot be {args.min_angle:g} degrees apart "
+                            f"from each other: the sphere has room for at most "
+                            f"{max_poses(args.min_angle)} (lower --min-angle or --poses)")
         opts = dict(poses=args.poses, samples=args.pose_samples, min_angle_deg=args.min_angle,
                     rate_hz=P.NINEDOF_RATE_HZ)
     else:

@@ -27,6 +27,7 @@ import serial
 from serial.urlhandler import protocol_socket
 
 from . import protocol as P
+from .cliargs import baud_problem
 from .errors import UserError
 
 DEFAULT_BAUD = 250000          # the BaseStation's rate in this project
@@ -71,8 +72,9 @@ def _parse_baud(text: str, where: str) -> int:
         baud = int(text)
     except ValueError:
         raise PortError(f"bad baud rate {text!r} in {where}") from None
-    if baud <= 0:
-        raise PortError(f"bad baud rate {text!r} in {where}")
+    problem = baud_problem(baud)
+    if problem:
+        raise PortError(f"{where}: {problem}")
     return baud
 
 
@@ -103,8 +105,8 @@ def parse_port(text: str | None, baud: int | None = None, env=None) -> PortSpec:
         if not text:
             raise PortError("no port: give --port (device, pyserial URL, serial@DEV:BAUD, "
                             "sf@HOST:PORT) or set MOTECOM")
-    if baud is not None and baud <= 0:
-        raise PortError(f"bad baud rate {baud}")
+    if baud is not None and baud_problem(baud):
+        raise PortError(baud_problem(baud))
     spec_baud = None
     if "://" in text:
         kind, target = "serial", text

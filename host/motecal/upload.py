@@ -49,7 +49,7 @@ import numpy as np
 from . import fixedpoint as FP
 from . import protocol as P
 from . import sources as S
-from .cliargs import MOTE_ID_MAX, MOTE_ID_MIN, int_range, mote_id, positive
+from .cliargs import MOTE_ID_MAX, MOTE_ID_MIN, baud_rate, int_range, mote_id, positive
 from .errors import QualityError, UserError
 from .session import NOMINAL_SCALES, UNITS
 
@@ -802,7 +802,7 @@ def register(sub) -> None:
     p.add_argument("cal", nargs="?", metavar="cal.json", help="calibration file")
     p.add_argument("--port", help="the BaseStation: device, pyserial URL, serial@DEV:BAUD "
                                   "or sf@HOST:PORT; default $MOTECOM")
-    p.add_argument("--baud", type=positive(int), help="baud rate (default 250000)")
+    p.add_argument("--baud", type=baud_rate, help="baud rate (default 250000)")
     p.add_argument("--mote", type=mote_id, help="target mote (default: the mote of cal.json)")
     p.add_argument("--version", type=int_range("version", 1, MAX_VERSION),
                    help="version of the new set, 1..65535 (default: the one in force + 1)")
@@ -892,7 +892,7 @@ def add_calibrate_options(parser) -> None:
                    help="send each accepted calibration to its mote and verify it")
     g.add_argument("--port", help="with --upload: the BaseStation (device, pyserial URL, "
                                   "serial@DEV:BAUD, sf@HOST:PORT); default $MOTECOM")
-    g.add_argument("--baud", type=positive(int), help="with --upload: baud rate (250000)")
+    g.add_argument("--baud", type=baud_rate, help="with --upload: baud rate (250000)")
 
 
 def calibrate_step(args):

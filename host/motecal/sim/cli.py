@@ -6,7 +6,7 @@ import sys
 import time
 
 from .. import protocol as P
-from ..cliargs import positive
+from ..cliargs import baud_rate, positive
 from ..errors import UserError
 
 
@@ -45,7 +45,7 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, default=1, help="random seed (1)")
     p.add_argument("--duration", type=positive(float), default=None, metavar="S",
                    help="simulated seconds (default: the session's natural length)")
-    p.add_argument("--baud", type=positive(int), default=250000,
+    p.add_argument("--baud", type=baud_rate, default=250000,
                    help="serial baud rate, 10 bits per byte (250000; iris stock 57600)")
     p.add_argument("--loss", type=float, default=0.0, metavar="P",
                    help="independent loss probability per radio frame, 0..1 (0)")

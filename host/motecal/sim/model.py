@@ -36,6 +36,7 @@ MODEL_VERSION = 1
 MODELS_DIR = Path(__file__).resolve().parent / "models"
 DEFAULT_MODEL = "general"
 _DRAW_SALT = 0xB0A2D
+CLOCK_PPM_MAX = 1000.0     # a 32 kHz crystal is off by tens of ppm; beyond this is a typo
 _DISTS = ("uniform", "normal")
 
 
@@ -101,6 +102,12 @@ def _draw(v, shape: tuple, rng: np.random.Generator):
         x = rng.uniform(a, b, shape) if kind == "uniform" else rng.normal(a, b, shape)
         return x if shape else np.float64(x)
     return np.array([_draw(e, shape[1:], rng) for e in v], float)
+
+
+def _check_clock(ppm: float, where: str) -> None:
+    if not abs(ppm) <= CLOCK_PPM_MAX:
+        raise _Invalid(where, f"must be within +-{CLOCK_PPM_MAX:g} ppm (a crystal's error), "
+                              f"not {ppm:g}")
 
 
 def _default_value(prm):
@@ -190,7 +197,12 @@ class _SensorTemplate:
 class _BoardTemplate:
     def __init__(self, d, where: str):
         d = _obj(d, where, ("clock_ppm", "terms") + SENSORS)
-        _check_spec(d.get("clock_ppm", 0.0), (), f"{where}.clock_ppm")
+        clock = d.get("clock_ppm", 0.0)
+        _check_spec(clock, (), f"{where}.clock_ppm")
+        bounds = [clock] if _is_number(clock) else \
+            clock.get("uniform", clock.get("normal", [0.0])[:1])
+        for v in bounds:
+            _check_clock(v, f"{where}.clock_ppm")
         terms = d.get("terms", [])
         if not isinstance(terms, list):
             raise _Invalid(f"{where}.terms", "must be a list")
@@ -198,10 +210,12 @@ class _BoardTemplate:
                       for i, t in enumerate(terms)]
         self.sensors = {s: _SensorTemplate(d.get(s), s, f"{where}.{s}") for s in SENSORS}
         self.d = d
+        self.where = where
 
     def draw(self, mote_id: int, seed: int, env: Environment, rate_hz: float) -> "BoardModel":
         rng = np.random.default_rng(seed_key(_DRAW_SALT, seed, mote_id))
         clock = float(_draw(self.d.get("clock_ppm", 0.0), (), rng))
+        _check_clock(clock, f"{self.where}.clock_ppm")       # a normal draw's tail
         bterms = [t.draw(rng) for t in self.terms]
         sensors = {s: self.sensors[s].draw(rng) for s in SENSORS}
         return BoardModel(mote_id, clock, bterms, sensors, env, rate_hz)

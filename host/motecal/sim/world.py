@@ -23,6 +23,7 @@ import os
 from pathlib import Path
 
 from .. import protocol as P
+from ..cliargs import baud_problem
 from ..errors import UserError
 from ..sources import PortSpec, Source, SourceEnded
 from .model import load_model, write_truth
@@ -40,8 +41,8 @@ def check_options(motes, session, baud, loss, batch, duration) -> None:
     if not isinstance(session, str) or not all(k.strip() in KINDS for k in session.split(",")):
         raise UserError(f"unknown session {session!r} (expected one of {', '.join(KINDS)}, "
                         "or a sequence such as static80,static80)")
-    if not isinstance(baud, int) or not 300 <= baud <= 4_000_000:
-        raise UserError(f"--baud must be an integer 300..4000000, not {baud}")
+    if baud_problem(baud):
+        raise UserError(f"--baud: {baud_problem(baud)}")
     if not (isinstance(loss, (int, float)) and 0.0 <= loss <= 1.0):
         raise UserError(f"--loss must be a probability within 0..1, not {loss}")
     if not isinstance(batch, int) or not 1 <= batch <= MAX_BATCH:

@@ -153,6 +153,7 @@ def test_loss_option_gaps(tmp_path):
     (["--batch", "7"], "--batch"),
     (["--baud", "0"], "baud rate must be a whole number 300..4000000, not 0"),
     (["--baud", "1"], "baud rate must be a whole number 300..4000000, not 1"),
+    (["--eeprom", "/nonexistent/ee.json"], "cannot use EEPROM file /nonexistent/ee.json"),
     (["--model", "BADJSON"], "invalid JSON"),
     (["--model", "/no/such/model.json"], "no such file"),
     ([], "choose one output"),

@@ -76,6 +76,13 @@ def test_bad_eeprom_file_is_one_clear_error(tmp_path):
         World(motes=1, session="idle", duration=1.0, eeprom=bad)
 
 
+def test_eeprom_file_that_cannot_be_written_is_refused_at_start(tmp_path):
+    for path, why in ((tmp_path / "no" / "ee.json", "does not exist"),
+                      (tmp_path, "is a directory")):
+        with pytest.raises(UserError, match=f"EEPROM file .*{why}"):
+            World(motes=1, session="idle", duration=1.0, eeprom=path)
+
+
 def test_erased_eeprom_boots_raw():
     from motecal.mote_c import CalReceiver
     w = EepromWriter(CalReceiver(3))

@@ -108,9 +108,27 @@ EEPROM_FORMAT = "motecal-sim-eeprom"
 EEPROM_SIZE = 4096
 
 
+def _check_writable(path: Path) -> None:
+    """The EEPROM file can be written where _save_eeproms writes it (a temp
+    file beside it, renamed): checked at start, not when a mote first stores
+    a set in the middle of an upload."""
+    if path.is_dir():
+        raise UserError(f"cannot use EEPROM file {path}: it is a directory")
+    if not path.parent.is_dir():
+        raise UserError(f"cannot use EEPROM file {path}: folder {path.parent} does not exist")
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        tmp.write_bytes(b"")
+        tmp.unlink()
+    except OSError as e:
+        raise UserError(f"cannot write EEPROM file {path}: {e.strerror or e}") from None
+
+
 def _load_eeproms(path: Path | None, motes: int) -> dict[int, bytearray]:
     """Each mote's EEPROM (erased: 0xFF) or as the file left it."""
     ee = {m: bytearray(b"\xff" * EEPROM_SIZE) for m in range(1, motes + 1)}
+    if path is not None:
+        _check_writable(path)
     if path is None or not path.exists():
         return ee
     try:

@@ -358,6 +358,21 @@ def test_plain_status_line_never_counts_past_the_last_pose(tmp_path):
     assert lg.guide.captures[1].status()["pose"] == 3
 
 
+def test_a_frame_cut_short_when_the_line_ends_is_not_a_crc_error(tmp_path, capsys):
+    raw = pose_trajectory(n_poses=1, seed=12)[0][:50]
+    frames, _ = sample_frames({1: raw}, seq0={1: 0})
+    rec = tmp_path / "rec.bin"
+    rec.write_bytes(b"".join(frames) + frames[0][:20])    # the recording stops mid-frame
+    with open_store(str(tmp_path / "run.db"), create=True) as st:
+        w = st.open_session("r", kind="free", meta={"source": str(rec)})
+        from motecal.logger import PlainDisplay
+        Logger(S.parse_port(str(rec)), w, LinkTracker(), display=PlainDisplay()).run()
+        line = st.link_stats("r")["line"]
+    assert (line["cut_off"], line["crc_errors"], line["frames"]) == (1, 0, len(frames))
+    assert f"line: {len(frames)} frames, 0 CRC errors, 1 cut off, 0 malformed" in \
+        capsys.readouterr().out
+
+
 def test_push_many_decides_like_push_row_by_row():
     from motecal.still import StillDetector
     rng = np.random.default_rng(12)

@@ -52,6 +52,18 @@ def test_length_mismatch_rejected():
     assert P.unpack_samples(payload[:-1]) is None
 
 
+def test_end_of_stream_in_a_frame_is_cut_off_not_a_crc_error():
+    fr = _sample_frame(9, np.arange(18, dtype=np.int16).reshape(2, 9))
+    dec = P.FrameDecoder()
+    assert len(dec.feed(fr + fr[:-12])) == 1              # the second one is cut short
+    assert dec.finish() == [] and dec.finish() == []
+    assert (dec.stats.cut_off, dec.stats.crc_errors, dec.stats.bad_frames) == (1, 0, 0)
+    dec = P.FrameDecoder()                                  # whole, only the closing flag missing
+    assert dec.feed(fr[:-1]) == []
+    (f,) = dec.finish()
+    assert P.decode_message(f.am()).seq == 9 and dec.stats.cut_off == 0 and dec.stats.frames == 1
+
+
 def test_ack_and_packet_ack_frames():
     am = P.AMPacket(5, 0, 0x22, P.AM_NINEDOF_CAL_QUERY_MSG, P.CAL_QUERY.pack(mote=5, offset=20))
     fr = P.encode_am(am, ack_seq=0x7E)

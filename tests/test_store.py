@@ -200,6 +200,23 @@ def test_newer_schema_refused_and_old_schema_migrated(tmp_path):
         d = st.load_session("old")
         assert d.raw[0, :3].tolist() == [1, 2, 3] and np.isnan(d.raw[0, 3:]).all()
         assert st.link_stats("old") == {"line": {}, "motes": {}}
+    # version 2 (no cut_off counter yet) gains the column, its rows read 0
+    v2 = str(tmp_path / "v2.db")
+    con = sqlite3.connect(v2)
+    for v in (1, 2):
+        for stmt in store_mod.MIGRATIONS[v]:
+            con.execute(stmt.format(**b))
+    con.execute("INSERT INTO schema_version VALUES (2)")
+    con.execute("INSERT INTO sessions (name, kind, started, scales, chips, meta) VALUES "
+                "('two', 'free', 0, '{}', '{}', '{}')")
+    con.execute("INSERT INTO line_stats (session, frames, crc_errors) VALUES (1, 7, 1)")
+    con.commit()
+    assert "cut_off" not in [r[1] for r in con.execute("PRAGMA table_info(line_stats)")]
+    con.close()
+    with open_store(v2) as st:
+        assert st.schema_version == SCHEMA_VERSION == 3
+        line = st.link_stats("two")["line"]
+        assert (line["frames"], line["crc_errors"], line["cut_off"]) == (7, 1, 0)
 
 
 def test_live_writer_batches_labels_stats_and_end(tmp_path):

@@ -541,6 +541,7 @@ class Logger:
             out.append(line)
         ln = tr.line
         out.append(f"  line: {ln['frames']} frames, {ln['crc_errors']} CRC errors, "
+                   f"{ln['cut_off']} cut off, "
                    f"{ln['bad_frames'] + ln['bad_msgs']} malformed, {ln['unknown_msgs']} "
                    f"unknown, {ln['garbage_bytes']} garbage bytes, {ln['disconnects']} "
                    f"disconnects ({ln['gap_s']:.1f} s)")

@@ -318,10 +318,12 @@ class DecoderStats:
     crc_errors: int = 0      # delimited frames whose CRC failed
     bad_frames: int = 0      # CRC ok but malformed (length mismatch, unknown protocol)
     garbage_bytes: int = 0   # bytes outside any frame or in oversize runs
+    cut_off: int = 0         # a frame the end of the stream cut short (finish())
 
     def as_dict(self) -> dict:
         return dict(frames=self.frames, crc_errors=self.crc_errors,
-                    bad_frames=self.bad_frames, garbage_bytes=self.garbage_bytes)
+                    bad_frames=self.bad_frames, garbage_bytes=self.garbage_bytes,
+                    cut_off=self.cut_off)
 
 
 class FrameDecoder:
@@ -379,6 +381,22 @@ class FrameDecoder:
             self._synced = False
         self._buf = bytearray(tail)
         return out
+
+
+    def finish(self) -> list[Frame]:
+        """The stream ended (port closed, reader stopped): a frame whose
+        closing flag never came is returned if it is whole, else counted as
+        ``cut_off`` -- nothing damaged it, the end came in its middle."""
+        tail = bytes(self._buf)
+        self._buf = bytearray()
+        if not tail:
+            return []
+        frame = parse_frame_body(unescape(tail) if b"\x7d" in tail else tail)
+        if frame is None:
+            self.stats.cut_off += 1
+            return []
+        self.stats.frames += 1
+        return [frame]
 
 
 def decode_stream(data: bytes) -> list[Frame]:

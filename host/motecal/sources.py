@@ -156,10 +156,11 @@ class Source(abc.ABC):
         SourceLost when the port went away, SourceEnded at the end of a file."""
 
     def flush(self) -> list[P.Frame]:
-        """The stream ended (closed, lost): a frame cut off is counted, not kept
-        (a complete one whose closing flag never came is returned)."""
+        """The stream ended (closed, lost, the reader stops): a frame cut off is
+        counted in ``cut_off``, not kept (a complete one whose closing flag
+        never came is returned)."""
         decoder = getattr(self, "decoder", None)
-        return decoder.feed(b"\x7e") if decoder is not None else []
+        return decoder.finish() if decoder is not None else []
 
     @abc.abstractmethod
     def send(self, am: P.AMPacket, ack_seq: int | None = None) -> None:
@@ -313,7 +314,7 @@ class SFSource(Source):
 
     def flush(self) -> list[P.Frame]:
         if self._buf:
-            self.stats.bad_frames += 1
+            self.stats.cut_off += 1
             self._buf.clear()
         return []
 

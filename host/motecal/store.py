@@ -32,7 +32,7 @@ from .errors import UserError
 from .session import (COLUMNS, NOMINAL_CHIPS, NOMINAL_SCALES, SessionData,
                       label_from_text, label_to_text)
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 SAMPLE_COLUMNS = ("session", "mote", "seq", "t", "label", "flags") + COLUMNS
 
@@ -61,6 +61,7 @@ LINE_COUNTERS = {
     "crc_errors": "frames with a bad CRC (corrupt or truncated)",
     "bad_frames": "frames with a good CRC but a wrong length or protocol byte",
     "garbage_bytes": "bytes outside any frame",
+    "cut_off": "frames cut short by the end of the line (port closed, logger stopped)",
     "unknown_msgs": "frames of an unknown AM type or dispatch byte",
     "bad_msgs": "known AM type with a wrong payload length",
     "acks": "ack frames (0x43)",
@@ -96,6 +97,8 @@ def _counter_cols(names, real=("gap_s",)):
     return ", ".join(f"{n} {{real}} NOT NULL DEFAULT 0" if n in real
                      else f"{n} BIGINT NOT NULL DEFAULT 0" for n in names)
 
+
+_LINE_COUNTERS_V3 = ("cut_off",)      # line counters that schema version 3 added
 
 MIGRATIONS = {
     1: [
@@ -140,7 +143,7 @@ MIGRATIONS = {
              PRIMARY KEY (session, mote))""",
         f"""CREATE TABLE line_stats (
              session BIGINT PRIMARY KEY,
-             {_counter_cols(LINE_COUNTERS)},
+             {_counter_cols(k for k in LINE_COUNTERS if k not in _LINE_COUNTERS_V3)},
              updated {{real}})""",
         """CREATE TABLE events (
              session BIGINT NOT NULL,
@@ -150,6 +153,7 @@ MIGRATIONS = {
              detail TEXT NOT NULL DEFAULT '')""",
         "CREATE INDEX events_session ON events (session, t)",
     ],
+    3: [f"ALTER TABLE line_stats ADD COLUMN {_counter_cols([k])}" for k in _LINE_COUNTERS_V3],
 }
 
 

@@ -43,17 +43,35 @@ def test_exact_minimum_beats_every_probe_and_lm(seed):
     assert e <= e_lm * (1 + 1e-12)                 # LM stalls at kinks, never below
 
 
-def test_ga_bias_close_to_the_mean_and_the_truth():
+def test_ga_bias_is_the_paper_method_within_half_a_count_of_the_mean():
     g, bias = integer_rates(7)
     bf = gyro.ga_bias(g, seed=3)
-    assert np.allclose(bf.mean, g.mean(axis=0))
-    # symmetric noise: eq. 6 minimiser and mean estimate the same bias
-    assert np.all(np.abs(bf.b - bf.mean) < 4 * bf.std + 0.5 / 14.375)
-    assert np.all(np.abs(bf.b - bias) < 5 * bf.std + 0.5 / 14.375)
+    bm = gyro.mean_bias(g)
+    assert np.allclose(bm.b, g.mean(axis=0))
+    assert np.allclose(bm.std, g.std(axis=0, ddof=1) / np.sqrt(len(g)))
+    # the eq. 6 minimiser sits on a kink: on whole counts, not on the mean
+    # (half a count, 0.035 deg/s, is ~10 standard errors of the mean here)
+    assert np.all(np.abs(bf.b - bm.b) < 4 * bm.std + 0.5 / 14.375)
+    assert np.all(np.abs(bm.b - bias) < 4 * bm.std)
     assert bf.e6 < bf.e6_before
     assert len(bf.trace) == bf.ga_generations + 1
     again = gyro.ga_bias(g, seed=3)
     assert np.array_equal(again.b, bf.b)
+
+
+def test_mean_bias_std_counts_the_scatter_of_the_poses():
+    rng = np.random.default_rng(4)
+    label = np.repeat(np.arange(1, 21), 200)
+    g = rng.standard_normal((len(label), 3)) * 0.3 + [1.0, -2.0, 0.5]
+    white = gyro.mean_bias(g, label)
+    assert np.all(white.std == np.fmax(white.std_white, white.std_poses))
+    assert np.all(np.abs(white.std_poses / white.std_white - 1) < 0.5)   # white noise: alike
+    drift = g + rng.standard_normal((20, 3))[label - 1] * 0.05     # the bias moves between poses
+    bm = gyro.mean_bias(drift, label)
+    assert np.all(bm.std == bm.std_poses)
+    assert np.all(bm.std > 2 * bm.std_white)
+    assert np.allclose(bm.std, np.sqrt(20 / 19) * np.std(
+        [drift[label == p].mean(axis=0) for p in range(1, 21)], axis=0) / np.sqrt(20))
 
 
 def test_non_integer_data_use_the_direct_path():
@@ -91,3 +109,36 @@ def test_scale_and_misalignment_from_moves_between_poses():
     G = np.array([[sc.param(f"G_{i}{j}").value for j in "xyz"] for i in "xyz"])
     Gs = np.array([[sc.param(f"G_{i}{j}").std for j in "xyz"] for i in "xyz"])
     assert np.abs((G - want_A * K) / Gs).max() < 5
+
+
+# ---------------------------------------------------------------------------
+# the calibration's stated standard deviations against the truth, over
+# repeated simulated boards (each a fresh board and fresh noise)
+# ---------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def repeated_boards():
+    out = []
+    for seed in range(12):
+        d = paper_sized_session(100 + seed, rotation=False)
+        out.append((d, calibrate_board(d, seed=seed, kfold=0)))
+    return out
+
+
+def test_gyro_bias_std_is_the_error_of_the_reported_bias(repeated_boards):
+    z = []
+    for d, b in repeated_boards:
+        sc = b.gyro
+        Ag, cg = true_affine(d.meta["physical_truth"], "gyro")
+        bias_true = -np.linalg.solve(Ag, cg) / sc.lsb_per_unit
+        bfit = np.array([sc.param(f"b_{a}").value for a in "xyz"])
+        std = np.array([sc.param(f"b_{a}").std for a in "xyz"])
+        z.append((bfit - bias_true) / std)
+    z = np.array(z)
+    assert np.abs(z).max() < 4, z
+    assert 0.6 < np.sqrt(np.mean(z ** 2)) < 1.4, z
+    for d, b in repeated_boards:       # the paper's eq. 6 minimiser is kept next to it
+        sc = b.gyro
+        bfit = np.array([sc.param(f"b_{a}").value for a in "xyz"])
+        std = np.array([sc.param(f"b_{a}").std for a in "xyz"])
+        assert np.allclose(np.array(sc.extra["bias_eq6"]) - bfit, sc.extra["bias_eq6_minus_mean"])
+        assert np.all(np.abs(sc.extra["bias_eq6_minus_mean"]) <= 0.5 / 14.375 + 4 * std)

@@ -8,7 +8,7 @@ session can calibrate, quality metrics for the gate and held-out validation.
 Which rows are used
 -------------------
 * accelerometer: static poses (label >= 1);
-* gyroscope: bias from the static poses; scale/misalignment from the moves
+* gyroscope: bias (the mean) from the static poses; scale/misalignment from the moves
   between consecutive poses (rows between them, contiguous), when there are
   enough of them and the accelerometer was calibrated;
 * magnetometer: data set ``R`` = rotation rows (``LABEL_ROT``), ``O`` = the
@@ -282,15 +282,24 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
     counts = data.sensor("gyro")[rows]
     label = data.label[rows]
     g = counts / lsb
-    bf = _gyro.ga_bias(g, seed=ss, options=ga_options)
-    b = bf.b
+    T = _gyro.bias_table(g)
+    bm = _gyro.mean_bias(g, label)
+    b = bm.b
+    bf = _gyro.ga_bias(g, seed=ss, options=ga_options, table=T)     # the paper's eq. 6
+    e6 = float(T(b))
     G = np.eye(3)
-    params = [Param(f"b_{a}", float(v), float(s), "deg/s") for a, v, s in zip("xyz", b, bf.std)]
-    notes = ["bias: GA on the paper's eq. 6 + exact minimiser of its quadratic pieces; "
-             "std = sample sd / sqrt(n)"]
+    params = [Param(f"b_{a}", float(v), float(s), "deg/s") for a, v, s in zip("xyz", b, bm.std)]
+    notes = ["bias: mean of the still rates; std = the larger of sample sd / sqrt(n) and the "
+             "scatter of the pose means",
+             "the paper's eq. 6 (GA + exact minimiser) gives b = ("
+             + ", ".join(f"{v:.4f}" for v in bf.b) + ") deg/s, ("
+             + ", ".join(f"{v:+.4f}" for v in bf.b - b) + ") from the mean (its minimiser "
+             "sits on a kink of the piecewise quadratic, often a whole count)"]
     warnings = []
-    extra = {"bias_mean": bf.mean.tolist(), "bias_eq6_minus_mean": (b - bf.mean).tolist(),
-             "noise_sd": bf.sd.tolist()}
+    extra = {"bias_eq6": bf.b.tolist(), "bias_eq6_minus_mean": (bf.b - b).tolist(),
+             "eq6_at_bias_eq6": bf.e6, "noise_sd": bm.sd.tolist(),
+             "bias_std_white": bm.std_white.tolist(),
+             "bias_std_poses": [None if not np.isfinite(v) else float(v) for v in bm.std_poses]}
     model = "bias"
     if gyro_matrix and accel is not None:
         poses = np.unique(label)
@@ -344,14 +353,13 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
             te = fold == f
             if not te.any() or te.all():
                 continue
-            T = _gyro.bias_table(g[~te])
-            bk, _ = T.exact_minimum(b)
+            bk = g[~te].mean(axis=0)
             sq += float(np.sum(np.abs(g[te] - bk).sum(axis=1) ** 2))
         validation = {"k": kfold, "groups": "poses", "mse_heldout": sq / len(g),
-                      "mse_fit": bf.e6}
+                      "mse_fit": e6}
     return SensorCalibration(
         sensor="gyro", unit="deg/s", chip=chip, lsb_per_unit=float(lsb), model=model,
-        params=params, A=G / lsb, c=-G @ b, mse_before=bf.e6_before, mse_after=bf.e6,
+        params=params, A=G / lsb, c=-G @ b, mse_before=bf.e6_before, mse_after=e6,
         min_before=float(mag_b.min()), max_before=float(mag_b.max()),
         min_after=float(mag_a.min()), max_after=float(mag_a.max()),
         n_samples=len(g), n_poses=len(np.unique(label)), dataset="still", rank=3 + (9 if model != "bias" else 0),

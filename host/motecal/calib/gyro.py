@@ -1,9 +1,14 @@
 """Gyroscope calibration.
 
-Bias (the paper's way): the GA minimises eq. 6 over still data, then the
-exact minimiser of ``eq6.Eq6Table`` polishes it; the closed-form per-axis mean
-is reported next to it as a check (the two estimate the same bias for
-symmetric noise).
+Bias: the per-axis mean of the still rates (``mean_bias``), with an honest
+standard error: the larger of sample sd / sqrt(n) and the scatter of the
+pose means (a bias that moves between poses is not known better than that
+scatter says).  The paper's way (``ga_bias``: the GA minimises eq. 6 over
+still data, then the exact minimiser of ``eq6.Eq6Table`` polishes it) stays
+as the paper's method for Table II and is reported next to the calibration:
+gyroscope counts are integers, and the minimiser of eq. 6 sits on a kink of
+its piecewise quadratic, so it locks onto whole counts (0.07 deg/s steps) --
+an error many times the standard error of the mean of thousands of samples.
 
 Scale and misalignment (what the paper left open), imu_tk style: between two
 consecutive still poses the board turns; integrating the calibrated rate
@@ -33,17 +38,55 @@ GYRO_CLIP_COUNTS = 32000         # |raw| beyond this may be clipped: move not us
 
 @dataclass
 class BiasFit:
+    """The paper's bias: the minimiser of eq. 6 (no standard error: on integer
+    counts it is not a smooth function of the data, see the module doc)."""
     b: np.ndarray                 # deg/s, eq. 6 minimiser
     e6: float                     # eq. 6 at b, (deg/s)^2
     e6_before: float              # eq. 6 at b = 0
-    mean: np.ndarray              # closed-form mean, deg/s
-    sd: np.ndarray                # per-axis sample sd, deg/s
-    std: np.ndarray               # standard error of b (sd / sqrt(n))
     n: int
     trace: list = field(default_factory=list)
     ga_generations: int = 0
     ga_stop: str = ""
     seed: int | None = None
+
+
+@dataclass
+class BiasMean:
+    """The calibration's bias: the mean of the still rates."""
+    b: np.ndarray                 # deg/s, per-axis mean
+    std: np.ndarray               # its standard error: max(std_white, std_poses)
+    sd: np.ndarray                # per-axis sample sd, deg/s
+    std_white: np.ndarray         # sd / sqrt(n)
+    std_poses: np.ndarray         # from the scatter of the pose means (NaN: < 2 poses)
+    n: int
+    n_poses: int
+
+
+def mean_bias(g: np.ndarray, label=None) -> BiasMean:
+    """Bias from still rates g (n, 3) in deg/s, with ``label`` the pose of
+    each row: the mean, and as its standard error the larger of sd / sqrt(n)
+    (white noise) and the cluster-robust standard error over poses,
+    ``sqrt(P / (P - 1) sum_p n_p^2 (m_p - m)^2) / n`` (pose means m_p of n_p
+    rows): drift or orientation-dependent offsets between poses make the
+    pose means scatter more than white noise says."""
+    g = np.asarray(g, float)
+    n = len(g)
+    m = g.mean(axis=0)
+    sd = g.std(axis=0, ddof=1) if n > 1 else np.zeros(3)
+    white = sd / np.sqrt(max(n, 1))
+    poses = np.full(3, np.nan)
+    P = 0
+    if label is not None:
+        labs, inv = np.unique(np.asarray(label), return_inverse=True)
+        P = len(labs)
+        if P >= 2:
+            cnt = np.bincount(inv, minlength=P).astype(float)
+            sums = np.zeros((P, 3))
+            np.add.at(sums, inv, g)
+            dev = sums - cnt[:, None] * m                 # n_p (m_p - m)
+            poses = np.sqrt(P / (P - 1) * (dev * dev).sum(axis=0)) / n
+    std = np.fmax(white, poses)
+    return BiasMean(m, std, sd, white, poses, n, P)
 
 
 def bias_table(g: np.ndarray) -> eq6.Eq6Table:
@@ -72,10 +115,7 @@ def lm_bias(g: np.ndarray):
 
 
 def _bias_fit(g, T, b, e, **kw) -> BiasFit:
-    n = len(g)
-    sd = g.std(axis=0, ddof=1) if n > 1 else np.zeros(3)
-    return BiasFit(np.asarray(b, float), float(e), float(T(np.zeros(3))), g.mean(axis=0), sd,
-                   sd / np.sqrt(max(n, 1)), n, **kw)
+    return BiasFit(np.asarray(b, float), float(e), float(T(np.zeros(3))), len(g), **kw)
 
 
 # ---------------------------------------------------------------------------

@@ -58,7 +58,9 @@ TABLE2_COLUMNS = [
     Column("error_before", "error before ((deg/s)²)", ".4g"),
     Column("error_after", "error after ((deg/s)²)", ".4g"),
     Column("b_x", "bias x (deg/s)", B), Column("b_y", "bias y (deg/s)", B),
-    Column("b_z", "bias z (deg/s)", B)]
+    Column("b_z", "bias z (deg/s)", B),
+    Column("mean_x", "mean x (deg/s)", B), Column("mean_y", "mean y (deg/s)", B),
+    Column("mean_z", "mean z (deg/s)", B)]
 TABLE3_COLUMNS = [
     Column("mote", "mote"), Column("set", "data set"), Column("samples", "samples"),
     Column("field_offsets", "field, offsets only (gauss)", M),
@@ -188,7 +190,8 @@ def _engine_tables(mr: MoteReport, seed: int, log) -> None:
         for r in CT.table2(data, seed=seed):
             mr.table2.append({"mote": m, "samples": n,
                               **{k: _f(r[k]) for k in ("error_before", "error_after",
-                                                       "b_x", "b_y", "b_z")}})
+                                                       "b_x", "b_y", "b_z", "mean_x",
+                                                       "mean_y", "mean_z")}})
     else:
         mr.notes.append("Table II: fewer than 10 still (labelled) gyroscope samples")
     sets = mag_data_sets(data)
@@ -391,7 +394,10 @@ def _tables(reports: list[MoteReport]) -> list[Table]:
     if t2:
         out.append(Table("table2_gyro", "Table II: gyroscope", TABLE2_COLUMNS, t2, [
             "error = the paper's eq. 6, mean of (|x - b_x| + |y - b_y| + |z - b_z|)^2 over "
-            "still samples (deg/s); before: b = 0; biases: GA on eq. 6 + exact minimiser",
+            "still samples (deg/s); before: b = 0; biases: GA on eq. 6 + exact minimiser "
+            "(the paper's method; on integer counts its minimiser sits on whole counts, "
+            "0.07 deg/s steps); mean: the per-axis mean of the still rates, the bias "
+            "motecal calibrate uses",
             PAPER_TABLE2]))
     t3 = [r for mr in reports for r in mr.table3]
     if t3:

@@ -114,6 +114,35 @@ def test_implausible_frames_wait_for_confirmation():
     assert u == [32550] and keep is None
 
 
+def test_a_reboot_below_the_window_is_told_from_duplicates_by_the_records():
+    rng = np.random.default_rng(3)
+    old, new = (rng.integers(-999, 999, (100, 9)).astype(np.int16) for _ in range(2))
+    link = MoteLink(4)
+
+    def feed(seq0, rec):
+        seqs = np.arange(seq0, seq0 + len(rec), 5)
+        return link.accept(seqs, np.full(len(seqs), 5), lambda i: (0, rec[5 * i:5 * i + 5]), rec)
+
+    feed(0, old[:60])                                  # 0..59 (the first frame waits, then goes)
+    _, keep, _ = feed(40, old[40:70])                  # a repeat of 40..59, then 60..69 new
+    assert keep.tolist() == [False] * 20 + [True] * 10 and link.c["duplicates"] == 20
+    # the mote reboots at 70 and counts from 0 again: its records are new ones
+    u, keep, rel = feed(0, new[:20])
+    assert [r[0] for r in rel] == [70]
+    assert keep.tolist() == [False] * 5 + [True] * 15 and u.tolist()[1:] == [75, 80, 85]
+    c = link.c
+    assert (c["restarts"], c["duplicates"], c["lost"], c["samples"]) == (1, 20, 0, 90)
+    # a repeat of the rebooted stream is a duplicate again
+    _, keep, _ = feed(15, new[15:25])
+    assert keep.tolist() == [False] * 5 + [True] * 5 and link.c["duplicates"] == 25
+    # a frame whose records differ but that nothing continues is dropped
+    feed(25, new[25:30])
+    _, keep, _ = feed(65536 - 60, old[10:15] + 1)     # at 10..14 (CRC-16 missed a corruption)
+    assert keep.tolist() == [False] * 5
+    _, keep, _ = feed(30, new[30:35])
+    assert keep.tolist() == [True] * 5 and link.c["rejected"] == 1 and link.c["restarts"] == 1
+
+
 def test_a_mote_seen_once_is_not_a_mote():
     tr = LinkTracker()
     frames, _ = sample_frames({7: np.ones((5, 9), np.int16)})

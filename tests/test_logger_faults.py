@@ -193,6 +193,50 @@ def test_port_closes_and_comes_back(tmp_path):
     assert [e["kind"] for e in events] == ["disconnect", "reconnect"]
 
 
+def _until(cond, timeout=30.0):
+    deadline = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)
+
+
+def test_a_mote_that_reboots_is_numbered_on_not_dropped(tmp_path):
+    """The simulator (a mote) stops after about 1600 samples and starts again
+    on the same port with another seed: the rebooted mote counts from 0
+    again, below the last sequence number logged, and its samples are new
+    ones, stored after the earlier ones -- not dropped as duplicates."""
+    from motecal.sim.serve import TcpLine, serve_in_thread
+    from motecal.sim.world import World
+    first = World(motes=1, session="idle", seed=2, duration=13.0)
+    server, port = serve_in_thread(first)
+    with open_store(str(tmp_path / "r.db"), create=True) as st:
+        lg = Logger(S.parse_port(f"socket://127.0.0.1:{port}"), st.open_session("r", kind="idle"),
+                    LinkTracker())
+        th = threading.Thread(target=lg.run, daemon=True)
+        th.start()
+        try:
+            _until(lambda: first.done and lg.tracker.mote(1).c["samples"] >= len(first.sent[1]))
+            n1 = len(first.sent[1])
+            server.stop()
+            server.close()                                 # the mote is switched off ...
+            second = World(motes=1, session="idle", seed=3, duration=5.0)
+            server = TcpLine(second, "127.0.0.1", port).start()    # ... and on again
+            _until(lambda: second.done and lg.tracker.mote(1).c["samples"] >= n1 + len(
+                second.sent[1]) or lg.tracker.mote(1).c["duplicates"] > 100)
+        finally:
+            lg.request_stop("test done")
+            th.join(10)
+            server.stop()
+            server.close()
+        d = st.load_session("r")
+        c = st.link_stats("r")["motes"][1]
+    assert 1500 < n1 < 1700 and first.sent[1].seq[-1] == n1 - 1
+    n2 = len(second.sent[1])
+    assert (c["duplicates"], c["restarts"], c["lost"], c["samples"]) == (0, 1, 0, n1 + n2)
+    np.testing.assert_array_equal(d.seq, np.arange(n1 + n2))
+    np.testing.assert_array_equal(d.raw, np.vstack([first.sent[1].raw, second.sent[1].raw]))
+
+
 def test_corrupted_bytes_never_make_corrupt_rows(tmp_path):
     raws = _raws(1500, seed=3)
     frames, _ = sample_frames(raws, batch=1, status_every=100)

@@ -124,12 +124,20 @@ class MoteLink:
     (reordered, no longer lost); one seen before is a duplicate (dropped).
 
     A frame that does not fit -- a mote's first frame, a jump of more than
-    ``MAX_JUMP`` samples ahead, or more than ``REORDER_WINDOW`` back -- is held
-    as *suspect* until the mote's next frame: if that one continues it, the
-    suspect is released (a long gap, or a mote that restarted, whose numbering
-    is then continued after ``end``); otherwise it is rejected.  A frame
-    corrupted in a way CRC-16 missed (1 in 65536) then cannot derail the
-    numbering or invent a mote.
+    ``MAX_JUMP`` samples ahead, more than ``REORDER_WINDOW`` back, or a frame
+    at sequence numbers already received whose records differ from the ones
+    received there -- is held as *suspect* until the mote's next frame: if
+    that one continues it, the suspect is released (a long gap, or a mote
+    that restarted, whose numbering is then continued after ``end``);
+    otherwise it is rejected.  A frame corrupted in a way CRC-16 missed (1 in
+    65536) then cannot derail the numbering or invent a mote.
+
+    A real duplicate (a radio retransmission the BaseStation forwarded twice)
+    carries the very records received before; a mote that rebooted starts
+    again from 0 with new ones.  The last ``REORDER_WINDOW`` records are kept
+    to tell the two apart, so a reboot is detected even when the mote had
+    sent fewer than ``REORDER_WINDOW`` samples (or its sequence number, mod
+    65536, was that small) -- the numbering cannot tell then.
 
     A link resumed from an earlier run (``last_seq``, ``motecal log --append``)
     takes its first frame as the new start: what the mote sent while nobody
@@ -148,8 +156,26 @@ class MoteLink:
             self.last_u = last_seq
             self.end = last_seq + 1
         self.holes: list[list[int]] = []        # [lo, hi) ranges not received
-        self.suspect = None                     # (u, count, seq16, payload)
+        self.suspect = None                     # (u, count, seq16, payload, restart)
         self.resumed = last_seq is not None     # the next frame starts this run
+        # the records of the last REORDER_WINDOW sequence numbers received
+        self.recent = np.zeros((REORDER_WINDOW, 9), np.int16)
+        self.recent_u = np.full(REORDER_WINDOW, -1, np.int64)
+
+    def _remember(self, u: np.ndarray, rec: np.ndarray) -> None:
+        if len(u) > REORDER_WINDOW:
+            u, rec = u[-REORDER_WINDOW:], rec[-REORDER_WINDOW:]
+        i = u % REORDER_WINDOW
+        self.recent[i] = rec
+        self.recent_u[i] = u
+
+    def _differs(self, u: int, rec: np.ndarray) -> bool:
+        """Records u.. of a frame differ from those received at the same
+        sequence numbers (a new stream, not a duplicate)."""
+        r = u + np.arange(len(rec))
+        i = r % REORDER_WINDOW
+        seen = (r < self.end) & (self.recent_u[i] == r)
+        return bool(seen.any() and (self.recent[i[seen]] != rec[seen]).any())
 
     def _gap(self, lo: int, hi: int):
         self.c["lost"] += hi - lo
@@ -159,11 +185,12 @@ class MoteLink:
         if self.holes and self.holes[0][1] < self.end - REORDER_WINDOW:
             self.holes = [h for h in self.holes if h[1] >= self.end - REORDER_WINDOW]
 
-    def accept(self, seq16: np.ndarray, count: np.ndarray, payload=None):
+    def accept(self, seq16: np.ndarray, count: np.ndarray, payload=None, records=None):
         """Per message: unwrapped first sequence number; per record of these
         messages: keep or not (None: keep all); and the suspect frames released
         now, as ``[(u, payload(i))]`` (``payload(i)`` is asked for when message
-        i becomes suspect)."""
+        i becomes suspect).  ``records``: the messages' records, in order
+        (``(count.sum(), 9)``), to tell duplicates from a rebooted mote."""
         seq16 = np.asarray(seq16, np.int64)
         count = np.asarray(count, np.int64)
         self.c["frames"] += len(seq16)
@@ -183,8 +210,12 @@ class MoteLink:
                 self.c["samples"] += int(count.sum())
                 self.c["last_seq"] = self.end - 1
                 self._prune()
+                if records is not None:
+                    first = np.cumsum(count) - count
+                    self._remember(np.repeat(u - first, count) + np.arange(len(records)),
+                                   records)
                 return u, None, []
-        return self._accept_slow(seq16, count, payload)
+        return self._accept_slow(seq16, count, payload, records)
 
     def _resume(self, s0: int) -> None:
         """First frame of a resumed run: its records follow on without a gap.
@@ -196,9 +227,10 @@ class MoteLink:
         self.end = u0
         self.last_u, self.last16 = u0 - 1, (s0 - 1) & 0xFFFF
 
-    def _take(self, u: int, c: int, s16: int, keep: list) -> None:
+    def _take(self, u: int, c: int, s16: int, keep: list, rec=None) -> None:
         """Records u..u+c-1 of a frame that fits (after any suspect decision)."""
         self.last16, self.last_u = s16, u
+        k0 = len(keep)
         for r in range(u, u + c):
             if r >= self.end:
                 if r > self.end:
@@ -212,24 +244,29 @@ class MoteLink:
             else:
                 self.c["duplicates"] += 1
                 keep.append(False)
+        if rec is not None:
+            k = np.array(keep[k0:], bool)
+            self._remember(u + np.flatnonzero(k), rec[k])
 
-    def _accept_slow(self, seq16, count, payload):
+    def _accept_slow(self, seq16, count, payload, records=None):
         us = np.empty(len(seq16), np.int64)
         keep: list[bool] = []
         released = []
+        first = np.cumsum(count) - count
         for i, (s, c) in enumerate(zip(seq16.tolist(), count.tolist())):
+            rec = None if records is None else records[first[i]:first[i] + c]
             if self.suspect is not None:
-                su, sc, s16, data = self.suspect
+                su, sc, s16, data, srec, restart = self.suspect
                 self.suspect = None
                 if 0 <= _wrapdiff(s, s16) - sc <= CONFIRM_GAP:      # it continues the suspect
                     if self.last16 is None:                         # a new mote's first frame
                         self.end = su
                         self.c["first_seq"] = su
-                    elif su < self.end - REORDER_WINDOW:            # numbering started again
+                    elif restart or su < self.end - REORDER_WINDOW:  # numbering started again
                         self.c["restarts"] += 1
                         su = self.end
                     k0 = len(keep)
-                    self._take(su, sc, s16, keep)
+                    self._take(su, sc, s16, keep, srec)
                     self.c["samples"] += sum(keep[k0:])
                     del keep[k0:]
                     released.append((su, data))
@@ -240,12 +277,14 @@ class MoteLink:
             else:
                 u = self.last_u + int(_wrapdiff(s, self.last16))
             us[i] = u
-            if self.last16 is None or u - self.end > MAX_JUMP or u < self.end - REORDER_WINDOW:
-                self.suspect = (u, c, s, payload(i) if payload is not None else None)
+            far = self.last16 is None or u - self.end > MAX_JUMP or u < self.end - REORDER_WINDOW
+            if far or (u < self.end and rec is not None and self._differs(u, rec)):
+                self.suspect = (u, c, s, payload(i) if payload is not None else None, rec,
+                                not far)
                 keep.extend([False] * c)
                 continue
             k0 = len(keep)
-            self._take(u, c, s, keep)
+            self._take(u, c, s, keep, rec)
             self.c["samples"] += sum(keep[k0:])
         self.c["last_seq"] = max(self.end - 1, 0)
         self._prune()
@@ -323,15 +362,17 @@ class LinkTracker:
         keep = np.ones(n, bool)
         extra: list[Rows] = []
         if (b.src == b.src[0]).all():
-            groups = [(int(b.src[0]), np.arange(len(b)))]
+            groups = [(int(b.src[0]), np.arange(len(b)), None)]
         else:
-            groups = [(int(m), np.flatnonzero(b.src == m)) for m in np.unique(b.src)]
-        for m, mi in groups:
+            rec_src = b.src[b.rec_msg]
+            groups = [(int(m), np.flatnonzero(b.src == m), rec_src == m) for m in np.unique(b.src)]
+        for m, mi, rsel in groups:
             def payload(i, mi=mi):                  # a message held as suspect
                 j = int(mi[i])
                 sel = b.rec_msg == j
                 return int(b.flags[j]), b.records[sel].copy()
-            u, k, released = self.mote(m).accept(b.seq[mi], b.count[mi], payload)
+            rec = b.records if rsel is None else b.records[rsel]
+            u, k, released = self.mote(m).accept(b.seq[mi], b.count[mi], payload, rec)
             u_msg[mi] = u
             if k is not None:
                 keep[np.isin(b.rec_msg, mi)] = k    # m's records, in arrival order

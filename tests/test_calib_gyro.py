@@ -108,7 +108,8 @@ def test_scale_and_misalignment_from_moves_between_poses():
     # stated standard deviations of G consistent with the error
     G = np.array([[sc.param(f"G_{i}{j}").value for j in "xyz"] for i in "xyz"])
     Gs = np.array([[sc.param(f"G_{i}{j}").std for j in "xyz"] for i in "xyz"])
-    assert np.abs((G - want_A * K) / Gs).max() < 5
+    assert np.abs((G - want_A * K) / Gs).max() < 4
+    assert set(sc.extra["matrix_fit"]["std_from"]) == {"moves", "accel", "bias"}
 
 
 # ---------------------------------------------------------------------------
@@ -142,3 +143,25 @@ def test_gyro_bias_std_is_the_error_of_the_reported_bias(repeated_boards):
         std = np.array([sc.param(f"b_{a}").std for a in "xyz"])
         assert np.allclose(np.array(sc.extra["bias_eq6"]) - bfit, sc.extra["bias_eq6_minus_mean"])
         assert np.all(np.abs(sc.extra["bias_eq6_minus_mean"]) <= 0.5 / 14.375 + 4 * std)
+
+
+def test_gyro_matrix_std_is_the_error_of_the_reported_matrix(repeated_boards):
+    """G maps into the calibrated accelerometer frame, whose own errors (and
+    the gravity directions of the poses shared by consecutive moves) are part
+    of G's error against the truth."""
+    z = []
+    for d, b in repeated_boards:
+        sc = b.gyro
+        assert sc.model == "bias+matrix"
+        pt = d.meta["physical_truth"]
+        Aa, _ = true_affine(pt, "accel")
+        Q = Aa @ np.linalg.inv(lower_factor(Aa))
+        Ag, _ = true_affine(pt, "gyro")
+        want = Q.T @ Ag * sc.lsb_per_unit
+        G = np.array([[sc.param(f"G_{i}{j}").value for j in "xyz"] for i in "xyz"])
+        Gs = np.array([[sc.param(f"G_{i}{j}").std for j in "xyz"] for i in "xyz"])
+        z.append((G - want) / Gs)
+    z = np.array(z)                                   # (boards, 3, 3)
+    assert np.abs(z).max() < 4.5, z
+    assert np.sqrt(np.mean(z ** 2, axis=0)).max() < 1.8, np.sqrt(np.mean(z ** 2, axis=0))
+    assert 0.7 < np.sqrt(np.mean(z ** 2)) < 1.3

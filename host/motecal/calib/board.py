@@ -256,6 +256,9 @@ def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss,
         ga={"seed": seed, "generations": fr.ga_generations, "evaluations": fr.ga_evaluations,
             "stop": fr.ga_stop, "polish_nfev": fr.polish_nfev, "trace": fr.trace},
         gauge=mdl.gauge)
+    Mj = mdl.affine_jacobian(fr.theta)[:12]          # d (A nominal, c) / d theta
+    Mj[:9] /= lsb                                      # A per count, as sc.A
+    sc.affine_cov = Mj @ fr.cov @ Mj.T
     if sensor == "mag":
         sc.field_gauss = H
         if mdl.free_field:
@@ -304,19 +307,26 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
     if gyro_matrix and accel is not None:
         poses = np.unique(label)
         acc = data.sensor("accel")
-        grav = {}
+        grav, dirs = {}, {}
         for p in poses:
             sel = (data.label == p) & data.has("accel")
             if sel.any():
-                grav[int(p)] = unit(accel.apply(acc[sel]).mean(axis=0))
+                ubar = acc[sel].mean(axis=0)
+                v = accel.apply(ubar[None])[0]
+                grav[int(p)] = unit(v)
+                # d unit(A ubar + c) / d (A row-major, c)
+                P = (np.eye(3) - np.outer(grav[int(p)], grav[int(p)])) / np.linalg.norm(v)
+                dirs[int(p)] = P @ np.hstack([np.kron(np.eye(3), ubar[None, :]), np.eye(3)])
         moves = _gyro.find_moves(data.label, data.sample_times(), data.seq, data.sensor("gyro") / lsb,
                                  data.sensor("gyro"), grav, data.meta.get("rate_hz") or 125.0,
                                  part=_recording_parts(data))
         if len(moves) >= _gyro.MIN_MOVES:
-            mf = _gyro.fit_matrix(moves, b)
+            mf = _gyro.fit_matrix(moves, b, b_cov=np.diag(bm.std ** 2), dirs=dirs,
+                                  dirs_cov=accel.affine_cov)
             extra["matrix_fit"] = {"moves": mf.n_moves, "rank": mf.rank,
                                    "rms_deg_before": float(np.rad2deg(mf.rms_before)),
-                                   "rms_deg_after": float(np.rad2deg(mf.rms_after))}
+                                   "rms_deg_after": float(np.rad2deg(mf.rms_after)),
+                                   "std_from": {k: v.tolist() for k, v in mf.std_parts.items()}}
             ok = (mf.rank == 9 and np.rad2deg(mf.rms_after) < _gyro.MAX_RMS_DEG
                   and np.abs(mf.G - np.eye(3)).max() < _gyro.MAX_G_DEVIATION)
             if ok:

@@ -61,6 +61,7 @@ class FitResult:
     n: int                          # samples
     std: np.ndarray                 # per-parameter standard deviation (nan = not identifiable)
     ident: Identifiability
+    cov: np.ndarray | None = None   # sigma^2 (J^T J)^+, (d, d)
     trace: list = field(default_factory=list)     # GA best fitness per generation (surrogate)
     ga_generations: int = 0
     ga_evaluations: int = 0
@@ -178,7 +179,8 @@ def finish(model, theta, u, **kw) -> FitResult:
     dof = max(1, n - ident.rank)
     sigma2 = float(r @ r) / dof
     std = ident.std(sigma2)
-    return FitResult(model, np.asarray(theta, float), float(np.mean(r * r)), n, std, ident, **kw)
+    return FitResult(model, np.asarray(theta, float), float(np.mean(r * r)), n, std, ident,
+                     ident.cov_unit * sigma2, **kw)
 
 
 def ga_fit(model: MagnitudeModel, u, label=None, *, seed=None,

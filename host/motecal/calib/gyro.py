@@ -189,6 +189,13 @@ def _rotvec_quat(rv):
     return np.concatenate([np.cos(half), rv * k], axis=-1)
 
 
+def _rotate_inv(q, a):
+    """Vectors a (n, 3) rotated by the inverse of the unit quaternions q (n, 4)."""
+    w, v = q[:, :1], q[:, 1:]
+    t = 2.0 * np.cross(v, a)
+    return a - w * t + np.cross(v, t)
+
+
 class MoveSet:
     """All moves padded to one array so a rotation is integrated for every
     move at once (pairwise product tree over the samples)."""
@@ -217,28 +224,57 @@ class MoveSet:
         return q[:, 0]
 
     def residuals(self, G, b):
-        q = self.rotations(G, b)
         # gravity (fixed in the world) seen from the body after the move: R^T a0
-        w, v = q[:, :1], q[:, 1:]
-        a = self.a0
-        t = 2.0 * np.cross(v, a)
-        pred = a - w * t + np.cross(v, t)                    # rotate a0 by q^-1
-        return (pred - self.a1).ravel()
+        return (_rotate_inv(self.rotations(G, b), self.a0) - self.a1).ravel()
+
+    def direction_jacobian(self, G, b, dirs: dict) -> np.ndarray:
+        """d residuals / d phi (3 n_moves, q) for pose gravity directions that
+        depend on parameters phi: ``dirs`` maps a pose to d a_pose / d phi
+        (3, q).  A residual is R^T a0 - a1, linear in both directions."""
+        q = self.rotations(G, b)
+        out = []
+        for k, m in enumerate(self.moves):
+            D0, D1 = dirs[m.pose0], dirs[m.pose1]
+            out.append(_rotate_inv(np.repeat(q[k:k + 1], D0.shape[1], axis=0), D0.T).T - D1)
+        return np.vstack(out)
 
 
 @dataclass
 class MatrixFit:
     G: np.ndarray                 # 3x3
-    std: np.ndarray               # (3, 3)
+    std: np.ndarray               # (3, 3), every source below
     rms_before: float             # rms direction error (rad) with G = I
     rms_after: float
     n_moves: int
     rank: int
     nfev: int
+    std_parts: dict = field(default_factory=dict)   # (3, 3) per source: moves, accel, bias
 
 
-def fit_matrix(moves: list[Move], b: np.ndarray) -> MatrixFit:
-    """G (3x3) from the moves, bias b fixed; Gauss-Newton/LM from G = I."""
+def _psd(C):
+    """Nearest positive semi-definite matrix (negative eigenvalues set to 0)."""
+    C = 0.5 * (C + C.T)
+    w, V = np.linalg.eigh(C)
+    return (V * np.maximum(w, 0.0)) @ V.T
+
+
+def fit_matrix(moves: list[Move], b: np.ndarray, *, b_cov=None, dirs=None,
+               dirs_cov=None) -> MatrixFit:
+    """G (3x3) from the moves, bias b fixed; Gauss-Newton/LM from G = I.
+
+    Its covariance adds up what the fit's errors come from:
+
+    * the moves: a sandwich ``B M B`` (``B = (J^T J)^+``) whose middle sums
+      ``s_k s_l^T`` (``s_k = J_k^T r_k``, the score of move k) over every pair
+      of moves that share a pose -- two moves with a pose between them share
+      its measured gravity direction, so their errors are correlated -- scaled
+      by ``n / (n - 9)`` for n moves;
+    * the gravity directions, which come from the accelerometer's calibration:
+      ``dirs`` maps each pose to d a_pose / d phi (3, q) for the accelerometer
+      parameters phi, with covariance ``dirs_cov`` (q, q); G moves by
+      ``-B J^T J_phi`` per unit of phi;
+    * the bias b (covariance ``b_cov``), held fixed in the fit.
+    """
     from .identify import analyse
     ms = MoveSet(moves)
 
@@ -251,7 +287,31 @@ def fit_matrix(moves: list[Move], b: np.ndarray) -> MatrixFit:
     G = res.x.reshape(3, 3)
     J = res.jac
     ident = analyse(J, [f"G_{i}{j}" for i in "xyz" for j in "xyz"])
-    dof = max(1, len(res.fun) - ident.rank)
-    std = ident.std(float(res.fun @ res.fun) / dof).reshape(3, 3)
-    return MatrixFit(G, std, float(np.sqrt(np.mean(r0 ** 2) * 3)),
-                     float(np.sqrt(np.mean(res.fun ** 2) * 3)), len(moves), ident.rank, res.nfev)
+    B = ident.cov_unit                                      # (J^T J)^+
+    n = len(moves)
+    Jk = J.reshape(n, 3, 9)
+    scores = np.einsum("kij,ki->kj", Jk, res.fun.reshape(n, 3))
+    M = scores.T @ scores
+    by_pose = {}
+    for k, m in enumerate(moves):
+        for p in {m.pose0, m.pose1}:
+            by_pose.setdefault(p, []).append(k)
+    pairs = {(k, l) for ks in by_pose.values() for k in ks for l in ks if k != l}
+    for k, l in pairs:
+        M += np.outer(scores[k], scores[l])
+    parts = {"moves": _psd(B @ M @ B) * n / max(1, n - ident.rank)}
+    if dirs is not None and dirs_cov is not None:
+        Kphi = -B @ J.T @ ms.direction_jacobian(G, b, dirs)
+        parts["accel"] = Kphi @ np.asarray(dirs_cov, float) @ Kphi.T
+    if b_cov is not None:
+        h = 1e-4
+        Jb = np.column_stack([(ms.residuals(G, b + h * e) - ms.residuals(G, b - h * e)) / (2 * h)
+                              for e in np.eye(3)])
+        Kb = -B @ J.T @ Jb
+        parts["bias"] = Kb @ np.asarray(b_cov, float) @ Kb.T
+    cov = sum(parts.values())
+    std = np.where(ident.identifiable, np.sqrt(np.maximum(np.diag(cov), 0.0)), np.nan)
+    std_parts = {k: np.sqrt(np.maximum(np.diag(v), 0.0)).reshape(3, 3) for k, v in parts.items()}
+    return MatrixFit(G, std.reshape(3, 3), float(np.sqrt(np.mean(r0 ** 2) * 3)),
+                     float(np.sqrt(np.mean(res.fun ** 2) * 3)), n, ident.rank, res.nfev,
+                     std_parts)

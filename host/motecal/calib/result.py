@@ -71,6 +71,10 @@ class SensorCalibration:
     field_std: float | None = None
     gauge: str | None = None
     extra: dict = field(default_factory=dict)
+    # covariance (12, 12) of (A row-major, c) from the fit, for what builds on
+    # this calibration (the gyroscope's G on the accelerometer's gravity
+    # directions); not written to cal.json
+    affine_cov: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self):
         self.A = np.asarray(self.A, float).reshape(3, 3)

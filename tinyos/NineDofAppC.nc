@@ -30,6 +30,7 @@ implementation
   components new TimerMilliC() as StatusTimer;
   components new TimerMilliC() as RetryTimer;
   components new TimerMilliC() as EepromTimer;
+  components new TimerMilliC() as FlashTimer;
 
   App.Boot -> MainC;
   App.Leds -> LedsC;
@@ -54,4 +55,5 @@ implementation
   App.StatusTimer -> StatusTimer;
   App.RetryTimer -> RetryTimer;
   App.EepromTimer -> EepromTimer;
+  App.FlashTimer -> FlashTimer;
 }

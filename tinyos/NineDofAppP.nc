@@ -19,7 +19,8 @@
  * while sampling continues.
  *
  * LEDs: red    on   = sensor board not answering (retried every second);
- *              flash = a failed sensor read
+ *              flash = a failed sensor read (on for FLASH_TICKS, then off;
+ *                      a run of failures keeps it on)
  *       green  toggles every 125 samples (one second) while sampling
  *       yellow on   = a new calibration is being written to EEPROM (~0.4 s)
  *
@@ -55,6 +56,7 @@ module NineDofAppP @safe()
     interface Timer<TMilli> as StatusTimer;
     interface Timer<TMilli> as RetryTimer;
     interface Timer<TMilli> as EepromTimer;
+    interface Timer<TMilli> as FlashTimer;
   }
 }
 implementation
@@ -65,6 +67,7 @@ implementation
     STATUS_TICKS = (uint32_t)NINEDOF_STATUS_PERIOD_MS * 1024UL / 1000UL,
     RETRY_TICKS = 1024,
     EEPROM_TICKS = 4,            /* an EEPROM byte write takes 3.3 ms */
+    FLASH_TICKS = 51,            /* red flash for a failed read: 50 ms */
     PENDING = 4,                 /* samples read, not yet batched */
   };
 
@@ -205,8 +208,15 @@ implementation
       post processSamples();
   }
 
+  /* Flash: red on, off again after FLASH_TICKS (a toggle would leave it on
+   * after an odd number of failures, which reads as "board not answering"). */
   task void readFailed() {
-    call Leds.led0Toggle();                   /* flash: a failed read */
+    call Leds.led0On();
+    call FlashTimer.startOneShot(FLASH_TICKS);
+  }
+
+  event void FlashTimer.fired() {
+    call Leds.led0Off();
   }
 
   /* ------------------------------------------------------------ batching */

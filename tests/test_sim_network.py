@@ -159,6 +159,20 @@ def test_lossless_run_is_contiguous_and_exact():
     assert kinds[(0, P.AM_NINEDOF_BS_STATUS_MSG)] == 6
 
 
+def test_a_record_leaves_with_the_read_after_it():
+    """The firmware completes record k with the field read at k + 1 (the
+    HMC5883L returns the previous read's measurement): a message goes to the
+    queue one period after its last record's sample time."""
+    net = make_net(n=1, duration=2.0)
+    mote, emitted = net.motes[1], []
+    emit = mote._emit
+    mote._emit = lambda k0, k1: (emitted.append((net.now, k1)), emit(k0, k1))
+    run_all(net)
+    t, k1 = np.array(emitted).T
+    assert len(t) == -(-mote.n_total // 5)
+    np.testing.assert_allclose(t - (mote.t0 + (k1 - 1) * mote.period), mote.period, atol=1e-9)
+
+
 def test_output_independent_of_run_until_steps():
     a = run_all(make_net(2, duration=4.0), step=1.0)
     net = make_net(2, duration=4.0)

@@ -1,8 +1,11 @@
 /*
  * NineDofAppP -- 125 Hz 9DOF sampling mote.
  *
- * Every 8 ms of the 32768 Hz crystal the board reads the nine axes of that
- * instant; each period has a sequence number.  The period is timed by a
+ * Every 8 ms of the 32768 Hz crystal the board reads the nine axes; each
+ * period has a sequence number.  The magnetometer's data are those of the
+ * measurement the previous read triggered, so the record of a period is
+ * completed by the next read (ninedof_align_push): accel, gyro and field of
+ * one instant, one period later.  The period is timed by a
  * "32 kHz" alarm, which on iris counts the CPU's RC oscillator (nominally
  * 31250 Hz, 250 ticks), re-armed from its own previous expiry with the
  * number of ticks ninedof_clock.c computes: at each expiry it takes the
@@ -85,6 +88,7 @@ implementation
   bool sampling = FALSE;
   bool reading = FALSE;
   uint16_t readSeq;
+  ninedof_align_t align;             /* the read waiting for its field */
   ninedof_raw_t pending[PENDING];
   uint16_t pendingSeq[PENDING];
   uint8_t pendingHead, pendingCount;
@@ -107,6 +111,7 @@ implementation
     uint16_t generation;
 
     ninedof_counters_init(&counters);
+    ninedof_align_init(&align);
     ninedof_batch_init(&batch);
     ninedof_calrx_init(&rx, TOS_NODE_ID);
     eeprom_read_block(bootImage[0], (const void *)NINEDOF_EEPROM_SLOT0, NINEDOF_IMAGE_SIZE);
@@ -182,23 +187,28 @@ implementation
     if (call Board.read() != SUCCESS) {
       atomic {
         reading = FALSE;
-        counters.i2c_errors++;
+        counters.i2c_errors++;                /* refused: no transfer, no trigger */
       }
       post readFailed();
     }
   }
 
   async event void Board.readDone(error_t err, ninedof_raw_t val) {
+    ninedof_raw_t rec;
+    uint16_t recSeq;
     atomic {
       reading = FALSE;
       if (err != SUCCESS) {
         counters.i2c_errors++;
+        ninedof_align_lost(&align);           /* its trigger may not have gone out */
+      } else if (!ninedof_align_push(&align, readSeq, val.axis, rec.axis, &recSeq)) {
+        /* first read after a start or a failure: completes no record */
       } else if (pendingCount == PENDING) {
         counters.dropped++;                   /* tasks did not run for 32 ms */
       } else {
         uint8_t i = (uint8_t)((pendingHead + pendingCount) % PENDING);
-        pending[i] = val;
-        pendingSeq[i] = readSeq;
+        pending[i] = rec;
+        pendingSeq[i] = recSeq;
         pendingCount++;
       }
     }

@@ -22,6 +22,33 @@ void ninedof_status_pack(const ninedof_counters_t *c, const ninedof_calrx_t *rx,
   nxp_set_u16(&msg->late, c->late);
 }
 
+void ninedof_align_init(ninedof_align_t *a)
+{
+  a->held = 0;
+  a->seq = 0;
+}
+
+void ninedof_align_lost(ninedof_align_t *a)
+{
+  a->held = 0;
+}
+
+uint8_t ninedof_align_push(ninedof_align_t *a, uint16_t seq, const int16_t rec[9],
+                           int16_t out[9], uint16_t *out_seq)
+{
+  uint8_t done = a->held;
+
+  if (done) {
+    memcpy(out, a->ag, sizeof(a->ag));
+    memcpy(out + 6, rec + 6, 3 * sizeof(rec[0]));
+    *out_seq = a->seq;
+  }
+  memcpy(a->ag, rec, sizeof(a->ag));
+  a->seq = seq;
+  a->held = 1;
+  return done;
+}
+
 void ninedof_batch_init(ninedof_batch_t *b)
 {
   b->seq = 0;

@@ -42,6 +42,37 @@ void ninedof_status_pack(const ninedof_counters_t *c, const ninedof_calrx_t *rx,
                          ninedof_mote_status_msg_t *msg);
 
 /* ---------------------------------------------------------------------- */
+/* One instant per record                                                  */
+/* ---------------------------------------------------------------------- */
+/* A board read returns the accelerometer and gyroscope of its own instant,
+ * but the HMC5883L's data registers hold the measurement that the previous
+ * read triggered (each read writes MODE = single, which starts the next
+ * one: ninedof_board.h).  The aligner holds a read's accel and gyro until
+ * the next read brings the field measured at that read, and puts them in
+ * one record with the sequence number of the earlier read: every record is
+ * one instant (the field measured within about 1 ms of the accel/gyro
+ * read), one period (8 ms) later than the read.
+ *
+ * A skipped period (late) changes nothing: the next read's field still
+ * comes from the last read's trigger.  After a failed read it is not known
+ * whether its trigger went out, so the next read starts over (no record). */
+typedef struct {
+  uint16_t seq;                /* period of the held read */
+  uint8_t held;                /* a read is held */
+  int16_t ag[6];               /* its ax ay az gx gy gz */
+} ninedof_align_t;
+
+void ninedof_align_init(ninedof_align_t *a);
+
+/* A read of period `seq` succeeded with `rec` (ax..mz as read).  Returns 1
+ * and fills `out` / `out_seq` when it completes the held read's record. */
+uint8_t ninedof_align_push(ninedof_align_t *a, uint16_t seq, const int16_t rec[9],
+                           int16_t out[9], uint16_t *out_seq);
+
+/* A read failed: the held read can no longer be completed. */
+void ninedof_align_lost(ninedof_align_t *a);
+
+/* ---------------------------------------------------------------------- */
 /* Batching                                                                */
 /* ---------------------------------------------------------------------- */
 /* Records of consecutive periods, kept raw in host order; corrected and

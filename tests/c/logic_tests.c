@@ -1,6 +1,7 @@
 /*
  * logic_tests.c -- behaviour of the firmware's plain C logic (board data
- * conversion, I2C rate, 125 Hz sampling clock, batching, status, EEPROM
+ * conversion, I2C rate, 125 Hz sampling clock, one instant per record
+ * (magnetometer aligned with accel/gyro), batching, status, EEPROM
  * writer, the BaseStation's serial divisor and status), built twice by
  * tests/test_avr.py: with gcc on the host and with avr-gcc for the
  * ATmega1281 in simavr.  Prints "CHECKS <n> FAILED <m>" and, for the
@@ -320,6 +321,64 @@ static void test_batching(void)
 }
 
 /* ---------------------------------------------------------------------- */
+/* Every record one instant: a model of the board's reads, in which a read
+ * returns the accelerometer and gyroscope of its own period and the field
+ * measured at the last trigger (the previous read that got to its MODE
+ * write).  Values encode (axis, instant), so a record is one instant when
+ * all nine axes name the same one. */
+static int16_t at(uint8_t k, uint16_t instant)
+{
+  return (int16_t)(uint16_t)(instant * 31u + k * 7u);
+}
+
+static void test_align(void)
+{
+  /* per period: R read, L skipped (previous read late), F failed after its
+   * trigger went out, G failed before it; across the 16-bit wrap */
+  static const char events[] = "RRLRFRRLLRGRRRRLR";
+  ninedof_align_t a;
+  int16_t rec[9], out[9];
+  uint16_t seq = 0xFFF8, trigger = 0x5A5A, out_seq, last_ok = 0;
+  uint8_t i, k, same, prev_ok = 0, records = 0, expected = 0;
+
+  ninedof_align_init(&a);
+  for (i = 0; events[i]; i++, seq++) {
+    char e = events[i];
+    if (e == 'L')
+      continue;                                  /* no read: nothing changes */
+    if (e != 'R') {
+      if (e == 'F')
+        trigger = seq;
+      ninedof_align_lost(&a);
+      prev_ok = 0;
+      continue;
+    }
+    for (k = 0; k < 6; k++)
+      rec[k] = at(k, seq);
+    for (k = 6; k < 9; k++)
+      rec[k] = at(k, trigger);                   /* the previous trigger's field */
+    trigger = seq;
+    if (ninedof_align_push(&a, seq, rec, out, &out_seq)) {
+      records++;
+      same = 1;
+      for (k = 0; k < 9; k++)
+        same &= out[k] == at(k, out_seq);
+      CHECK(same && prev_ok && out_seq == last_ok);
+    } else {
+      CHECK(!prev_ok);                           /* only the first read after a start */
+    }
+    expected += prev_ok;
+    prev_ok = 1;
+    last_ok = seq;
+  }
+  CHECK(records == expected && records == 8);
+  /* start over: nothing held */
+  ninedof_align_init(&a);
+  CHECK(!ninedof_align_push(&a, 7, rec, out, &out_seq));
+  CHECK(ninedof_align_push(&a, 8, rec, out, &out_seq) && out_seq == 7);
+}
+
+/* ---------------------------------------------------------------------- */
 static void test_status(void)
 {
   ninedof_counters_t c;
@@ -437,6 +496,7 @@ int main(void)
   test_board();
   test_clock();
   test_batching();
+  test_align();
   test_status();
   test_eeprom();
   test_basestation();

@@ -4,6 +4,10 @@
   runs ``clock_ppm`` fast against true time, from a random start phase in the
   first period.  Sample ``k`` is taken at true time ``t0 + k / (rate * (1 + ppm
   1e-6))`` and gets sequence number ``k mod 65536``.
+* One instant per record: all nine axes of record ``k`` are of sample time
+  ``k``.  The firmware completes a record with the field that the next read
+  brings (the HMC5883L returns the measurement the previous read started:
+  ninedof_align_push), so record ``k`` is ready at sample time ``k + 1``.
 * Batching: ``batch`` records per ninedof_samples_msg (``seq`` = first
   record's); at the end of the session the partial batch is sent.  As in
   tinyos/ninedof_sampling.c, records are kept raw and corrected with the set
@@ -147,7 +151,8 @@ class SimMote:
         if self.next_k >= self.n_total:
             return
         k_end = min(self.next_k + self.batch, self.n_total)
-        self.loop.at(self.t0 + (k_end - 1) * self.period, self._batch_event, None)
+        # the last record is complete at the next period's read
+        self.loop.at(self.t0 + k_end * self.period, self._batch_event, None)
 
     def _batch_event(self, _) -> None:
         k_end = min(self.next_k + self.batch, self.n_total)

@@ -12,6 +12,7 @@ import pytest
 from motecal.diagnose import plant as P
 from motecal.diagnose.engine import diagnose
 from motecal.sim import load_model
+from motecal.store import open_store
 
 SEED = 20260  # one random draw per (cause, sensor); change it and the test must still pass
 KEYS = list(P.THRESHOLDS)
@@ -51,6 +52,35 @@ def test_clean_board_gives_no_finding(kind):
         d = diagnose(ses, simulate=False)
         assert d.clean, (kind, seed, [(f.sensor, f.cause, f.evidence.get("p")) for f in d.findings])
         assert d.n_tests >= 8
+
+
+@pytest.mark.parametrize("kind", ["static80", "idle", "rotation"])
+def test_clean_unlabelled_board_gives_no_finding(kind):
+    """Without labels the diagnosis finds the still stretches itself: on every
+    sensor at once and trimmed (per sensor, the slow ends of the moves passed
+    for still and the motion screen named 'motion' on clean boards)."""
+    for seed in (1, 2):
+        ses = P.simulate([], kind, SEED + 200 + seed, labelled=False)
+        d = diagnose(ses, simulate=False)
+        assert d.clean, (kind, seed, [(f.sensor, f.cause, f.evidence.get("p")) for f in d.findings])
+        if kind != "rotation":
+            assert not d.obs["accel"].labelled_poses and len(d.obs["accel"].segs) >= 1
+
+
+def test_clean_unguided_log_gives_no_finding(tmp_path):
+    """The same through the real path: sim -> log (unguided, batch receive
+    times) -> diagnose."""
+    from motecal.cli import main
+    bin_, db = tmp_path / "q.bin", tmp_path / "d.db"
+    assert main(["sim", "--model", "paper", "--session", "static80", "--seed", "1",
+                 "--motes", "1", "--out", str(bin_), "--quiet"]) == 0
+    assert main(["log", "--port", str(bin_), "--db", str(db), "--session", "s"]) == 0
+    with open_store(str(db)) as st:
+        data = st.load_session("s", 1)
+    assert not (data.label != 0).any()
+    d = diagnose(data, simulate=False)
+    assert d.clean, [(f.sensor, f.cause, f.evidence.get("p")) for f in d.findings]
+    assert len(d.obs["accel"].segs) == 80
 
 
 PAIRS = [(("cross_axis", "accel"), ("stale_samples", "mag")),

@@ -31,7 +31,7 @@ from .session import (ADXL345_LSB_PER_G, COLUMNS, HMC5883L_LSB_PER_GAUSS,
                       HMC5883L_OVERFLOW, ITG3200_LSB_PER_DPS, LABEL_NONE, LABEL_ROT,
                       NOMINAL_CHIPS, NOMINAL_SCALES, SENSOR_SLICES, UNITS, SessionData,
                       label_from_text, label_to_text)
-from .still import StillThresholds, segment_still
+from .still import StillThresholds, segment_recording
 
 FORMATS = ("csv", "razor-text", "razor-float", "timestamped-csv")
 KINDS = ("auto", "static", "rotation", "idle")
@@ -40,7 +40,6 @@ RAZOR_RATE_HZ = 50.0            # Razor AHRS firmware output: one sample every 2
 IMPORT_MOTE = 1                 # mote id given to rows of formats without one
 AUTO_ROTATION_BELOW = 0.5       # auto kind: rotation when the still fraction is lower
 SOURCE_SEP = "; "                # meta["source"]: the files, one text
-TIMESTAMPED_GRID_HZ = 100.0     # grid for stillness of sensors on separate clocks
 RATE_PAUSE_S = 1.0              # gaps longer than this are pauses, not sample intervals
 
 # LSB per unit (accel LSB/g, gyro LSB/(deg/s), mag LSB/gauss), datasheet nominal
@@ -216,37 +215,6 @@ def _rate_from_t(t: np.ndarray) -> float | None:
     return float(len(dt) / dt.sum())
 
 
-def _still_segments(raw, t, rate_hz, scales, th) -> np.ndarray:
-    """Labels 1..K of still segments of one recording (rows in time order).
-
-    Sensors sampled together (every row has every present sensor): the rows go to
-    ``segment_still`` as they are, at ``rate_hz``.  Sensors on separate clocks
-    (rows with NaN for the other sensors): each sensor is held (last value) on a
-    ``TIMESTAMPED_GRID_HZ`` grid, the grid goes to ``segment_still`` and every
-    row takes the label of its grid point.
-    """
-    n = len(raw)
-    if n == 0:
-        return np.zeros(0, np.int32)
-    present = [s for s, sl in SENSOR_SLICES.items() if not np.isnan(raw[:, sl]).all()]
-    complete = all((~np.isnan(raw[:, SENSOR_SLICES[s]])).all() for s in present)
-    if complete or not np.isfinite(t).all():
-        return segment_still(raw, rate_hz, scales, th)
-    t0 = t.min()
-    ng = int(np.floor((t.max() - t0) * TIMESTAMPED_GRID_HZ)) + 1
-    grid_t = t0 + np.arange(ng) / TIMESTAMPED_GRID_HZ
-    grid = np.full((ng, 9), np.nan)
-    for s in present:
-        sl = SENSOR_SLICES[s]
-        rows = np.flatnonzero(~np.isnan(raw[:, sl]).any(axis=1))
-        ts = t[rows]
-        j = np.clip(np.searchsorted(ts, grid_t, side="right") - 1, 0, len(rows) - 1)
-        grid[:, sl] = raw[rows[j], sl]
-    glab = segment_still(grid, TIMESTAMPED_GRID_HZ, scales, th)
-    gi = np.clip(np.round((t - t0) * TIMESTAMPED_GRID_HZ).astype(np.int64), 0, ng - 1)
-    return glab[gi]
-
-
 def _longest_segment(seg: np.ndarray) -> int:
     if not (seg > 0).any():
         return 0
@@ -273,7 +241,7 @@ def assign_labels(data: SessionData, kind: str = "auto", parts=None, pose_per_pa
     per_part = np.zeros(n, np.int32)
     missing, n_segments, max_segments = [], 0, 0
     for i, (a, b) in enumerate(parts, start=1):
-        s = _still_segments(data.raw[a:b], data.t[a:b], rate, data.scales, th)
+        s = segment_recording(data.raw[a:b], data.t[a:b], rate, data.scales, th)
         seg[a:b] = s
         k_max = int(s.max()) if len(s) else 0
         n_segments += k_max

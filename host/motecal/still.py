@@ -1,7 +1,8 @@
 """Stillness detection: is the board at rest?
 
 One definition used live by the logger's guided flow (``StillDetector``) and
-offline by the importer and diagnosis (``segment_still``).
+offline by the importer and diagnosis (``segment_still``; ``segment_recording``
+for a recording whose sensors may run on separate clocks).
 
 A window of ``window_s`` seconds is *still* when, for every sensor present,
 the standard deviation of each axis over the window is below its threshold:
@@ -21,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .session import NOMINAL_SCALES
+from .session import NOMINAL_SCALES, SENSOR_SLICES
 
 
 @dataclass(frozen=True)
@@ -75,10 +76,12 @@ def still_mask(raw: np.ndarray, rate_hz: float, scales: dict | None = None,
 
 
 def segment_still(raw: np.ndarray, rate_hz: float, scales: dict | None = None,
-                  th: StillThresholds = StillThresholds()) -> np.ndarray:
+                  th: StillThresholds = StillThresholds(), trim_s: float = 0.0) -> np.ndarray:
     """Label still segments 1, 2, 3, ... in time order; moving rows get 0.
 
-    Segments shorter than ``th.min_still_s`` are dropped.
+    ``trim_s`` seconds are left out at both ends of every segment (the slow
+    start and end of a smooth move pass the thresholds); segments shorter
+    than ``th.min_still_s`` after that are dropped.
     """
     mask = still_mask(raw, rate_hz, scales, th)
     labels = np.zeros(len(raw), np.int32)
@@ -87,11 +90,53 @@ def segment_still(raw: np.ndarray, rate_hz: float, scales: dict | None = None,
     edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
     k = 0
     min_len = int(round(th.min_still_s * rate_hz))
+    trim = int(round(trim_s * rate_hz))
     for start, stop in zip(edges[::2], edges[1::2]):
-        if stop - start >= min_len:
+        start, stop = start + trim, stop - trim
+        if stop - start >= max(min_len, 1):
             k += 1
             labels[start:stop] = k
     return labels
+
+
+SEPARATE_CLOCKS_GRID_HZ = 100.0     # grid for stillness of sensors on separate clocks
+
+
+def segment_recording(raw: np.ndarray, t: np.ndarray, rate_hz: float,
+                      scales: dict | None = None, th: StillThresholds = StillThresholds(),
+                      trim_s: float = 0.0) -> np.ndarray:
+    """Labels 1..K of still segments of one recording (rows in time order),
+    judged on every sensor present at once (``segment_still``).
+
+    Sensors sampled together (every row has every present sensor): the rows
+    go to ``segment_still`` as they are, at ``rate_hz``.  Sensors on separate
+    clocks (rows with NaN for the other sensors): each sensor is held (last
+    value) on a ``SEPARATE_CLOCKS_GRID_HZ`` grid of the times ``t``, the grid
+    goes to ``segment_still`` and every row takes the label of its grid point.
+    """
+    raw = np.asarray(raw, float)
+    t = np.asarray(t, float)
+    n = len(raw)
+    if n == 0:
+        return np.zeros(0, np.int32)
+    present = [s for s, sl in SENSOR_SLICES.items() if not np.isnan(raw[:, sl]).all()]
+    complete = all((~np.isnan(raw[:, SENSOR_SLICES[s]])).all() for s in present)
+    if complete or not np.isfinite(t).all():
+        return segment_still(raw, rate_hz, scales, th, trim_s)
+    t0 = t.min()
+    hz = SEPARATE_CLOCKS_GRID_HZ
+    ng = int(np.floor((t.max() - t0) * hz)) + 1
+    grid_t = t0 + np.arange(ng) / hz
+    grid = np.full((ng, 9), np.nan)
+    for s in present:
+        sl = SENSOR_SLICES[s]
+        rows = np.flatnonzero(~np.isnan(raw[:, sl]).any(axis=1))
+        ts = t[rows]
+        j = np.clip(np.searchsorted(ts, grid_t, side="right") - 1, 0, len(rows) - 1)
+        grid[:, sl] = raw[rows[j], sl]
+    glab = segment_still(grid, hz, scales, th, trim_s)
+    gi = np.clip(np.round((t - t0) * hz).astype(np.int64), 0, ng - 1)
+    return glab[gi]
 
 
 class StillDetector:

@@ -124,8 +124,10 @@ def planted_model(plants: list[Plant], base: str = "paper") -> SimModel:
 
 def simulate(plants: list[Plant], kind: str, seed: int, *, n_poses: int = 80,
              still_s: float = 2.5, duration: float | None = None,
-             base: str = "paper") -> SessionData:
-    """One mote's session of ``kind`` with the planted effects."""
+             base: str = "paper", labelled: bool = True) -> SessionData:
+    """One mote's session of ``kind`` with the planted effects; with
+    ``labelled=False`` no row carries a label (an unguided log, kind
+    ``free``): the diagnosis finds the still stretches itself."""
     traj = make_trajectory(kind, seed, n_poses=n_poses, still_s=still_s, duration=duration)
     sat = [p for p in plants if p.cause == "saturation"]
     if sat:
@@ -149,9 +151,11 @@ def simulate(plants: list[Plant], kind: str, seed: int, *, n_poses: int = 80,
     raw = board.sampler(traj, seed).read(t).astype(float)
     n = len(t)
     return SessionData(
-        name=f"planted-{model.name}-{kind}-seed{seed}", raw=raw,
+        name=f"planted-{model.name}-{kind}{'' if labelled else '-unlabelled'}-seed{seed}",
+        raw=raw,
         mote=np.ones(n, np.int32), seq=np.arange(n, dtype=np.int64), t=t,
-        label=traj.label_at(t), flags=np.zeros(n, np.uint8), kind=kind,
+        label=traj.label_at(t) if labelled else np.zeros(n, np.int32),
+        flags=np.zeros(n, np.uint8), kind=kind if labelled else "free",
         meta={"source": "sim", "rate_hz": model.rate_hz, "seed": int(seed),
               "model": model.name, "truth": board.to_json(),
               "planted": [{"cause": p.cause, "sensor": p.sensor, "size": p.size,

@@ -2,7 +2,12 @@
 time blocks and noise level.  Pure functions on a ``SessionData``.
 
 * A **segment** is one still orientation: a static pose (label >= 1) or, in
-  data without pose labels, a still stretch found by ``motecal.still``.
+  data without pose labels, a still stretch found by ``motecal.still`` on
+  every sensor at once (as the importer labels poses), with ``TRIM_S`` left
+  out at both ends: the slow start and end of a smooth move pass the
+  stillness thresholds of one 0.4 s window but are not still (judged per
+  sensor and untrimmed, they made the motion screen name ``motion`` on 12 of
+  14 clean unguided logs).
   Calibration-type questions (does the magnitude depend on direction?) use
   one mean per segment.
 * A **block** is a stretch of ``BLOCK_S`` seconds inside a segment (a
@@ -23,11 +28,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..session import HMC5883L_OVERFLOW, LABEL_ROT, SessionData
-from ..still import segment_still
+from ..still import segment_recording
 
 SENSORS = ("accel", "gyro", "mag")
 BLOCK_S = 2.0              # time block length (s)
 MIN_SEG_SAMPLES = 20       # shorter still stretches are not used
+TRIM_S = 0.2               # left out at both ends of a still stretch found in unlabelled data
 N_BATCH = 8                # batches for the variance of a segment mean
 # chips whose value at that code means "overflow" (all three axes)
 OVERFLOW_CODES = {"mag": HMC5883L_OVERFLOW}
@@ -126,8 +132,26 @@ def _table(obs: SensorObs, groups: list[np.ndarray], seg_of: list[int]) -> Table
     return Table(mean, n, t, t0, t1, np.asarray(seg_of, int), list(groups), sd)
 
 
-def _segments(obs: SensorObs, data_label: np.ndarray, scales: dict) -> tuple[list, bool]:
-    """Row-index groups of still segments (and whether they are labelled poses)."""
+def still_labels(data: SessionData) -> np.ndarray:
+    """Per row, the still stretch 1..K it is in (0: moving) for data without
+    pose labels: ``still.segment_recording`` over every sensor of each
+    recording, ``TRIM_S`` trimmed at both ends (see the module doc)."""
+    lab = np.zeros(len(data), np.int32)
+    if not len(data):
+        return lab
+    part = recording_parts(data)
+    t = sample_times(data)
+    for p in np.unique(part):
+        m = np.flatnonzero(part == p)
+        sub = segment_recording(data.raw[m], t[m], data.rate(), data.scales, trim_s=TRIM_S)
+        sub[sub > 0] += lab.max()
+        lab[m] = sub
+    return lab
+
+
+def _segments(obs: SensorObs, data_label: np.ndarray, still: np.ndarray) -> tuple[list, bool]:
+    """Row-index groups of still segments (and whether they are labelled poses);
+    ``still`` is ``still_labels`` of the session's rows, used without poses."""
     ok = ~obs.overflow
     groups = []
     poses = np.unique(data_label[(data_label >= 1) & ok])
@@ -140,16 +164,8 @@ def _segments(obs: SensorObs, data_label: np.ndarray, scales: dict) -> tuple[lis
                 groups.append(idx)
                 obs.bad_in_pose.append(int(np.sum((data_label == p) & ~ok)))
         return groups, True
-    # no pose labels: find still stretches in this sensor alone
-    raw = np.full((obs.n, 9), np.nan)
-    sl = {"accel": slice(0, 3), "gyro": slice(3, 6), "mag": slice(6, 9)}[obs.sensor]
-    raw[:, sl] = obs.x
-    lab = np.zeros(obs.n, np.int32)
-    for p in np.unique(obs.part):
-        m = obs.part == p
-        sub = segment_still(raw[m], obs.rate, scales)
-        sub[sub > 0] += lab.max()
-        lab[m] = sub
+    # no pose labels: the session's still stretches (every sensor at once)
+    lab = still[obs.rows]
     for s in np.unique(lab[lab > 0]):
         idx = np.flatnonzero((lab == s) & ok)
         if len(idx) >= MIN_SEG_SAMPLES:
@@ -250,7 +266,8 @@ def sensor_obs(data: SessionData, sensor: str, dedup: bool = False) -> SensorObs
                         rate=rate * keep.mean(), overflow=overflow[keep])
     label = obs.label.copy()
     label[label == LABEL_ROT] = 0
-    groups, labelled = _segments(obs, label, data.scales)
+    still = still_labels(data) if not (label >= 1).any() else None
+    groups, labelled = _segments(obs, label, still)
     obs.labelled_poses = labelled
     obs.sigma = noise_sigma(obs, groups)
     # batch means inside time blocks: short-range correlation (repeats, shaking)

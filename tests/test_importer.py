@@ -536,3 +536,24 @@ def test_cli_csv_export_format_imports(tmp_path, capsys):
     path.write_text("\n".join(text + [text[5]]) + "\n")
     code, out, err = _motecal(capsys, "import", path, "--db", db, "--session", "u2")
     assert code == 2 and f"{path}: line {len(text) + 1}: mote 4 has sequence number 104 twice" in err
+
+
+def test_recordings_shorter_than_the_stillness_window_import(tmp_path, capsys):
+    """5 float samples, 5 Razor text samples, a 3-row timestamped run: fewer
+    rows than one stillness window (0.4 s) import with a note, no traceback."""
+    fl = tmp_path / "five.float"
+    fl.write_bytes(b"".join(struct.pack(">fff", 100 + i, -50, 200) for i in range(5)))
+    txt = tmp_path / "five.raw"
+    txt.write_text("#A-R=1,2,250\n#M-R=100,20,300\n#G-R=1,2,3\n" * 5)
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "mpu6050_counts.csv").write_text(
+        "t_s,acc_x,acc_y,acc_z,gyr_x,gyr_y,gyr_z\n" + "".join(
+            f"{0.01 * i:.3f},0,0,16384,1,2,3\n" for i in range(3)))
+    (run / "hmc5883l_counts.csv").write_text(
+        "t_s,mag_x,mag_y,mag_z\n" + "".join(f"{0.013 * i:.3f},200,0,-400\n" for i in range(3)))
+    db = tmp_path / "s.db"
+    for name, path, rows in (("f", fl, 5), ("t", txt, 5), ("r", run, 6)):
+        code, out, err = _motecal(capsys, "import", path, "--db", db, "--session", name)
+        assert code == 0 and err == "", err
+        assert f"{rows} rows" in out and "shorter than the stillness window (0.4 s)" in out

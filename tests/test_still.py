@@ -1,5 +1,6 @@
 """Stillness detection: live and offline agree, motion and turns about the vertical are caught."""
 import numpy as np
+import pytest
 
 from motecal.still import StillDetector, segment_still, still_mask, StillThresholds
 
@@ -65,3 +66,17 @@ def test_min_length_drops_short_segments():
     raw, _ = _synthetic()
     th = StillThresholds(min_still_s=2.5)
     assert segment_still(raw, 125.0, th=th).max() == 0
+
+
+@pytest.mark.parametrize("n", [0, 1, 5, 10, 19, 20, 21, 68, 69])
+def test_recordings_shorter_than_the_window(n):
+    """Fewer rows than one window (0.4 s = 20 rows at 50 Hz): nothing can be
+    still, and nothing breaks.  A row is judged by the window centred on it,
+    so rows 9 .. n - 11 have one."""
+    raw = np.tile([0.0, 0, 256, 0, 0, 0, 100, 0, 400], (n, 1))
+    m = still_mask(raw, 50.0)
+    assert m.shape == (n,) and m.dtype == bool
+    assert np.array_equal(np.flatnonzero(m), np.arange(9, n - 10))
+    lab = segment_still(raw, 50.0)
+    assert lab.shape == (n,)
+    assert (lab.max() if n else 0) == (1 if n >= 69 else 0)   # a segment needs 1 s = 50 rows

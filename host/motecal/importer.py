@@ -31,7 +31,7 @@ from .session import (ADXL345_LSB_PER_G, COLUMNS, HMC5883L_LSB_PER_GAUSS,
                       HMC5883L_OVERFLOW, ITG3200_LSB_PER_DPS, LABEL_NONE, LABEL_ROT,
                       NOMINAL_CHIPS, NOMINAL_SCALES, SENSOR_SLICES, UNITS, SessionData,
                       label_from_text, label_to_text)
-from .still import StillThresholds, segment_recording
+from .still import StillThresholds, segment_recording, window_rows
 
 FORMATS = ("csv", "razor-text", "razor-float", "timestamped-csv")
 KINDS = ("auto", "static", "rotation", "idle")
@@ -252,6 +252,12 @@ def assign_labels(data: SessionData, kind: str = "auto", parts=None, pose_per_pa
         else:
             missing.append(i)
     still_fraction = float((seg > 0).mean()) if n else 0.0
+    short = [i for i, (a, b) in enumerate(parts, start=1) if b - a < window_rows(rate, th)]
+    if short:
+        which = ("the recording is" if len(parts) == 1
+                 else f"recordings {', '.join(map(str, short))} are")
+        add_note(data.meta, f"{which} shorter than the stillness window ({th.window_s:g} s): "
+                 "no row can be judged still")
     if pose_per_part and len(parts) > 1:
         labels, n_poses = per_part, len(parts) - len(missing)
         how = f"one pose per file, {n_poses} of {len(parts)} files have a still part"

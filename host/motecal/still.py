@@ -34,6 +34,11 @@ class StillThresholds:
     min_still_s: float = 1.0     # shortest segment segment_still() labels
 
 
+def window_rows(rate_hz: float, th: StillThresholds = StillThresholds()) -> int:
+    """Rows in one stillness window at ``rate_hz`` (at least 3)."""
+    return max(3, int(round(th.window_s * rate_hz)))
+
+
 def _moving_std(x: np.ndarray, w: int) -> np.ndarray:
     """Std over the trailing window of w rows for each row >= w-1 (NaN before)."""
     n = len(x)
@@ -57,7 +62,7 @@ def still_mask(raw: np.ndarray, rate_hz: float, scales: dict | None = None,
     entirely missing is ignored.  Rows are assumed evenly spaced at rate_hz.
     """
     scales = scales or NOMINAL_SCALES
-    w = max(3, int(round(th.window_s * rate_hz)))
+    w = window_rows(rate_hz, th)
     n = len(raw)
     ok = np.ones(n, bool)
     for name, sl, lim in (("accel", slice(0, 3), th.accel_g),
@@ -68,10 +73,12 @@ def still_mask(raw: np.ndarray, rate_hz: float, scales: dict | None = None,
             continue
         x = np.where(np.isnan(x), np.nanmean(x, axis=0), x)
         sd = _moving_std(x, w)
-        # centre the trailing window on the middle of the window
+        # centre the trailing window on the middle of the window (a recording
+        # shorter than the window has no full window: nothing is still)
         half = w // 2
-        sd = np.vstack([sd[half:], np.full((half, 3), np.nan)])
-        ok &= np.nan_to_num(sd, nan=np.inf).max(axis=1) < lim
+        centred = np.full(sd.shape, np.nan)
+        centred[:max(0, n - half)] = sd[half:]
+        ok &= np.nan_to_num(centred, nan=np.inf).max(axis=1) < lim
     return ok
 
 
@@ -150,7 +157,7 @@ class StillDetector:
                  th: StillThresholds = StillThresholds()):
         self.th = th
         self.scales = scales or NOMINAL_SCALES
-        self.w = max(3, int(round(th.window_s * rate_hz)))
+        self.w = window_rows(rate_hz, th)
         self._buf = np.full((self.w, 9), np.nan)
         self._n = 0
 

@@ -30,7 +30,7 @@ from .protocol import NINEDOF_RATE_HZ
 from .session import (ADXL345_LSB_PER_G, COLUMNS, HMC5883L_LSB_PER_GAUSS,
                       HMC5883L_OVERFLOW, ITG3200_LSB_PER_DPS, LABEL_NONE, LABEL_ROT,
                       NOMINAL_CHIPS, NOMINAL_SCALES, SENSOR_SLICES, UNITS, SessionData,
-                      label_from_text, label_to_text)
+                      batch_times, label_from_text, label_to_text, rate_from_times)
 from .still import StillThresholds, segment_recording, window_rows
 
 FORMATS = ("csv", "razor-text", "razor-float", "timestamped-csv")
@@ -40,7 +40,6 @@ RAZOR_RATE_HZ = 50.0            # Razor AHRS firmware output: one sample every 2
 IMPORT_MOTE = 1                 # mote id given to rows of formats without one
 AUTO_ROTATION_BELOW = 0.5       # auto kind: rotation when the still fraction is lower
 SOURCE_SEP = "; "                # meta["source"]: the files, one text
-RATE_PAUSE_S = 1.0              # gaps longer than this are pauses, not sample intervals
 
 # LSB per unit (accel LSB/g, gyro LSB/(deg/s), mag LSB/gauss), datasheet nominal
 CHIP_SCALES = {
@@ -204,16 +203,6 @@ def _read_text_lines(path) -> list[str]:
 
 
 # ------------------------------------------------------------------ stillness and labels
-
-def _rate_from_t(t: np.ndarray) -> float | None:
-    """Mean rate of sorted timestamps, pauses longer than ``RATE_PAUSE_S`` left out."""
-    t = t[np.isfinite(t)]
-    dt = np.diff(t)
-    dt = dt[(dt >= 0) & (dt <= RATE_PAUSE_S)]
-    if len(dt) == 0 or dt.sum() <= 0:
-        return None
-    return float(len(dt) / dt.sum())
-
 
 def _longest_segment(seg: np.ndarray) -> int:
     if not (seg > 0).any():
@@ -422,7 +411,9 @@ def read_csv(path, chip=None, kind="auto") -> SessionData:
         raise _fail(path, lines_of[bad], f"mote {mote[bad]} has sequence number {seq[bad]} twice")
     rates = {}
     for m in np.unique(mote):
-        r = _rate_from_t(np.sort(t[mote == m]))
+        sel = np.flatnonzero(mote == m)
+        sel = sel[np.argsort(seq[sel], kind="stable")]
+        r = rate_from_times(t[sel], seq[sel])
         rates[int(m)] = round(r, 3) if r else float(NINEDOF_RATE_HZ)
     rate = float(np.median(list(rates.values())))
     meta = {"format": "csv", "source": str(path),
@@ -446,14 +437,20 @@ def read_csv(path, chip=None, kind="auto") -> SessionData:
 
 
 def write_csv(data: SessionData, path) -> None:
-    """Write ``data`` in the project CSV format (the inverse of :func:`read_csv`)."""
+    """Write ``data`` in the project CSV format (the inverse of :func:`read_csv`).
+
+    ``t`` is when each sample was taken: ``SessionData.sample_times`` when the
+    stored ``t`` is batch receive times (a logged session: rows of a batch
+    share the time the host got it, compressed when the line is read faster
+    than real time), else ``t`` as stored, empty where unknown."""
+    times = data.sample_times() if batch_times(data.t) else data.t
     with open(path, "w", newline="") as f:
         w = csv.writer(f, lineterminator="\n")
         w.writerow(CSV_HEADER)
         for i in range(len(data)):
             vals = ["" if np.isnan(v) else (str(int(v)) if float(v).is_integer() else repr(float(v)))
                     for v in data.raw[i]]
-            t = "" if np.isnan(data.t[i]) else f"{data.t[i]:.6f}"
+            t = "" if np.isnan(times[i]) else f"{times[i]:.6f}"
             w.writerow([int(data.mote[i]), int(data.seq[i]), t, label_to_text(int(data.label[i]))]
                        + vals)
 
@@ -671,7 +668,7 @@ def read_timestamped(dir_or_files, chip=None, kind="auto") -> SessionData:
                 raise UserError(f"{f}: {s} already read from {owner[s]}; give one run "
                                 f"(one file per sensor) per session")
             owner[s] = f
-            r = _rate_from_t(np.sort(t))
+            r = rate_from_times(np.sort(t))
             if r is None:
                 raise _fail(f, 2, "timestamps do not span any time: cannot measure the rate")
             rates[s] = round(r, 3)

@@ -39,6 +39,35 @@ NOMINAL_CHIPS = {"accel": "ADXL345", "gyro": "ITG3200", "mag": "HMC5883L"}
 LABEL_NONE = 0
 LABEL_ROT = -1
 
+RATE_PAUSE_S = 1.0       # a longer step between rows is a pause, not a sample interval
+BATCHED_FRACTION = 0.2   # more steps than this that are not positive: batch receive times
+
+
+def batch_times(t) -> bool:
+    """Rows' times ``t`` (in row order) are batch receive times: rows of one
+    batch share the time it reached the host, so more than
+    ``BATCHED_FRACTION`` of the steps between rows are not positive."""
+    t = np.asarray(t, float)
+    dt = np.diff(t[np.isfinite(t)])
+    return len(dt) > 0 and float(np.mean(dt <= 0)) > BATCHED_FRACTION
+
+
+def rate_from_times(t, seq=None) -> float | None:
+    """Sample rate (Hz) of one clock from its rows in order: samples per second
+    over the steps between rows, steps longer than ``RATE_PAUSE_S`` (pauses)
+    left out.  With ``seq`` (sample numbers) the samples of a step are
+    counted by seq, so lost samples count and rows that share a batch
+    receive time are counted, not timed; without it, one per step ((n - 1) /
+    duration).  None when the times span no time."""
+    t = np.asarray(t, float)
+    ok = np.isfinite(t)
+    dt = np.diff(t[ok])
+    ds = np.diff(np.asarray(seq, float)[ok]) if seq is not None else np.ones(len(dt))
+    keep = (dt >= 0) & (dt <= RATE_PAUSE_S) & (ds > 0)
+    if not keep.any() or dt[keep].sum() <= 0:
+        return None
+    return float(ds[keep].sum() / dt[keep].sum())
+
 
 def label_to_text(label: int) -> str:
     if label == LABEL_ROT:
@@ -107,20 +136,25 @@ class SessionData:
 
     def rate(self, sensor: str | None = None) -> float:
         """Sample rate (Hz) of one sensor, or of the session: ``meta["rates_hz"]
-        [sensor]``, else ``meta["rate_hz"]``, else 1 / the median positive
-        interval between consecutive rows holding that sensor (every row;
-        intervals next to an unknown time do not count), else the firmware's
-        125 Hz."""
+        [sensor]``, else ``meta["rate_hz"]``, else measured from the times of
+        the rows holding that sensor, per mote (``rate_from_times``, with the
+        sequence numbers when the sensor is in every row of the mote) and the
+        median over motes, else the firmware's 125 Hz."""
         meta = self.meta or {}
         rates = meta.get("rates_hz")
         if sensor and isinstance(rates, dict) and rates.get(sensor):
             return float(rates[sensor])
         if meta.get("rate_hz"):
             return float(meta["rate_hz"])
-        t = self.t[self.has(sensor)] if sensor else self.t
-        dt = np.diff(t)
-        dt = dt[np.isfinite(dt) & (dt > 0)]
-        return float(1.0 / np.median(dt)) if len(dt) else float(NINEDOF_RATE_HZ)
+        rows = self.has(sensor) if sensor else np.ones(len(self), bool)
+        found = []
+        for m in np.unique(self.mote[rows]):
+            sel = rows & (self.mote == m)
+            every = sel.sum() == (self.mote == m).sum()    # seq numbers this sensor's samples
+            r = rate_from_times(self.t[sel], self.seq[sel] if every else None)
+            if r:
+                found.append(r)
+        return float(np.median(found)) if found else float(NINEDOF_RATE_HZ)
 
     def sample_times(self) -> np.ndarray:
         """Per row, when the sample was taken (s): ``t`` when it is that.  A
@@ -138,8 +172,7 @@ class SessionData:
         if not np.all(np.isfinite(t)):
             return seq_t
         one = [np.diff(self.seq[self.mote == m]) for m in np.unique(self.mote)]
-        batched = np.mean(np.diff(t) <= 0) > 0.2
-        if batched and all(np.all(d > 0) for d in one):
+        if batch_times(t) and all(np.all(d > 0) for d in one):
             return seq_t
         return t
 

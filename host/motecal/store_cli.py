@@ -2,10 +2,11 @@
 (what a database holds)."""
 from __future__ import annotations
 
+import errno
 import json
 import os
+import secrets
 import sys
-import tempfile
 
 from . import importer
 from .cliargs import mote_id
@@ -13,6 +14,20 @@ from .errors import UserError
 from .store import open_store
 
 CSV_HEADER = importer.CSV_HEADER
+
+
+def _new_file(folder: str) -> str:
+    """Create an empty temporary file in ``folder`` with the mode a plain
+    ``open`` would give it (0666 less the umask; ``mkstemp`` makes 0600, and
+    the exported CSV kept it)."""
+    for _ in range(100):
+        tmp = os.path.join(folder, f".export-{secrets.token_hex(6)}.csv")
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            return tmp
+        except FileExistsError:
+            continue
+    raise FileExistsError(errno.EEXIST, "no free temporary name", folder)
 
 
 def export_csv(data, path: str) -> int:
@@ -27,8 +42,7 @@ def export_csv(data, path: str) -> int:
     if os.path.isdir(path):
         raise UserError(f"cannot write {path}: it is a directory")
     try:
-        fd, tmp = tempfile.mkstemp(prefix=".export-", suffix=".csv", dir=folder)
-        os.close(fd)
+        tmp = _new_file(folder)
     except OSError as e:
         raise UserError(f"cannot write {path}: {e.strerror}") from None
     try:

@@ -33,4 +33,5 @@ implementation
   App.RadioPacket -> Radio;
   App.RadioAMPacket -> Radio;
   App.RadioAcks -> Radio;
+  App.RadioLink -> Radio;
 }

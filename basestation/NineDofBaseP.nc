@@ -7,8 +7,12 @@
  * destination.  Differences: queues of NINEDOF_BS_QUEUE (12) messages each
  * way, sized for six 125 Hz motes; a full queue drops the packet and counts
  * it; a unicast radio send asks for an acknowledgement and is repeated up
- * to NINEDOF_BS_RETRIES times, then counted as failed and dropped (the
- * stock BaseStation retries forever and blocks its queue); the serial line
+ * to NINEDOF_BS_RETRIES times by the radio stack's PacketLink layer (the
+ * same frame, same DSN: the mote drops a repeat of a frame it got), then
+ * counted as failed and dropped (the stock BaseStation retries forever and
+ * blocks its queue); a send that ends in EBUSY (the channel busy through
+ * all of the radio stack's backoff rounds) is started again up to
+ * NINEDOF_BS_RETRIES times; the serial line
  * runs at PLATFORM_BAUDRATE (250000 by default) with a correctly rounded
  * divisor; a ninedof_bs_status_msg with the counters goes to the serial line
  * every 2 s.
@@ -42,6 +46,7 @@ module NineDofBaseP @safe()
     interface Packet as RadioPacket;
     interface AMPacket as RadioAMPacket;
     interface PacketAcknowledgements as RadioAcks;
+    interface PacketLink as RadioLink;
   }
 }
 implementation
@@ -275,8 +280,9 @@ implementation
     len = call RadioPacket.payloadLength(msg);
     dest = call RadioAMPacket.destination(msg);
     id = call RadioAMPacket.type(msg);
-    if (dest != AM_BROADCAST_ADDR)
-      call RadioAcks.requestAck(msg);
+    /* unicast: acknowledged, up to 1 + NINEDOF_BS_RETRIES transmissions */
+    call RadioLink.setRetries(msg, dest != AM_BROADCAST_ADDR ? 1 + NINEDOF_BS_RETRIES : 0);
+    call RadioLink.setRetryDelay(msg, 0);
     if (call RadioSend.send[id](dest, msg, len) == SUCCESS) {
       toRadio.busy = TRUE;
     } else {
@@ -289,6 +295,8 @@ implementation
     }
   }
 
+  /* The radio stack has made its tries: delivered, ended by a busy channel
+   * (EBUSY: again), or given up. */
   event void RadioSend.sendDone[am_id_t id](message_t *msg, error_t err) {
     bool delivered = (err == SUCCESS) &&
       (call RadioAMPacket.destination(msg) == AM_BROADCAST_ADDR || call RadioAcks.wasAcked(msg));
@@ -296,7 +304,7 @@ implementation
     if (delivered) {
       call Leds.led2Toggle();
       dequeue(&toRadio);
-    } else if (++toRadio.attempts > NINEDOF_BS_RETRIES) {
+    } else if (err != EBUSY || ++toRadio.attempts > NINEDOF_BS_RETRIES) {
       counters.radio_fail++;
       call Leds.led0Toggle();
       dequeue(&toRadio);

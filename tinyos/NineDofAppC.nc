@@ -50,6 +50,7 @@ implementation
   App.QueryReceive -> QueryReceive;
   App.AMPacket -> Radio;
   App.Acks -> SampleSend;
+  App.PacketLink -> Radio;
   App.SamplePool -> SamplePool;
   App.SendQueue -> SendQueue;
   App.StatusTimer -> StatusTimer;

@@ -13,13 +13,23 @@
  * Hz of the crystal, periods differing by at most one tick.  Records of
  * consecutive periods are batched NINEDOF_BATCH to a message, corrected with the
  * calibration in force and flagged (ninedof_sampling.c, ninedof_cal.c) and
- * sent to the BaseStation (address 0) with an acknowledgement requested and
- * up to NINEDOF_RETRIES retries, through a queue of NINEDOF_SEND_QUEUE
+ * sent to the BaseStation (address 0) through a queue of NINEDOF_SEND_QUEUE
  * messages; when the queue is full the batch is dropped and counted.  A
- * ninedof_mote_status_msg goes out every 2 s.  Calibration messages are
- * answered by the shared receiver (ninedof_calrx_handle); an accepted set
- * is written to the internal EEPROM in the background, one byte per 4 ms,
- * while sampling continues.
+ * ninedof_mote_status_msg goes out every 2 s from its own buffer, without
+ * acknowledgement (the next one replaces a lost one).  Calibration messages
+ * are answered by the shared receiver (ninedof_calrx_handle) from a reply
+ * buffer of their own; an accepted set is written to the internal EEPROM in
+ * the background, one byte per 4 ms, while sampling continues.
+ *
+ * Sample messages and calibration replies ask for an acknowledgement and
+ * are sent up to 1 + NINEDOF_RETRIES times by the radio stack's PacketLink
+ * layer, which repeats a frame with its sequence number (DSN), so the
+ * receiver drops a repeat whose first copy got through.  A sample message
+ * or reply that ends in EBUSY (the channel was busy through all of the
+ * radio stack's backoff rounds) is sent again, up to NINEDOF_RETRIES times;
+ * that is a new DSN, so if an earlier try got through unacknowledged the
+ * BaseStation forwards it twice (the logger drops the duplicate).  The sample, status and reply buffers take
+ * turns on the radio (AMSenderC's round robin).
  *
  * LEDs: red    on   = sensor board not answering (retried every second);
  *              flash = a failed sensor read (on for FLASH_TICKS, then off;
@@ -54,6 +64,7 @@ module NineDofAppP @safe()
     interface Receive as QueryReceive;
     interface AMPacket;
     interface PacketAcknowledgements as Acks;
+    interface PacketLink;
     interface Pool<message_t> as SamplePool;
     interface Queue<message_t*> as SendQueue;
     interface Timer<TMilli> as StatusTimer;
@@ -99,6 +110,8 @@ implementation
   uint16_t heartbeat;
   message_t statusMsg, replyMsg;
   bool statusBusy = FALSE, replyBusy = FALSE;
+  am_addr_t replyTo;
+  uint8_t replyType, replyLen, replyAttempts;
 
   task void processSamples();
   task void sendNext();
@@ -294,27 +307,35 @@ implementation
     attempts = 0;
   }
 
+  /* Acknowledged, up to 1 + NINEDOF_RETRIES transmissions of the same frame */
+  void linkRetries(message_t *m) {
+    call PacketLink.setRetries(m, 1 + NINEDOF_RETRIES);
+    call PacketLink.setRetryDelay(m, 0);
+  }
+
   task void sendNext() {
     message_t *m;
     if (sending || call SendQueue.empty())
       return;
     m = call SendQueue.head();
-    call Acks.requestAck(m);
+    linkRetries(m);
     if (call SampleSend.send(BASESTATION, m, sampleLength(m)) == SUCCESS) {
       sending = TRUE;
     } else if (++attempts > NINEDOF_RETRIES) {
-      sendFinished(FALSE);
+      sendFinished(FALSE);                    /* refused again and again */
       post sendNext();
     } else {
       post sendNext();
     }
   }
 
+  /* The radio stack has made its tries: acknowledged, ended by a busy
+   * channel (EBUSY: send it again), or given up. */
   event void SampleSend.sendDone(message_t *m, error_t err) {
     sending = FALSE;
     if (err == SUCCESS && call Acks.wasAcked(m))
       sendFinished(TRUE);
-    else if (++attempts > NINEDOF_RETRIES)
+    else if (err != EBUSY || ++attempts > NINEDOF_RETRIES)
       sendFinished(FALSE);
     post sendNext();
   }
@@ -330,6 +351,7 @@ implementation
       return;
     atomic c = counters;
     ninedof_status_pack(&c, &rx, p);
+    call PacketLink.setRetries(&statusMsg, 0);          /* no ack: the next one follows */
     if (call StatusSend.send(BASESTATION, &statusMsg, sizeof(ninedof_mote_status_msg_t))
         == SUCCESS)
       statusBusy = TRUE;
@@ -363,14 +385,25 @@ implementation
     call Leds.led2Off();
   }
 
+  /* The reply in replyMsg, to replyTo, acknowledged and repeated. */
+  error_t sendReply() {
+    linkRetries(&replyMsg);
+    if (replyType == AM_NINEDOF_CAL_FRAG_ACK_MSG)
+      return call FragAckSend.send(replyTo, &replyMsg, replyLen);
+    if (replyType == AM_NINEDOF_CAL_COMMIT_ACK_MSG)
+      return call CommitAckSend.send(replyTo, &replyMsg, replyLen);
+    if (replyType == AM_NINEDOF_CAL_REPORT_MSG)
+      return call ReportSend.send(replyTo, &replyMsg, replyLen);
+    return FAIL;
+  }
+
   /* Every calibration message goes to the shared receiver; its reply goes
-   * back to the sender unless the previous reply is still on its way (the
-   * host then repeats the message, which the receiver handles idempotently). */
+   * back to the sender, acknowledged and repeated like a sample message,
+   * unless the previous reply is still on its way (the host then repeats the
+   * message, which the receiver handles idempotently). */
   void calibration(uint8_t type, message_t *m, void *payload, uint8_t len) {
     uint8_t reply[sizeof(ninedof_cal_report_msg_t)];
     uint8_t rtype = 0, n, *out;
-    am_addr_t to = call AMPacket.source(m);
-    error_t err = FAIL;
 
     n = ninedof_calrx_handle(&rx, type, (const uint8_t *)payload, len, reply, &rtype);
     persist();
@@ -380,13 +413,18 @@ implementation
     if (out == NULL)
       return;
     memcpy(out, reply, n);
-    if (rtype == AM_NINEDOF_CAL_FRAG_ACK_MSG)
-      err = call FragAckSend.send(to, &replyMsg, n);
-    else if (rtype == AM_NINEDOF_CAL_COMMIT_ACK_MSG)
-      err = call CommitAckSend.send(to, &replyMsg, n);
-    else if (rtype == AM_NINEDOF_CAL_REPORT_MSG)
-      err = call ReportSend.send(to, &replyMsg, n);
-    replyBusy = (err == SUCCESS);
+    replyTo = call AMPacket.source(m);
+    replyType = rtype;
+    replyLen = n;
+    replyAttempts = 0;
+    replyBusy = (sendReply() == SUCCESS);
+  }
+
+  /* Sent or given up; ended by a busy channel: again (as a sample message). */
+  void replyDone(message_t *m, error_t err) {
+    if (err == EBUSY && ++replyAttempts <= NINEDOF_RETRIES && sendReply() == SUCCESS)
+      return;
+    replyBusy = FALSE;
   }
 
   event message_t *FragReceive.receive(message_t *m, void *payload, uint8_t len) {
@@ -404,7 +442,7 @@ implementation
     return m;
   }
 
-  event void FragAckSend.sendDone(message_t *m, error_t err) { replyBusy = FALSE; }
-  event void CommitAckSend.sendDone(message_t *m, error_t err) { replyBusy = FALSE; }
-  event void ReportSend.sendDone(message_t *m, error_t err) { replyBusy = FALSE; }
+  event void FragAckSend.sendDone(message_t *m, error_t err) { replyDone(m, err); }
+  event void CommitAckSend.sendDone(message_t *m, error_t err) { replyDone(m, err); }
+  event void ReportSend.sendDone(message_t *m, error_t err) { replyDone(m, err); }
 }

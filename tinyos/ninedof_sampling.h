@@ -18,7 +18,8 @@
 #define NINEDOF_BASESTATION_ADDR 0      /* TOS_NODE_ID of the BaseStation */
 #endif
 #ifndef NINEDOF_RETRIES
-#define NINEDOF_RETRIES 2               /* resends of an unacknowledged message */
+#define NINEDOF_RETRIES 2               /* resends of an unacknowledged sample message or
+                                           calibration reply (PacketLink, same DSN) */
 #endif
 #ifndef NINEDOF_SEND_QUEUE
 #define NINEDOF_SEND_QUEUE 4            /* sample messages waiting for the radio */

@@ -5,13 +5,17 @@ status message, and its UART.
   AM destination, source, group and type; a queue of 12 message buffers
   (including the one on the UART); full -> dropped (``radio_drops``).  Frames
   addressed to the BaseStation with an ack request are acked by the radio
-  stack whether or not the queue has room; a retransmission (same source and
+  stack whether or not the queue has room; a repeated frame (same source and
   DSN as the last accepted frame) is acked and dropped (UniqueLayer).
 * Serial -> radio: 0x44 and 0x45 frames from the PC carrying an AM packet go
   into a second queue of 12 (full -> ``serial_drops``) and are sent by radio
-  to their AM destination with the PC's source address and the local group
-  (0x22), without link ack (as BaseStationP); a send that fails (channel
-  busy) is retried, counted in ``radio_fail``.  Every good 0x44 frame is
+  to their AM destination, with the BaseStation's own address as the AM
+  source (the radio's AM layer sets it) and the local group (0x22), as
+  NineDofBaseP does: a unicast asks for an ack and is sent at most
+  1 + NINEDOF_BS_RETRIES (2) times with the same DSN (PacketLink), then
+  dropped and counted in ``radio_fail``; a send that ends in EBUSY (the
+  channel busy through all 5 rounds) is started again, at most 2 more
+  times; a broadcast goes once, unacked.  Every good 0x44 frame is
   acknowledged on the serial line by a 0x43 frame with the same sequence
   byte (SerialP), sent before the next queued packet.
 * Every 2 s a ninedof_bs_status_msg (source 0, destination 0xFFFF) goes out
@@ -31,7 +35,8 @@ from .mote import Message
 from .radio import Mac
 
 ADDR = 0
-QUEUE_LEN = 12
+QUEUE_LEN = 12            # NINEDOF_BS_QUEUE
+RETRIES = 2               # NINEDOF_BS_RETRIES
 STATUS_PERIOD = P.NINEDOF_STATUS_PERIOD_MS / 1000.0
 
 
@@ -41,7 +46,7 @@ class BaseStation:
         self.loop = net.loop
         self.byte_time = 10.0 / baud
         self.duration = duration
-        self.mac = Mac(ADDR, net.channel, rng, max_retries=0)
+        self.mac = Mac(ADDR, net.channel, rng, max_retries=RETRIES)
         net.channel.attach(ADDR, self)
         self.uart_q: deque = deque()          # (frame bytes, origin Message | None)
         self.acks: deque = deque()            # 0x43 frames waiting for the UART
@@ -52,6 +57,7 @@ class BaseStation:
         self._rx_free = 0.0                   # when the UART receiver is next idle
         self._decoder = P.FrameDecoder()
         self._last_dsn: dict[int, int] = {}
+        self._busy_tries = 0                  # EBUSY refusals of the radio queue's head
         # counters (bs_status fields and more)
         self.radio_rx = 0
         self.radio_drops = 0
@@ -69,7 +75,7 @@ class BaseStation:
 
     # ------------------------------------------------------------ radio -> serial
     def on_frame(self, f) -> None:
-        if self._last_dsn.get(f.src) == f.dsn and f.ack_req:
+        if self._last_dsn.get(f.src) == f.dsn:
             self.duplicates += 1
             return
         self._last_dsn[f.src] = f.dsn
@@ -79,7 +85,8 @@ class BaseStation:
             msg.at_bs = True
         if len(self.uart_q) >= QUEUE_LEN:
             self.radio_drops += 1
-            if msg is not None and msg.count:
+            if msg is not None and msg.count and not (msg.on_line or msg.bs_dropped):
+                msg.bs_dropped = True        # unless a copy sent again gets through
                 self.net.motes[msg.mote].bs_dropped += msg.count
             return
         frame = P.encode_am(P.AMPacket(f.dest, f.src, f.group, f.am_type, f.payload))
@@ -163,14 +170,17 @@ class BaseStation:
         if self.mac.busy or not self.radio_q:
             return
         am = self.radio_q[0]
-        self.mac.send(am.dest, P.DEFAULT_GROUP, am.am_type, am.payload, False, am,
-                      self._radio_done, src=am.src)
+        self.mac.send(am.dest, P.DEFAULT_GROUP, am.am_type, am.payload,
+                      am.dest != P.AM_BROADCAST, am, self._radio_done)
 
     def _radio_done(self, am, ok: bool) -> None:
-        if ok:
-            self.radio_q.popleft()
+        if not ok and self.mac.ebusy and self._busy_tries < RETRIES:
+            self._busy_tries += 1                 # the channel was busy: send it again
         else:
-            self.radio_fail += 1
+            self.radio_q.popleft()
+            self._busy_tries = 0
+            if not ok:
+                self.radio_fail += 1
         self._radio_kick()
 
     def counters(self) -> dict:

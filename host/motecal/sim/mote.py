@@ -13,16 +13,32 @@
   tinyos/ninedof_sampling.c, records are kept raw and corrected with the set
   in force when the batch is packed, so one set and one flags byte cover the
   whole message.
-* Send queue: 4 messages including the one on the radio; a batch that finds
-  it full is dropped and its samples counted in ``dropped``.  Everything is
-  unicast to the BaseStation (address 0), group 0x22, ack requested, at most
-  2 retries (radio.Mac).  A message given up (``send_fail``, as the firmware
-  counts it) whose frames all failed to reach the BaseStation loses its
-  samples (``radio_lost``); one whose acks were lost got through.
-* Status: a ninedof_mote_status_msg every 2 s (mote time, random phase).
-* Calibration: frames addressed to this mote go to ``CalReceiver.handle`` (the
-  firmware's C code through ctypes); its reply goes back to address 0 through
-  the same queue; samples are corrected with ``CalReceiver.correct`` and
+* Radio, as NineDofAppP sends: three buffers take turns on the radio in
+  round robin (AMSenderC's queue), in the firmware's order -- samples,
+  status, calibration reply.  Group 0x22, AM source = mote id.
+  - Samples: a send queue of 4 messages including the one on the radio; a
+    batch that finds it full is dropped and its samples counted in
+    ``dropped``.  Unicast to the BaseStation (address 0), ack requested, at
+    most 2 retries of the same frame (PacketLink: same DSN).  A send that
+    ends in EBUSY (the channel busy through all 5 rounds) is started again,
+    at most 2 more times, with a new DSN: if an earlier try reached the
+    BaseStation unacknowledged, it forwards the message twice (the logger
+    drops the duplicate; ``Network`` counts it in ``line_duplicates``).  A message given up (``send_fail``, the only sends the
+    firmware counts) whose
+    frames all failed to reach the BaseStation loses its samples
+    (``radio_lost``); one whose acks were lost got through.
+  - Status: a ninedof_mote_status_msg every 2 s (mote time, random phase)
+    from its own buffer, to the BaseStation, no ack, no retry; one still on
+    its way when the next is due is skipped (``status_dropped``).
+  - Calibration: frames addressed to this mote (or broadcast) go to
+    ``CalReceiver.handle`` (the firmware's C code through ctypes); the reply
+    goes to the frame's AM source from its own buffer, sent as a sample
+    message is (ack, 2 retries, EBUSY: again);
+    a reply while the previous one is still on its way is not sent
+    (``replies_dropped``: the host repeats its message).
+  A frame repeated by its sender with the same DSN as the last one accepted
+  from that sender is dropped (UniqueLayer).
+* Correction: samples are corrected with ``CalReceiver.correct`` and
   flagged with ``CalReceiver.flags()``.  Without it: raw records, flags 0.
 * EEPROM: an accepted set is persisted by the firmware's own background
   writer (``mote_c.EepromWriter``, one byte per 3.4 ms while sampling goes
@@ -40,8 +56,9 @@ import numpy as np
 from .. import protocol as P
 from .radio import Mac
 
-QUEUE_LEN = 4
-MAX_RETRIES = 2
+QUEUE_LEN = 4             # NINEDOF_SEND_QUEUE
+MAX_RETRIES = 2           # NINEDOF_RETRIES
+SAMPLES, STATUS, REPLY = range(3)     # the radio's clients, in round-robin order
 STATUS_PERIOD = P.NINEDOF_STATUS_PERIOD_MS / 1000.0
 BS_ADDR = 0
 READ_BLOCK = 1250         # samples asked from the physics at a time
@@ -49,12 +66,16 @@ _EPS = 1e-9
 
 
 class Message:
-    """One message in a send queue (samples, status or calibration reply)."""
+    """One message of a mote (samples, status or calibration reply)."""
     __slots__ = ("mote", "am_type", "payload", "k0", "count", "raw", "records", "flags",
-                 "at_bs")
+                 "at_bs", "dest", "busy_tries", "on_line", "bs_dropped")
 
     def __init__(self, mote, am_type, payload, k0=None, count=0, raw=None, records=None,
-                 flags=0):
+                 flags=0, dest=BS_ADDR):
+        self.dest = dest
+        self.busy_tries = 0       # sends the busy channel refused (EBUSY)
+        self.on_line = False      # the BaseStation put it on the serial line
+        self.bs_dropped = False   # counted as dropped by the BaseStation (queue full)
         self.mote = mote
         self.am_type = am_type
         self.payload = payload
@@ -109,7 +130,11 @@ class SimMote:
         self._flags = int(cal.flags()) if cal is not None else 0   # changes only in handle()
         self.mac = Mac(self.id, net.channel, rng, max_retries=MAX_RETRIES)
         net.channel.attach(self.id, self)
-        self.queue: deque[Message] = deque()
+        self.queue: deque[Message] = deque()   # sample messages
+        self.status_msg: Message | None = None  # its own buffer
+        self.reply_msg: Message | None = None   # its own buffer
+        self._turn = REPLY                      # client served last (round robin)
+        self._last_dsn: dict[int, int] = {}     # UniqueLayer
         self.next_k = 0                      # first sample not yet put into a message
         self._buf = np.zeros((0, 9), np.int16)
         self._buf_k0 = 0
@@ -120,8 +145,9 @@ class SimMote:
         self.status_sent = 0
         self.status_dropped = 0
         self.replies = 0
-        self.replies_dropped = 0
-        self.send_fail = 0                   # messages given up (all kinds)
+        self.replies_dropped = 0             # reply buffer still busy
+        self.replies_failed = 0              # replies never acked
+        self.send_fail = 0                   # sample messages given up (as the firmware)
         self._schedule_batch()
         self.loop.at(rng.random() * self.status_period, self._status, None)
 
@@ -177,25 +203,46 @@ class SimMote:
         self._kick()
 
     # ------------------------------------------------------------------ radio
+    def _pending(self, client: int) -> Message | None:
+        if client == SAMPLES:
+            return self.queue[0] if self.queue else None
+        return self.status_msg if client == STATUS else self.reply_msg
+
     def _kick(self) -> None:
-        if not self.mac.busy and self.queue:
-            m = self.queue[0]
-            self.mac.send(BS_ADDR, P.DEFAULT_GROUP, m.am_type, m.payload, True, m, self._sent)
+        """Start the next send: the first client after the one served last
+        that has a message (AMQueueP's round robin)."""
+        if self.mac.busy:
+            return
+        for k in (1, 2, 3):
+            client = (self._turn + k) % 3
+            m = self._pending(client)
+            if m is None:
+                continue
+            self._turn = client
+            if client == STATUS:            # no ack, no retry
+                self.mac.send(BS_ADDR, P.DEFAULT_GROUP, m.am_type, m.payload, False, m,
+                              self._sent, retries=0)
+            else:
+                self.mac.send(m.dest, P.DEFAULT_GROUP, m.am_type, m.payload, True, m,
+                              self._sent)
+            return
 
     def _sent(self, msg: Message, ok: bool) -> None:
-        self.queue.popleft()
-        if not ok:
-            self.send_fail += 1
-            if not msg.at_bs:          # no ack, but the BaseStation may have it anyway
-                self.radio_lost += msg.count
+        if msg is self.status_msg:
+            self.status_msg = None
+        elif not ok and self.mac.ebusy and msg.busy_tries < MAX_RETRIES:
+            msg.busy_tries += 1           # the channel was busy: the app sends it again
+        elif msg is self.reply_msg:
+            self.reply_msg = None
+            if not ok:
+                self.replies_failed += 1
+        else:
+            self.queue.popleft()
+            if not ok:
+                self.send_fail += 1
+                if not msg.at_bs:          # no ack, but the BaseStation may have it anyway
+                    self.radio_lost += msg.count
         self._kick()
-
-    def _enqueue_other(self, am_type: int, payload: bytes) -> bool:
-        if len(self.queue) >= QUEUE_LEN:
-            return False
-        self.queue.append(Message(self.id, am_type, payload))
-        self._kick()
-        return True
 
     def on_frame(self, f) -> None:
         """A data frame heard on the radio (any destination).  Like TinyOS's
@@ -203,6 +250,9 @@ class SimMote:
         the calibration code then checks the mote id inside the message."""
         if f.dest not in (self.id, P.AM_BROADCAST) or self.cal is None:
             return
+        if self._last_dsn.get(f.src) == f.dsn:       # a repeat of the frame it has
+            return
+        self._last_dsn[f.src] = f.dsn
         reply = self.cal.handle(f.am_type, bytes(f.payload))
         self._flags = int(self.cal.flags())
         if self.ee is not None:
@@ -213,10 +263,12 @@ class SimMote:
             self.cal.mark_persisted()
         if reply:
             rtype, rpayload = reply
-            if self._enqueue_other(rtype, bytes(rpayload)):
-                self.replies += 1
-            else:
+            if self.reply_msg is not None:          # the previous reply is on its way
                 self.replies_dropped += 1
+                return
+            self.reply_msg = Message(self.id, rtype, bytes(rpayload), dest=f.src)
+            self.replies += 1
+            self._kick()
 
     def _ee_step(self, _) -> None:
         """One EEPROM byte write of the background writer."""
@@ -242,10 +294,12 @@ class SimMote:
             seq=self.generated() & 0xFFFF, version=version & 0xFFFF, sensors=sensors,
             dropped=self.dropped & 0xFFFF, send_fail=self.send_fail & 0xFFFF,
             i2c_errors=0, late=0)
-        if self._enqueue_other(P.AM_NINEDOF_MOTE_STATUS_MSG, payload):
-            self.status_sent += 1
-        else:
+        if self.status_msg is not None:               # the last one is still on its way
             self.status_dropped += 1
+        else:
+            self.status_msg = Message(self.id, P.AM_NINEDOF_MOTE_STATUS_MSG, payload)
+            self.status_sent += 1
+            self._kick()
         self.loop.at(now + self.status_period, self._status, None)
 
     # ------------------------------------------------------------------ stats
@@ -254,7 +308,8 @@ class SimMote:
                  radio_lost=self.radio_lost, msgs_dropped=self.msgs_dropped,
                  status_sent=self.status_sent, status_dropped=self.status_dropped,
                  replies=self.replies, replies_dropped=self.replies_dropped,
-                 eeprom_writes=self.eeprom_writes,
+                 replies_failed=self.replies_failed, eeprom_writes=self.eeprom_writes,
                  queued=sum(m.count for m in self.queue), clock_ppm=self.clock_ppm)
         d.update(self.mac.counters())
+        d["send_fail"] = self.send_fail          # sample messages, as the firmware counts
         return d

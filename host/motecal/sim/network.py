@@ -153,6 +153,7 @@ class Network:
                         rate_hz=rate_hz, duration=self.duration, cal=cal,
                         eeprom=(eeprom or {}).get(mote_id))
             m.bs_dropped = 0
+            m.line_duplicates = 0           # sample messages the line carried twice
             self.motes[mote_id] = m
             self.sent[mote_id] = SentLog(m)
         self._segments: deque = deque()     # [start time, bytes, bytes already returned]
@@ -167,6 +168,13 @@ class Network:
         """A mote finished writing a calibration image into its EEPROM."""
 
     def delivered(self, msg) -> None:
+        if msg.on_line:                   # sent again after EBUSY: a duplicate on the line
+            self.motes[msg.mote].line_duplicates += 1
+            return
+        msg.on_line = True
+        if msg.bs_dropped:                # an earlier copy was dropped, this one got through
+            msg.bs_dropped = False
+            self.motes[msg.mote].bs_dropped -= msg.count
         self.sent[msg.mote].add(msg)
 
     # ---------------------------------------------------------------- API
@@ -227,6 +235,7 @@ class Network:
         for mid, m in self.motes.items():
             d = m.counters()
             d["bs_dropped"] = m.bs_dropped
+            d["line_duplicates"] = m.line_duplicates
             d["delivered"] = len(self.sent[mid])
             motes[mid] = d
         return dict(

@@ -27,8 +27,11 @@ Medium access (tos/lib/rfxlink, RF230RadioP values):
 * UniqueLayer: a retransmission keeps its DSN; a receiver drops a frame
   whose (source, DSN) equals the last one it accepted from that source
   (it is still acked).
-* PacketLink-style retries: a message is sent at most ``1 + max_retries``
-  times (EBUSY or no ack each use one attempt).
+* PacketLink (built with PACKET_LINK): a message asking for an ack is sent
+  at most ``1 + max_retries`` times, the same frame with the same DSN, until
+  it is acked; EBUSY (the channel busy through all 5 rounds) ends it at once
+  (PacketLinkLayerP passes the error up without another try) and sets
+  ``ebusy``: the firmware then starts the message again (a new DSN).
 
 Collisions: every node hears every other (one star cell).  Two transmissions
 that overlap in time destroy each other at every receiver (half duplex: a node
@@ -179,8 +182,9 @@ class Channel:
 class Mac:
     """A node's sending side: CSMA rounds, link retries, ack wait.
 
-    ``send(dest, group, am_type, payload, ack_req, msg, done, src=None)`` sends
-    one message (``src``: AM source if not this node's address);
+    ``send(dest, group, am_type, payload, ack_req, msg, done, src=None,
+    retries=None)`` sends one message (``src``: AM source if not this node's
+    address; ``retries``: this message's, else ``max_retries``);
     ``done(msg, ok)`` is called once, from the event loop.  One message at a
     time (the caller queues).
     """
@@ -204,10 +208,13 @@ class Mac:
         self.stats_ack_lost = 0
         self.stats_cca_busy = 0        # EBUSY rounds (channel busy twice)
         self.stats_failed = 0          # messages given up
+        self.ebusy = False             # the last message given up ended in EBUSY
 
-    def send(self, dest, group, am_type, payload, ack_req, msg, done, src=None) -> None:
+    def send(self, dest, group, am_type, payload, ack_req, msg, done, src=None,
+             retries=None) -> None:
         assert not self.busy
         self.busy = True
+        self._retries = self.max_retries if retries is None else retries
         self._dsn = (self._dsn + 1) & 0xFF
         self._what = (self.addr if src is None else src, dest, group, am_type, payload,
                       self._dsn, ack_req)
@@ -247,8 +254,10 @@ class Mac:
             self.stats_cca_busy += 1
             if self._rounds < EBUSY_ROUNDS:
                 self._round()
-            else:
-                self._failed_attempt()
+            else:                          # EBUSY: PacketLink gives up at once
+                self.stats_failed += 1
+                self.ebusy = True
+                self._finish(False)
 
     # called by the channel
     def tx_end(self, f: Frame, will_ack: bool) -> None:
@@ -266,10 +275,11 @@ class Mac:
             self._failed_attempt()
 
     def _failed_attempt(self) -> None:
-        if self._attempts <= self.max_retries:
+        if self._attempts <= self._retries:
             self._attempt()
         else:
             self.stats_failed += 1
+            self.ebusy = False
             self._finish(False)
 
     def _finish(self, ok: bool) -> None:
@@ -285,4 +295,4 @@ class Mac:
         return dict(frames=self.stats_frames, retries=self.stats_retries,
                     collided=self.stats_collided, lost=self.stats_lost,
                     acks_collided=self.stats_ack_collided, acks_lost=self.stats_ack_lost,
-                    cca_busy=self.stats_cca_busy, send_fail=self.stats_failed)
+                    cca_busy=self.stats_cca_busy, gave_up=self.stats_failed)

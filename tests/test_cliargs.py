@@ -5,7 +5,7 @@ import re
 import pytest
 
 from motecal import cli
-from motecal.cliargs import description, int_range, mote_id, plain, positive
+from motecal.cliargs import between, description, int_range, mote_id, plain, positive, seed
 
 
 def test_positive_numbers():
@@ -30,6 +30,17 @@ def test_mote_ids_and_ranges():
         count("-1")
     with pytest.raises(argparse.ArgumentTypeError, match="version must be 1..9: '10'"):
         int_range("version", 1, 9)("10")
+
+
+def test_seeds_and_open_intervals():
+    assert seed("0") == 0 and seed(str(2 ** 70)) == 2 ** 70
+    for text, msg in [("-3", "seed must be >= 0"), ("1.5", "not a seed")]:
+        with pytest.raises(argparse.ArgumentTypeError, match=msg):
+            seed(text)
+    assert between(0, 1)("0.05") == 0.05
+    for text in ("0", "1", "nan", "inf", "-0.1", "x"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            between(0, 1)(text)
 
 
 def test_rst_markup_becomes_plain_text():

@@ -97,6 +97,9 @@ def test_several_motes_get_one_file_each(db, tmp_path, capsys):
 @pytest.mark.parametrize("args,msg", [
     (["--session", "nope"], "nope"),
     (["--session", "clean", "--alpha", "2"], "--alpha"),
+    (["--session", "clean", "--alpha", "nan"], "--alpha"),
+    (["--session", "clean", "--alpha", "0"], "--alpha"),
+    (["--session", "clean", "--seed", "-1"], "--seed"),
     (["--session", "clean", "--json", "/nonexistent-folder/x.json"], "does not exist"),
     (["--session", "two", "--mote", "9"], "no samples"),
 ])

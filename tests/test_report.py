@@ -372,6 +372,9 @@ def test_bad_input_one_line_nonzero_nothing_written(measured_db, tmp_path, capsy
     bad.write_text("{not json")
     assert "JSON" in _err(capsys, ["report", "--db", db, "--session", "razor1",
                                    "--cal", str(bad), "--out", str(out)], 2)
+    for s in ("-1", "x"):            # numpy's SeedSequence takes whole numbers >= 0
+        assert "--seed" in _err(capsys, ["report", "--db", db, "--session", "razor1",
+                                         "--seed", s, "--out", str(out)], 2)
     assert not out.exists()
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
 

@@ -7,6 +7,8 @@ one line on stderr (exit 2), as for every user error.
 * ``int_range(what, lo, hi)``: a whole number in lo..hi (hi None: no bound);
 * ``mote_id``: a sensing mote's id, 1..65534 (0 is the BaseStation, 65535 the
   broadcast address);
+* ``seed``: a random seed, a whole number >= 0;
+* ``between(lo, hi)``: a number strictly between lo and hi;
 * ``session_name``: a session name the store accepts (not empty or blank);
 * ``baud_rate``: a serial baud rate, 300..4000000 (``baud_problem``);
 * ``description(doc)``: a module docstring's first paragraph as plain text
@@ -53,6 +55,22 @@ def int_range(what: str, lo: int, hi: int | None = None, note: str = ""):
 
 mote_id = int_range("mote id", MOTE_ID_MIN, MOTE_ID_MAX,
                     " (0 is the BaseStation, 65535 broadcast)")
+
+# a random seed: numpy's SeedSequence takes whole numbers >= 0
+seed = int_range("seed", 0)
+
+
+def between(lo: float, hi: float):
+    """Argument type: a number strictly between ``lo`` and ``hi``."""
+    def parse(text):
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if not lo < v < hi:
+            raise argparse.ArgumentTypeError(f"must be between {lo:g} and {hi:g}: {text!r}")
+        return v
+    return parse
 
 
 def baud_problem(value) -> str | None:

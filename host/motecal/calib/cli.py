@@ -24,12 +24,15 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ..cliargs import description, mote_id
+from ..cliargs import description, int_range, mote_id, positive, seed
 from ..errors import QualityError, UserError
 from .board import calibrate_board
 from .gate import decide
 from .models import MODEL_FAMILIES, parse_groups
 from .result import BoardCalibration
+
+
+MAX_KFOLD = 100          # more folds than poses leave nothing out; each one is a refit
 
 
 def register(subparsers):
@@ -45,13 +48,14 @@ def register(subparsers):
                    help="full: bias + lower-triangular matrix (default); paper: eqs. 1-5")
     p.add_argument("--params", help="paper model: comma-separated subset of "
                                     "offsets,scales,angles (default all three)")
-    p.add_argument("--seed", type=int, help="GA seed (default: random, recorded in cal.json)")
-    p.add_argument("--mag-field", type=float, metavar="GAUSS",
+    p.add_argument("--seed", type=seed, help="GA seed (default: random, recorded in cal.json)")
+    p.add_argument("--mag-field", type=positive(float), metavar="GAUSS",
                    help="known local field magnitude: fixes the magnetometer gauge to it "
                         "instead of det(A) = 1")
     p.add_argument("--no-gyro-matrix", action="store_true",
                    help="gyroscope bias only (no scale/misalignment from the moves)")
-    p.add_argument("--kfold", type=int, default=5, help="held-out validation folds (default 5)")
+    p.add_argument("--kfold", type=int_range("number of folds", 0, MAX_KFOLD), default=5,
+                   help=f"held-out validation folds: 0 (off) or 2..{MAX_KFOLD} (default 5)")
     p.add_argument("--force", action="store_true",
                    help="save boards the quality gate refuses (the reasons stay in cal.json)")
     from ..upload import add_calibrate_options
@@ -74,9 +78,7 @@ def calibrate(data, args) -> BoardCalibration:
     groups = parse_groups(args.params)
     if groups is not None and args.model != "paper":
         raise UserError("--params selects parameter groups of --model paper")
-    if args.mag_field is not None and not args.mag_field > 0:
-        raise UserError("--mag-field must be a positive number of gauss")
-    if args.kfold < 0 or args.kfold == 1:
+    if args.kfold == 1:
         raise UserError("--kfold must be 0 (off) or at least 2")
     return calibrate_board(data, model=args.model, groups=groups, seed=args.seed,
                            field=args.mag_field, gyro_matrix=not args.no_gyro_matrix,

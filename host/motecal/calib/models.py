@@ -99,7 +99,7 @@ class MagnitudeModel:
                 gauge = "field" if field is not None else "det"
             if gauge not in GAUGES:
                 raise UserError(f"unknown magnetometer gauge {gauge!r} (det or field)")
-            if gauge == "field" and not (field and field > 0):
+            if gauge == "field" and not (field is not None and np.isfinite(field) and field > 0):
                 raise UserError("the 'field' gauge needs a known field magnitude in gauss (> 0)")
             self.gauge = gauge
             self.field = float(field) if gauge == "field" else None

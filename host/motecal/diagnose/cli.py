@@ -17,7 +17,7 @@ import sys
 import textwrap
 from pathlib import Path
 
-from ..cliargs import description, mote_id
+from ..cliargs import between, description, mote_id, seed
 from ..errors import UserError
 from .gain import DEFAULT_ALPHA, MIN_FOLD_WINS, per_test_alpha
 
@@ -34,9 +34,9 @@ def register(subparsers):
                                                      "diagnosis (diagnosis.json) into DIR")
     p.add_argument("--model-out", metavar="FILE",
                    help="write the extended simulator model (motecal sim --model FILE)")
-    p.add_argument("--alpha", type=float, default=DEFAULT_ALPHA,
+    p.add_argument("--alpha", type=between(0.0, 1.0), default=DEFAULT_ALPHA,
                    help=f"false-alarm level for the whole diagnosis ({DEFAULT_ALPHA})")
-    p.add_argument("--seed", type=int, default=0, help="simulation seed (0)")
+    p.add_argument("--seed", type=seed, default=0, help="simulation seed (0)")
     p.add_argument("--no-sim", action="store_true",
                    help="skip the side-by-side simulation (statistics comparison)")
     p.set_defaults(func=run)
@@ -106,8 +106,6 @@ def run(args) -> int:
     from ..calib.cli import out_path
     from ..store import open_store
     from .engine import diagnose
-    if not 0 < args.alpha < 1:
-        raise UserError(f"--alpha must be within 0..1, not {args.alpha}")
     for opt in ("json", "model_out"):
         v = getattr(args, opt)
         if v:

@@ -27,6 +27,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from .. import cliargs
 from ..cliargs import mote_id
 from ..errors import UserError
 
@@ -140,7 +141,7 @@ def register(subparsers) -> None:
     p.add_argument("--cal", default=None, metavar="cal.json",
                    help="calibration to show (default: the latest stored for the session, "
                         "else calibrate now with the full model)")
-    p.add_argument("--seed", type=int, default=0,
+    p.add_argument("--seed", type=cliargs.seed, default=0,
                    help="seed of the GA runs made for the tables (default 0)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=run)

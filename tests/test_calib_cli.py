@@ -70,6 +70,34 @@ def test_one_mote_exact_name_and_paper_model(db, tmp_path, capsys):
     assert "re-parametrisation" in text and "rank 6 of 9" in text
 
 
+@pytest.mark.parametrize("params", ["angles", "offsets,angles"])
+def test_any_accel_subset_with_a_magnetometer(db, tmp_path, capsys, params):
+    """--params selects the accelerometer's subset (the paper's Table I); the
+    magnetometer gets the nearest family it can be fitted with under the
+    det(A) = 1 gauge (its angles need the scales), with a note; with a known
+    field it is fitted as asked."""
+    out = tmp_path / "p.json"
+    base = ["calibrate", "--db", db, "--session", "two", "--mote", "1", "--out", str(out),
+            "--model", "paper", "--params", params, "--seed", "1", "--kfold", "0",
+            "--no-gyro-matrix", "--force"]
+    rc = main(base)
+    text = capsys.readouterr().out
+    assert rc == 0, text
+    d = json.loads(out.read_text())
+    asked = params.replace(",", "+")
+    assert d["accel"]["model"] == f"paper({asked})"
+    fitted = "scales+angles" if params == "angles" else "offsets+scales+angles"
+    assert d["mag"]["model"] == f"paper({fitted})"
+    note = f"--params {params}: the magnetometer is fitted with {fitted}"
+    assert any(n.startswith(note) for n in d["mag"]["notes"])
+    assert any(w.startswith("mag: " + note) for w in d["gate"]["warnings"])
+    assert "warning: mag: " + note in text
+    assert main(base + ["--mag-field", "0.48"]) == 0
+    d = json.loads(out.read_text())
+    assert d["mag"]["model"] == f"paper({asked})" and d["mag"]["field_gauss"] == 0.48
+    assert not any("the magnetometer is fitted with" in n for n in d["mag"]["notes"])
+
+
 def test_refused_board_exit_3_and_force(db, tmp_path, capsys):
     out = tmp_path / "bad.json"
     rc = main(["calibrate", "--db", db, "--session", "disturbed", "--out", str(out),

@@ -37,7 +37,7 @@ from . import fit as _fit
 from . import gate as _gate
 from . import gyro as _gyro
 from .ga import GAOptions
-from .models import MagnitudeModel, make_model
+from .models import MagnitudeModel, mag_groups, make_model
 from .result import BoardCalibration, Param, SensorCalibration
 
 MIN_SWEEP = 200
@@ -118,8 +118,10 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
         main = "R" if "R" in sets and sets["R"].sum() >= MIN_SWEEP else "O"
         if main not in sets:
             main = next(iter(sets))
+        mgroups, mnote = (mag_groups(groups, gauge, field) if model == "paper"
+                          else (groups, None))
         for name, rows in sets.items():
-            mdl = make_model("mag", model, groups, gauge=gauge, field=field)
+            mdl = make_model("mag", model, mgroups, gauge=gauge, field=field)
             sc = _magnitude_sensor(
                 "mag", mdl, data.sensor("mag")[rows],
                 data.label[rows] if name == "O" else None,
@@ -135,6 +137,9 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
                 board.mag = sc
         if unfit:
             board.mag.quality.setdefault("warnings", []).extend(unfit)
+        if mnote:
+            board.mag.notes.append(mnote)
+            board.mag.quality.setdefault("warnings", []).append(mnote)
     return board
 
 

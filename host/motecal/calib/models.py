@@ -457,6 +457,27 @@ def theta_from_affine(model: MagnitudeModel, A, c, field=None):
     return np.array(theta)
 
 
+def mag_groups(groups, gauge: str | None = None, field: float | None = None):
+    """The paper-model groups the magnetometer is fitted with when ``--params``
+    asks for ``groups`` (they select the accelerometer's subset, as in the
+    paper's Table I): ``(groups, note)``.  Under the det(A) = 1 gauge the
+    angles need the scales (s_z follows from det(A) = 1; angles alone would
+    shrink the field without bound), so the nearest fittable family adds the
+    scales -- with the same angles, which only re-parametrise them -- and
+    ``note`` says so; with a known field (the field gauge) the groups are
+    fitted as asked and ``note`` is None."""
+    groups = tuple(PARAM_GROUPS) if groups is None else tuple(groups)
+    if gauge is None:
+        gauge = "field" if field is not None else "det"
+    if gauge != "det" or "angles" not in groups or "scales" in groups:
+        return groups, None
+    fitted = tuple(g for g in PARAM_GROUPS if g in groups or g == "scales")
+    return fitted, (f"--params {','.join(groups)}: the magnetometer is fitted with "
+                    f"{'+'.join(fitted)}: under the det(A) = 1 gauge its angles need the "
+                    f"scales (alone they would shrink the field without bound); "
+                    f"--mag-field GAUSS fits {'+'.join(groups)} as asked")
+
+
 def make_model(sensor: str, family: str = "full", groups=None, gauge: str | None = None,
                field: float | None = None) -> MagnitudeModel:
     """A model of ``family`` for ``sensor``; ``groups`` (paper only) is any

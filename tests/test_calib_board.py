@@ -249,17 +249,34 @@ def test_mag_set_that_cannot_determine_a_model_is_not_fitted(board_session):
     assert rows["O"]["not_computable"] == sets["O"][1] and rows["O"]["n"] == (d.label == 1).sum()
     assert rows["O"]["error_full"] is None and rows["O"]["rank_all"] is None
     assert rows["R"]["not_computable"] is None and rows["R"]["rank_full"] == 9
-    # nothing but that pose: the magnetometer is refused with the reason, not fitted
+    # nothing but that pose (no sweep): the session cannot determine the
+    # magnetometer, which is left out with the reason as a warning (the board
+    # is refused for its accelerometer's single pose)
     idle = calibrate_board(d.select(d.label == 1), seed=1, kfold=0, gyro_matrix=False)
     assert idle.mag is None and not idle.mag_sets
-    assert any(r.startswith("mag: set O not fitted: too few distinct orientations: 1")
-               for r in gate.decide(idle).reasons)
-    # a sweep over a cap of the sphere (within 60 deg of +z around its centre)
+    dec = gate.decide(idle)
+    assert any(w.startswith("mag: not calibrated: no rotation sweep, and the static poses "
+                            "cannot determine it (set O not fitted: too few distinct "
+                            "orientations: 1") for w in dec.warnings), dec.warnings
+    assert not any(r.startswith("mag") for r in dec.reasons)
+    assert any(r.startswith("accel: too few distinct orientations") for r in dec.reasons)
+    # a sweep over a cap of the sphere (within 60 deg of +z around its centre):
+    # data meant for the magnetometer that fail the limits refuse it
     rot = d.select(d.label == LABEL_ROT)
     z = rot.sensor("mag")[:, 2]
     centre, radius = 0.5 * (z.max() + z.min()), 0.5 * (z.max() - z.min())
-    why = mag_data_sets(rot.select(z > centre + 0.5 * radius))["R"][1]
+    cap = rot.select(z > centre + 0.5 * radius)
+    why = mag_data_sets(cap)["R"][1]
     assert "poses too clustered" in why and "cover too little of the sphere" in why
+    dec = gate.decide(calibrate_board(cap, seed=1, kfold=0))
+    assert not dec.accepted and f"mag: set R not fitted: {why}" in dec.reasons, dec.reasons
+    assert not any(w.startswith("mag") for w in dec.warnings)
+    # so do static poses with a sweep beside them that cannot be used
+    both = d.select((d.label >= 1) | np.isin(np.arange(len(d)), np.flatnonzero(
+        d.label == LABEL_ROT)[z > centre + 0.5 * radius]))
+    b = calibrate_board(both, seed=1, kfold=0, gyro_matrix=False)
+    assert b.mag is not None and b.mag.dataset == "O"        # O fitted, R not
+    assert any(w.startswith("mag: set R not fitted") for w in gate.decide(b).warnings)
 
 
 @pytest.mark.parametrize("model,seed,mote", [("general", 13, 2), ("paper", 15, 2)])

@@ -18,8 +18,9 @@ Which rows are used
   treated as ``R``.  Overflowed readings (-4096) are dropped.  A set that
   cannot determine a model by the quality gate's limits (fewer than six
   distinct poses, directions not around the centre, a sweep covering under
-  80 % of the sphere's equal-area cells) is not fitted: a gate warning when another set is, the
-  reason the magnetometer is refused when none is.
+  80 % of the sphere's equal-area cells) is not fitted: a gate warning when another set is;
+  when none is, the reason the magnetometer is refused -- or, in a session
+  without a rotation sweep, left out with a warning (``gate.cannot_determine``).
 """
 from __future__ import annotations
 
@@ -108,6 +109,8 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
     all_sets = mag_data_sets(data)
     sets = {k: rows for k, (rows, why) in all_sets.items() if why is None}
     unfit = [f"set {k} not fitted: {why}" for k, (_, why) in all_sets.items() if why]
+    if data.has("mag").any():          # what the gate needs to judge a magnetometer left out
+        board.settings["mag_data_sets"] = {k: why for k, (_, why) in all_sets.items()}
     if not data.has("mag").any():
         board.settings["skipped"]["mag"] = "no magnetometer data in the session"
     elif not all_sets:

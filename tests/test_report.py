@@ -168,16 +168,22 @@ def test_tables_equal_the_calibration_engine(sim):
         for k in ("error", "min", "max"):
             assert _num(row[f"{k}_after"]) == ref[k], (row["parameters"], k)
             assert _num(row[f"{k}_before"]) == before[k]
-    # the paper's findings hold in the table: offsets+scales >> scales only, angles
-    # change nothing (they cannot: 6 of 9 identifiable), the full model beats the
-    # paper model (simulated cross-axis error)
+    # the paper's findings hold in the table: offsets+scales >> scales only; with
+    # the scales free the angles change nothing (they cannot: they only multiply
+    # the scales, 6 of 9 identifiable); without scales they are scales <= 1 on
+    # y and z, between no scale and a free one; the full model beats the paper
+    # model (simulated cross-axis error)
     err = {r["parameters"]: _num(r["error_after"]) for r in t1}
     ident = {r["parameters"]: r["identifiable"] for r in t1}
     assert err["offsets + scales"] < 0.2 * err["scales"]
     assert err["offsets + scales + angles"] == pytest.approx(err["offsets + scales"], rel=1e-9)
     assert err["scales + angles"] == pytest.approx(err["scales"], rel=1e-9)
-    assert err["offsets + angles"] <= err["offsets"] * (1 + 1e-9)
-    assert err["angles"] <= before["error"] * (1 + 1e-9)
+    tol = 1 + 1e-9
+    assert err["offsets + scales"] <= err["offsets + angles"] * tol
+    assert err["offsets + angles"] <= err["offsets"] * tol
+    assert err["scales"] <= err["angles"] * tol and err["angles"] <= before["error"] * tol
+    # on this board an axis reads too long: shortening it helps a lot
+    assert err["offsets + angles"] < 0.5 * err["offsets"]
     assert ident["offsets + scales + angles"] == "6 of 9"
     assert ident["offsets + scales"] == "6 of 6" and ident["full model"] == "9 of 9"
     assert err["full model"] < 0.9 * err["offsets + scales"]

@@ -271,6 +271,11 @@ def test_mag_set_that_cannot_determine_a_model_is_not_fitted(board_session):
     dec = gate.decide(calibrate_board(cap, seed=1, kfold=0))
     assert not dec.accepted and f"mag: set R not fitted: {why}" in dec.reasons, dec.reasons
     assert not any(w.startswith("mag") for w in dec.warnings)
+    # half the sphere is not enough: R needs 80 % of the equal-area cells
+    half = rot.select(z > centre)
+    why = mag_data_sets(half)["R"][1]
+    assert "cover too little of the sphere (60% of its equal-area cells, need 80%" in why
+    assert tables.table3(half, seed=1)[0]["not_computable"] == why
     # so do static poses with a sweep beside them that cannot be used
     both = d.select((d.label >= 1) | np.isin(np.arange(len(d)), np.flatnonzero(
         d.label == LABEL_ROT)[z > centre + 0.5 * radius]))

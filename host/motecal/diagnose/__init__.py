@@ -1,5 +1,5 @@
 """Model discrepancy: what the simulation gets wrong, the cause, the extended
-model and its gain (``motecal diagnose``; see docs/readme/diagnosis.md).
+model and its gain (``motecal diagnose``; see the README's section "Diagnosis").
 
 * ``prepare``   -- per sensor: rows, still segments (poses), time blocks, noise;
 * ``fitting``   -- nested models (calib's magnitude models + simulator terms),

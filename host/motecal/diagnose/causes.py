@@ -1,8 +1,8 @@
 """The documented vocabulary of causes: what each id means, which sensors it
 applies to, the simulator term it becomes, the evidence the diagnosis needs
 for it, and the smallest size the tests and the bench require it to find
-(``threshold``: planted above this, it is named in >= 95 % of cases; see
-``docs/readme/diagnosis.md`` and ``bench/bench_diagnose.py``).
+(``threshold``: planted above this, it is named in >= 95 % of cases; see the
+README's section "Diagnosis" and ``bench/bench_diagnose.py``).
 
 Detectors live in ``screens`` (raw readings) and ``structure`` (nested
 fits); this module only describes and words the findings.

@@ -69,6 +69,26 @@ def test_paper_angles_are_a_reparametrisation_rank_6_of_9():
     assert np.allclose(A, A2) and np.allclose(c, c2)
 
 
+def test_angles_at_their_optimum_of_zero_add_no_rank():
+    """At angles of 0 (where a fit that needs longer axes leaves them) their
+    columns are sin(angle) ~ rounding: no rank, however the other columns
+    look.  Normalising such columns used to report 2 of 3 for angles alone."""
+    for groups, want in ((("angles",), 0), (("offsets", "angles"), 3)):
+        m = make_model("accel", "paper", groups)
+        th = m.default.copy()
+        th[-3:] = [-3.1e-8, 1.7e-7, 0.0]                  # what LM leaves of 0
+        ident = m.identifiability(th, U)
+        assert ident.rank == want, (groups, ident.singular)
+        assert not ident.identifiable[-3:].any()
+        assert ident.identifiable[:want].all()
+        th[-3:] = [0.2, 0.1, -0.1]                        # real angles: a_zy, and cos*cos
+        assert m.identifiability(th, U).rank == want + 2
+    # a column that is small only because its parameter's unit is large counts
+    J = np.column_stack([U[:, 0], 1e-7 * U[:, 1]])
+    assert analyse(J, ["a", "b"]).rank == 1
+    assert analyse(J, ["a", "b"], scale=[1.0, 1e3]).rank == 2
+
+
 def test_offsets_and_scales_and_full_are_identifiable():
     for fam, groups in (("paper", ("offsets", "scales")), ("full", None)):
         m = make_model("accel", fam, groups)

@@ -16,7 +16,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from . import ga as _ga
-from .identify import Identifiability, analyse, independent_columns
+from .identify import Identifiability, independent_columns
 from .models import MagnitudeModel
 
 MAX_SWEEP_POINTS = 250      # surrogate size for unlabelled (rotation) data
@@ -173,8 +173,7 @@ def ga_optimize(model: MagnitudeModel, u, label=None, *, seed=None,
 def finish(model, theta, u, **kw) -> FitResult:
     """Objective, standard deviations and identifiability at the optimum."""
     r = model.residuals(theta, u)
-    J = model.jacobian(theta, u)
-    ident = analyse(J, model.names)
+    ident = model.identifiability(theta, u)
     n = len(u)
     dof = max(1, n - ident.rank)
     sigma2 = float(r @ r) / dof

@@ -1,12 +1,18 @@
 """Identifiability: which parameters the data and the fitness can determine.
 
 Computed numerically from the Jacobian of the residuals at the optimum (never
-assumed): the columns are normalised, the rank is the number of singular
-values above ``RANK_RTOL`` times the largest, and a parameter is *not
-identifiable* when its unit vector has a component in the Jacobian's null
-space (it can be traded against other parameters without changing any
-residual).  For the paper model with angles this finds rank 6 of 9: the
-angles only multiply the scales.
+assumed).  First, a column whose parameter, moved by its typical size
+(``scale``: the half-width of its a-priori range), changes the residuals by
+less than ``NULL_EFFECT`` of the residual's own unit (rms; ``unit``: 1 g, the
+field) is no column at all: the paper's angles at an optimum of 0 have a
+column of sin(angle) ~ 1e-8 that is rounding, not information, and
+normalising it would turn that noise into rank.  The other columns are
+normalised, the rank is the number of singular values above ``RANK_RTOL``
+times the largest, and a parameter is *not identifiable* when its unit
+vector has a component in the Jacobian's null space (it can be traded
+against other parameters, or moved, without changing any residual).  For
+the paper model with angles this finds rank 6 of 9: the angles only
+multiply the scales.
 
 Standard deviations use ``sigma^2 (J^T J)^+``; for identifiable parameters
 this is the same for every generalised inverse, for the others it is
@@ -25,6 +31,7 @@ import numpy as np
 
 RANK_RTOL = 1e-9
 NULL_TOL = 1e-6
+NULL_EFFECT = 1e-6        # rms residual change (in ``unit``) of a parameter moved by ``scale``
 
 
 @dataclass
@@ -60,12 +67,18 @@ class Identifiability:
                 f"{', '.join(self.not_identifiable)} (any value in the null space fits equally)")
 
 
-def analyse(J: np.ndarray, names) -> Identifiability:
+def analyse(J: np.ndarray, names, scale=None, unit: float = 1.0) -> Identifiability:
+    """Rank, identifiable parameters and (J^T J)^+ of the Jacobian ``J`` (n, d);
+    ``scale`` (d,) is each parameter's typical size (default 1) and ``unit``
+    the residual's (see the module doc)."""
     J = np.asarray(J, float)
-    d = J.shape[1]
+    n, d = J.shape
     norms = np.linalg.norm(J, axis=0)
-    scale = np.where(norms > 0, norms, 1.0)
-    Js = J / scale
+    typical = np.ones(d) if scale is None else np.broadcast_to(np.asarray(scale, float), (d,))
+    effect = norms * typical / np.sqrt(max(n, 1))
+    live = (norms > 0) & (effect > NULL_EFFECT * abs(unit))
+    scale = np.where(live, norms, 1.0)
+    Js = np.where(live, J, 0.0) / scale
     if Js.shape[0] > d:                      # same singular values, d x d work
         Js = np.linalg.qr(Js, mode="r")
     _, s, Vt = np.linalg.svd(Js, full_matrices=True)

@@ -193,6 +193,15 @@ class MagnitudeModel:
         groups can represent the map."""
         raise NotImplementedError
 
+    def identifiability(self, theta, u):
+        """``identify.analyse`` of the Jacobian at theta on samples u, each
+        parameter at the scale of its a-priori range, residuals in units of
+        the target magnitude."""
+        from .identify import analyse
+        _, _, H = self.affine(np.asarray(theta, float))
+        return analyse(self.jacobian(theta, u), self.names, scale=0.5 * (self.hi - self.lo),
+                       unit=float(H))
+
     # -- residuals --------------------------------------------------------------
     def residuals(self, theta, u):
         """|A u + c| - H for samples u (n, 3): shape (n,)."""

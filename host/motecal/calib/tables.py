@@ -31,7 +31,6 @@ from ..session import SessionData
 from . import fit as _fit
 from . import gyro as _gyro
 from .board import mag_data_sets
-from .identify import analyse
 from .models import PARAM_GROUPS, make_model
 
 # every non-empty combination of the paper's parameter groups
@@ -50,7 +49,7 @@ def _mag_stats(model, theta, u):
 def _fit_row(mdl, u, label, seed):
     """GA + polish; (error, min, max, H, rank) at the optimum."""
     s = _fit.ga_optimize(mdl, u, label, seed=seed)
-    rank = analyse(mdl.jacobian(s.theta, u), mdl.names).rank
+    rank = mdl.identifiability(s.theta, u).rank
     return _mag_stats(mdl, s.theta, u) + (rank,)
 
 

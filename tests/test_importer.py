@@ -3,6 +3,7 @@ clipping), the project CSV round trip, broken files, and ``motecal import``."""
 import re
 import shutil
 import struct
+import warnings
 
 import numpy as np
 import pytest
@@ -557,3 +558,21 @@ def test_recordings_shorter_than_the_stillness_window_import(tmp_path, capsys):
         code, out, err = _motecal(capsys, "import", path, "--db", db, "--session", name)
         assert code == 0 and err == "", err
         assert f"{rows} rows" in out and "shorter than the stillness window (0.4 s)" in out
+
+
+def test_random_bytes_float_file_is_one_line(tmp_path, capsys):
+    """A signalling NaN among the bytes used to print numpy's RuntimeWarning
+    ("invalid value encountered in cast") before the error line."""
+    snan = bytes.fromhex("7f800001")
+    rng = np.random.default_rng(5)
+    body = b"".join(snan + rng.bytes(8) for _ in range(100))          # 1200 bytes
+    f = tmp_path / "rnd.float"
+    f.write_bytes(body)
+    for extra in ([], ["--format", "razor-float"]):
+        with warnings.catch_warnings(record=True) as caught:   # shown on stderr outside pytest
+            warnings.simplefilter("always")
+            code, out, err = _motecal(capsys, "import", f, "--db", tmp_path / "r.db",
+                                      "--session", "x", *extra)
+        assert not caught, [str(w.message) for w in caught]
+        assert code == 2 and out == ""
+        assert err.count("\n") == 1 and err.startswith(f"motecal: error: {f}"), err

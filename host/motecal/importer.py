@@ -536,6 +536,13 @@ def read_razor_text(paths, chip=None, kind="auto") -> SessionData:
 
 # ------------------------------------------------------------------ Razor float (magnetometer)
 
+def _be_float32(buf: bytes) -> np.ndarray:
+    """Big-endian float32 values of ``buf`` as float64; any bit pattern (a
+    signalling NaN in random bytes warns when cast) without a warning."""
+    with np.errstate(invalid="ignore"):
+        return np.frombuffer(buf, ">f4").astype(np.float64)
+
+
 def _float_values(path) -> np.ndarray:
     buf = _read_bytes(path)
     if len(buf) == 0:
@@ -545,7 +552,7 @@ def _float_values(path) -> np.ndarray:
         raise UserError(f"{path}: sample {whole + 1} (byte {whole * 12}): truncated float file, "
                         f"{len(buf)} bytes is not a whole number of 12-byte samples "
                         f"(3 big-endian float32)")
-    x = np.frombuffer(buf, ">f4").astype(np.float64).reshape(-1, 3)
+    x = _be_float32(buf).reshape(-1, 3)
     with np.errstate(invalid="ignore"):
         bad = ~np.isfinite(x).all(axis=1) | (np.abs(x) > 32768).any(axis=1) \
             | (x != np.round(x)).any(axis=1)
@@ -746,7 +753,7 @@ def detect_format(path) -> str:
         raise UserError(f"{p}: line 1: unknown format (no data line found)")
     # binary: big-endian float32 triplets of integer counts?
     n = min(len(head) // 4, 300)
-    x = np.frombuffer(head[:n * 4], ">f4").astype(np.float64)
+    x = _be_float32(head[:n * 4])
     if n and np.isfinite(x).all() and (np.abs(x) < 1e5).all() and (x == np.round(x)).mean() > 0.9:
         return "razor-float"
     raise UserError(f"{p}: unknown binary format (not big-endian float32 counts)")

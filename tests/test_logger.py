@@ -402,6 +402,28 @@ def test_a_frame_cut_short_when_the_line_ends_is_not_a_crc_error(tmp_path, capsy
         capsys.readouterr().out
 
 
+def test_a_finished_guided_log_stops_within_the_drain_not_at_the_end_of_the_line(tmp_path):
+    """After the last pose the logger reads on for DRAIN_S of sample time, not
+    3 s of wall time: a line read faster than real time (a simulator served
+    as fast as it is read, a recording) is not swallowed to its end."""
+    from motecal.logger import DRAIN_S, PlainDisplay
+    raw = pose_trajectory(n_poses=3, seed=13)[0]
+    tail = np.tile(raw[-1], (30000, 1))                 # the board stays where it is
+    frames, _ = sample_frames({1: np.vstack([raw, tail])}, seq0={1: 0})
+    rec = tmp_path / "rec.bin"
+    rec.write_bytes(b"".join(frames))
+    with open_store(str(tmp_path / "run.db"), create=True) as st:
+        w = st.open_session("r", kind="static80", meta={"source": str(rec)})
+        lg = Logger(S.parse_port(str(rec)), w, LinkTracker(), display=PlainDisplay(),
+                    guide=GuidedFlow("static80", options=dict(poses=3)))
+        lg.run()
+        d = st.load_session("r")
+    assert lg.stop_reason == "guided flow done" and d.poses() == [1, 2, 3]
+    last_pose = int(d.seq[d.label == 3].max())
+    per_read = S.READ_SIZE // len(frames[0]) * 5            # records in one read
+    assert last_pose + DRAIN_S * 125 <= d.seq.max() < last_pose + 2 * per_read < len(raw) + 20000
+
+
 def test_push_many_decides_like_push_row_by_row():
     from motecal.still import StillDetector
     rng = np.random.default_rng(12)

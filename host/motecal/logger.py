@@ -45,7 +45,13 @@ _REC_BYTES = np.arange(_REC)
 REORDER_WINDOW = 2048        # samples back: further is a restart (or corruption)
 MAX_JUMP = 1000              # samples ahead (8 s): further is held until confirmed
 CONFIRM_GAP = 64             # the next frame may follow a suspect one this far on
-DRAIN_IDLE_S = 0.3           # after a guided flow is done: stop once the line is this quiet
+# After a guided flow is done the logger reads on until the followed motes'
+# samples of DRAIN_S more (sample time, not wall time: the same when a
+# simulator is read as fast as it goes) have arrived -- every mote's samples
+# still in flight through the BaseStation then have too -- or the line is
+# quiet for DRAIN_IDLE_S, or DRAIN_MAX_S have passed.
+DRAIN_S = 0.5
+DRAIN_IDLE_S = 0.3
 DRAIN_MAX_S = 3.0
 BACKOFF_MIN_S, BACKOFF_MAX_S = 0.1, 2.0
 
@@ -498,7 +504,12 @@ class Logger:
                 if self.guide is not None and self.guide.done:
                     if drain_since is None:
                         drain_since = now
-                    if now - last_data >= DRAIN_IDLE_S or now - drain_since >= DRAIN_MAX_S:
+                        more = int(round(DRAIN_S * P.NINEDOF_RATE_HZ))
+                        drain_to = {m: self.tracker.mote(m).end + more
+                                    for m in self.guide.captures}
+                    drained = all(self.tracker.mote(m).end >= e for m, e in drain_to.items())
+                    if drained or now - last_data >= DRAIN_IDLE_S \
+                            or now - drain_since >= DRAIN_MAX_S:
                         self.request_stop("guided flow done")
         finally:
             if src is not None:

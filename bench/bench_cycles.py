@@ -77,8 +77,8 @@ def main() -> int:
         return 0
     asm = measure()
     c = measure(["NINEDOF_PORTABLE_KERNEL"])
-    per_sample = (asm["board_record"] + asm["batch_add"] + asm["batch_pack5"] / BATCH
-                  + asm["clock_period"] + asm["clock_update"] / 125)
+    per_sample = (asm["board_record"] + asm["align_push"] + asm["batch_add"]
+                  + asm["batch_pack5"] / BATCH + asm["clock_period"] + asm["clock_update"] / 125)
     rows = [
         ("correction, 9 axes, one record (ninedof_correct)", asm["correct_9axes"], "<= 1500"),
         ("  same, portable C kernel (__mulhisi3)", c["correct_9axes"], "reference"),
@@ -87,11 +87,12 @@ def main() -> int:
         ("correction, shift 13 set (rescaled to Q14)", asm["correct_9axes_q13"], "rare path"),
         ("no sensor corrected (raw copy)", asm["correct_raw"], ""),
         ("chip bytes -> record (3 chips)", asm["board_record"], ""),
+        ("one instant per record (align the magnetometer)", asm["align_push"], ""),
         ("batch: add one record", asm["batch_add"], ""),
         ("batch: correct + pack 5 records", asm["batch_pack5"], ""),
         ("sampling clock: one period", asm["clock_period"], ""),
         ("sampling clock: loop update (once a second)", asm["clock_update"], ""),
-        ("per-sample total (record, add, 1/5 pack, clock)", per_sample, ""),
+        ("per-sample total (record, align, add, 1/5 pack, clock)", per_sample, ""),
         ("upload: one fragment", asm["calrx_fragment"], ""),
         ("upload: commit (CRC + decode + validate)", asm["calrx_commit"], ""),
         ("CRC-16 of the 102-byte set", asm["crc16_set"], ""),

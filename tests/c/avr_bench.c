@@ -34,6 +34,8 @@ static ninedof_batch_t batch;
 static ninedof_samples_msg_t msg;
 static ninedof_eewriter_t ew;
 static ninedof_clock_t clk;
+static ninedof_align_t align;
+static uint16_t align_seq;
 static int16_t raw[NINEDOF_BATCH * 9], out[NINEDOF_BATCH * 9];
 static uint8_t bytes[3][6];
 static uint8_t reply[32], rtype;
@@ -91,6 +93,9 @@ int main(void)
   make_cal();
 
   MEASURE("board_record", ninedof_board_record(bytes[0], bytes[1], bytes[2], out));
+  ninedof_align_init(&align);
+  ninedof_align_push(&align, 0, raw, out, &align_seq);
+  MEASURE("align_push", (void)ninedof_align_push(&align, 1, raw, out, &align_seq));
 
   /* upload: fragments, commit (CRC + decode + validate), then batch with it */
   ninedof_calrx_init(&rx, 1);

@@ -1,5 +1,5 @@
 """The documentation's references resolve: documents named in README.md and in
-the diagnosis package exist (docs/readme/*.md were merged into README.md),
+the host package exist (docs/readme/*.md were merged into README.md),
 and every in-page link of README.md names one of its headings."""
 import re
 from pathlib import Path
@@ -13,7 +13,7 @@ def _slug(heading: str) -> str:
 
 
 def test_documents_named_exist():
-    files = [REPO / "README.md"] + sorted((REPO / "host" / "motecal" / "diagnose").glob("*.py"))
+    files = [REPO / "README.md"] + sorted((REPO / "host" / "motecal").rglob("*.py"))
     missing = [(f.relative_to(REPO), ref) for f in files
                for ref in re.findall(r"docs/[\w./-]+\.md", f.read_text())
                if not (REPO / ref).is_file()]

@@ -1,0 +1,78 @@
+"""The lean TWI master's state machine (tinyos/ninedof_twi.c, build option
+NINEDOF_LEAN_I2C=1) against a model of the ATmega1281 TWI and one slave
+(tests/c/twi_tests.c), built with gcc on the host and with avr-gcc in
+simavr: every path's bus events and outcome, the same on both."""
+import subprocess
+from concurrent.futures import ThreadPoolExecutor
+
+import pytest
+
+import avrsim
+
+SOURCES = [avrsim.CSRC / "twi_tests.c", avrsim.TINYOS / "ninedof_twi.c"]
+
+# scenario -> (outcome, bus events); see the legend in twi_tests.c
+EXPECTED = {
+    "chipread": (0, "S Aa6a W02a Sr Aa7a Raea Rb5a Rbca Rc3a Rcaa Rd1n P"),
+    "write": (0, "S A3ca W03a W5aa P S A3ca W02a W01a Sr A3da R5aa Rbca Rc3a Rcaa Rd1a Rd8n P"),
+    "ackend": (0, "S Ad0a W00a Sr Ad1a Ra0a Ra7a Raea Rb5a Rbcn P S Ad1a Rc3n P"),
+    "wcont": (0, "S Aa6a W04a W11a W22a P S Aa6a W09a P"),
+    "badargs": (5, "S Aa6a W01a P"),
+    "addrnack": (1, "S Aa6n P S Aa6a W32a Sr Aa7n P"),
+    "datanack": (2, "S Ad0a W05a W66n P"),
+    "arb": (3, "S L - S Ad1a Ra0a L -"),
+    "buserr": (4, "S Aa6a E r"),
+}
+
+
+@pytest.fixture(scope="module")
+def outputs(tmp_path_factory):
+    if avrsim.missing_tools():
+        pytest.fail(f"missing {avrsim.missing_tools()}: run `make sysdeps`")
+    d = tmp_path_factory.mktemp("twi")
+
+    def host():
+        exe = d / "twi_host"
+        subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror",
+                        f"-I{avrsim.TINYOS}"] + [str(s) for s in SOURCES] + ["-o", str(exe)],
+                       check=True)
+        return subprocess.run([str(exe)], capture_output=True, text=True).stdout.replace("\n", "")
+
+    def avr():
+        return avrsim.run(avrsim.build(SOURCES, d / "twi.elf"))
+
+    with ThreadPoolExecutor(2) as pool:
+        jobs = pool.submit(host), pool.submit(avr)
+        return tuple(j.result() for j in jobs)
+
+
+def _parse(text):
+    assert "END" in text, text[-300:]
+    tokens = [t for t in text[:text.index("END")].split(";") if t]
+    summary = tokens.pop()
+    scen = {}
+    for t in tokens:
+        assert t.startswith("T"), t                  # a FAIL line would land here
+        name, outcome, events = t[1:].split(":")
+        scen[name] = (int(outcome), events)
+    return scen, summary
+
+
+def test_every_path_on_host_and_avr(outputs):
+    for text in outputs:
+        scen, summary = _parse(text)
+        n = int(summary.split()[1])
+        assert summary == f"CHECKS {n} FAILED 0" and n >= 100
+        assert scen == EXPECTED
+
+
+def test_host_and_avr_agree(outputs):
+    assert _parse(outputs[0]) == _parse(outputs[1])
+
+
+def test_error_paths_end_the_transfer():
+    # every failed operation leaves the bus free: a STOP (P), the bus given
+    # up after lost arbitration (-), or the TWI recovered (r)
+    for name, (outcome, events) in EXPECTED.items():
+        if outcome:
+            assert events.split()[-1] in ("P", "-", "r"), name

@@ -1,0 +1,146 @@
+/*
+ * ninedof_twi.h -- a lean interrupt-driven TWI (I2C) master for the
+ * ATmega1281: the state machine of one I2CPacket operation, in plain C.
+ *
+ * Used by NineDofTwiMasterP (build option NINEDOF_LEAN_I2C=1) in place of
+ * TinyOS's Atm128I2CMasterPacketP.  The module owns the TWI interrupt and
+ * does only this per interrupt:
+ *
+ *     cmd = ninedof_twi_step(&twi, TWSR & 0xF8, TWDR);
+ *     TWDR = twi.out;                      (harmless when nothing is sent)
+ *     TWCR = cmd;
+ *     if (twi.state == NINEDOF_TWI_DONE) signal the outcome
+ *
+ * ninedof_twi_begin() starts an operation the same way and returns the first
+ * TWCR command.  Nothing here touches a register, so the host tests drive it
+ * with a model of the TWI's status codes (tests/c/twi_tests.c).
+ *
+ * Flags, as TinyOS's I2CPacket defines them (tos/types/I2C.h):
+ *   I2C_START    a START (or a repeated START, if the previous operation
+ *                ended without STOP) and the address byte first
+ *   I2C_STOP     a STOP after the last byte
+ *   I2C_ACK_END  (read) ACK the last byte, so a following read without
+ *                START continues the transfer; otherwise it is NACKed
+ * Without I2C_START the operation continues the transfer the previous one
+ * left open (no STOP).  An operation without I2C_STOP leaves SCL held low
+ * (TWINT not cleared) until the next operation's command.
+ *
+ * Outcomes (NINEDOF_TWI_*), mapped to error_t by the nesC module:
+ *   OK          SUCCESS
+ *   ADDR_NACK   no ACK to the address byte: STOP sent (ENOACK; the stock
+ *               master reports EOFF and sends no STOP until release)
+ *   DATA_NACK   a written byte was not ACKed: STOP sent (FAIL; the stock
+ *               master ignores it and writes on)
+ *   ARB_LOST    arbitration lost: the bus is left to the other master (FAIL)
+ *   BUS_ERROR   any other status (a bus error, 0x00): the TWI stops itself
+ *               (TWSTO without a STOP on the bus, datasheet) (FAIL)
+ *   BAD_ARGS    (begin only) nothing to do: no START, no data, no STOP (FAIL)
+ *
+ * @author motecal
+ */
+#ifndef NINEDOF_TWI_H
+#define NINEDOF_TWI_H
+
+#include <stdint.h>
+
+/* Storage class of the two functions: empty for the host and simavr tests,
+ * `static inline` in the nesC build so the interrupt handler has no call. */
+#ifndef NINEDOF_TWI_FN
+#define NINEDOF_TWI_FN
+#endif
+
+/* TWCR bits (ATmega1281 datasheet, 2-wire serial interface) */
+enum {
+  NINEDOF_TWINT = 0x80,
+  NINEDOF_TWEA = 0x40,
+  NINEDOF_TWSTA = 0x20,
+  NINEDOF_TWSTO = 0x10,
+  NINEDOF_TWEN = 0x04,
+  NINEDOF_TWIE = 0x01,
+};
+
+/* TWSR status codes (prescaler bits masked off), master modes */
+enum {
+  NINEDOF_TW_BUS_ERROR = 0x00,
+  NINEDOF_TW_START = 0x08,
+  NINEDOF_TW_REP_START = 0x10,
+  NINEDOF_TW_MT_SLA_ACK = 0x18,
+  NINEDOF_TW_MT_SLA_NACK = 0x20,
+  NINEDOF_TW_MT_DATA_ACK = 0x28,
+  NINEDOF_TW_MT_DATA_NACK = 0x30,
+  NINEDOF_TW_ARB_LOST = 0x38,
+  NINEDOF_TW_MR_SLA_ACK = 0x40,
+  NINEDOF_TW_MR_SLA_NACK = 0x48,
+  NINEDOF_TW_MR_DATA_ACK = 0x50,
+  NINEDOF_TW_MR_DATA_NACK = 0x58,
+};
+
+/* I2CPacket flags (the values of TinyOS's tos/types/I2C.h) */
+enum {
+  NINEDOF_I2C_START = 0x01,
+  NINEDOF_I2C_STOP = 0x02,
+  NINEDOF_I2C_ACK_END = 0x04,
+};
+
+/* Operation states */
+enum {
+  NINEDOF_TWI_IDLE = 0,    /* no operation (begin() allowed) */
+  NINEDOF_TWI_DONE = 1,    /* the operation has ended: outcome in .result */
+  NINEDOF_TWI_START = 2,   /* START / repeated START requested */
+  NINEDOF_TWI_ADDR = 3,    /* address byte sent */
+  NINEDOF_TWI_TX = 4,      /* data byte sent */
+  NINEDOF_TWI_RX = 5,      /* data byte being received */
+};
+
+/* Outcomes */
+enum {
+  NINEDOF_TWI_OK = 0,
+  NINEDOF_TWI_ADDR_NACK = 1,
+  NINEDOF_TWI_DATA_NACK = 2,
+  NINEDOF_TWI_ARB_LOST = 3,
+  NINEDOF_TWI_BUS_ERROR = 4,
+  NINEDOF_TWI_BAD_ARGS = 5,
+};
+
+/* The commands (TWCR values) the machine returns */
+enum {
+  NINEDOF_TWCR_IDLE = NINEDOF_TWEN,                                      /* on, SCL held if TWINT set */
+  NINEDOF_TWCR_START = NINEDOF_TWINT | NINEDOF_TWSTA | NINEDOF_TWEN | NINEDOF_TWIE,
+  NINEDOF_TWCR_NEXT = NINEDOF_TWINT | NINEDOF_TWEN | NINEDOF_TWIE,       /* send TWDR / receive + NACK */
+  NINEDOF_TWCR_NEXT_ACK = NINEDOF_TWINT | NINEDOF_TWEA | NINEDOF_TWEN | NINEDOF_TWIE,
+  NINEDOF_TWCR_STOP = NINEDOF_TWINT | NINEDOF_TWSTO | NINEDOF_TWEN,      /* no interrupt follows */
+  NINEDOF_TWCR_RELEASE = NINEDOF_TWINT | NINEDOF_TWEN,                  /* after arbitration lost */
+};
+
+typedef struct {
+  uint8_t *buf;       /* data written or read */
+  uint8_t len;        /* bytes in buf */
+  uint8_t idx;        /* bytes done */
+  uint8_t sla;        /* address byte: addr << 1 | R/W */
+  uint8_t flags;      /* I2CPacket flags of the operation */
+  uint8_t state;      /* NINEDOF_TWI_* state */
+  uint8_t result;     /* outcome once state == DONE */
+  uint8_t out;        /* the byte for TWDR with the returned command */
+  uint8_t open;       /* 1: a transfer is open (no STOP yet): SCL is held */
+} ninedof_twi_t;
+
+/* Power-up: no operation, no transfer open. */
+void ninedof_twi_init(ninedof_twi_t *t);
+
+/* Start one operation (read = 1: master receiver).  Returns the first TWCR
+ * command; .out holds the byte for TWDR.  If the operation ends at once
+ * (no START and no data: only a STOP, or nothing at all), state is DONE and
+ * the command is the STOP (or NINEDOF_TWCR_IDLE).  The caller makes sure
+ * state is IDLE or DONE before. */
+NINEDOF_TWI_FN uint8_t ninedof_twi_begin(ninedof_twi_t *t, uint8_t read, uint8_t flags,
+                                         uint8_t addr, uint8_t len, uint8_t *buf);
+
+/* One TWI interrupt: status = TWSR & 0xF8, data = TWDR.  Returns the next
+ * TWCR command (.out for TWDR); state DONE when the operation has ended. */
+NINEDOF_TWI_FN uint8_t ninedof_twi_step(ninedof_twi_t *t, uint8_t status, uint8_t data);
+
+/* The bus is released (Resource.release): the command that ends a transfer
+ * left open (STOP), or 0 when there is nothing to end. */
+uint8_t ninedof_twi_release(ninedof_twi_t *t);
+
+#endif

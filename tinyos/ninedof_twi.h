@@ -9,7 +9,8 @@
  *     cmd = ninedof_twi_step(&twi, TWSR & 0xF8, TWDR);
  *     TWDR = twi.out;                      (harmless when nothing is sent)
  *     TWCR = cmd;
- *     if (twi.state == NINEDOF_TWI_DONE) signal the outcome
+ *     if (twi.state == NINEDOF_TWI_DONE) signal the outcome, through
+ *         NINEDOF_TWI_CALL_SAVING (below)
  *
  * ninedof_twi_begin() starts an operation the same way and returns the first
  * TWCR command.  Nothing here touches a register, so the host tests drive it
@@ -28,7 +29,7 @@
  * Outcomes (NINEDOF_TWI_*), mapped to error_t by the nesC module:
  *   OK          SUCCESS
  *   ADDR_NACK   no ACK to the address byte: STOP sent (ENOACK; the stock
- *               master reports EOFF and sends no STOP until release)
+ *               master reports EOFF and resets the TWI without a STOP)
  *   DATA_NACK   a written byte was not ACKed: STOP sent (FAIL; the stock
  *               master ignores it and writes on)
  *   ARB_LOST    arbitration lost: the bus is left to the other master (FAIL)
@@ -123,6 +124,28 @@ typedef struct {
   uint8_t out;        /* the byte for TWDR with the returned command */
   uint8_t open;       /* 1: a transfer is open (no STOP yet): SCL is held */
 } ninedof_twi_t;
+
+#ifdef __AVR__
+/* NINEDOF_TWI_CALL_SAVING(fn): call void fn(void) from an interrupt handler
+ * that has no other call.  avr-gcc's handler prologue saves only the
+ * registers the handler itself uses, but any call in it makes the prologue
+ * save every call-clobbered register first (12 pushes, 24 cycles before
+ * the TWCR command).  The end of an operation (readDone / writeDone, and
+ * the client's next command) goes through this instead: the registers the
+ * avr-gcc ABI lets fn clobber (r0, r18-r27, r30, r31) and RAMPZ are saved
+ * around the call, after TWCR is written.  r1 is zero in a handler. */
+#define NINEDOF_TWI_CALL_SAVING(fn)                                     \
+  __asm__ __volatile__(                                                 \
+    "push r0\n\tin r0, 0x3b\n\tpush r0\n\t"                              \
+    "push r18\n\tpush r19\n\tpush r20\n\tpush r21\n\tpush r22\n\t"       \
+    "push r23\n\tpush r24\n\tpush r25\n\tpush r26\n\tpush r27\n\t"       \
+    "push r30\n\tpush r31\n\t"                                          \
+    "call %x0\n\t"                                                      \
+    "pop r31\n\tpop r30\n\tpop r27\n\tpop r26\n\tpop r25\n\tpop r24\n\t"  \
+    "pop r23\n\tpop r22\n\tpop r21\n\tpop r20\n\tpop r19\n\tpop r18\n\t"  \
+    "pop r0\n\tout 0x3b, r0\n\tpop r0"                                 \
+    : : "i" (fn) : "memory")
+#endif
 
 /* Power-up: no operation, no transfer open. */
 void ninedof_twi_init(ninedof_twi_t *t);

@@ -1,8 +1,13 @@
 /*
  * HplNineDofI2CC -- binds a 9DOF chip (or the whole board, NineDofBoardC)
- * to the iris I2C master: a client of Atm128I2CMasterC (arbitrated, powered
- * on demand) whose Resource runs the bus in fast mode, 364 kHz (NineDofI2CSpeedP).  The only platform-specific part of
- * the board drivers, in the manner of tos/platforms/ucmini/chips/sht21.
+ * to the iris I2C master, in fast mode at 364 kHz (NINEDOF_I2C_HZ).  The
+ * only platform-specific part of the board drivers, in the manner of
+ * tos/platforms/ucmini/chips/sht21.
+ *
+ * Default: a client of TinyOS's Atm128I2CMasterC (arbitrated, powered on
+ * demand) whose Resource sets the bit rate on each grant (NineDofI2CSpeedP).
+ * Built with NINEDOF_LEAN_I2C=1: a client of the lean TWI master
+ * (NineDofTwiMasterC, state machine in ninedof_twi.c), same interfaces.
  *
  * @author motecal
  */
@@ -13,9 +18,16 @@ generic configuration HplNineDofI2CC()
 }
 implementation
 {
+#if defined(NINEDOF_LEAN_I2C) && NINEDOF_LEAN_I2C
+  components new NineDofTwiMasterC() as I2C;
+
+  Resource = I2C;
+  I2CPacket = I2C;
+#else
   components new Atm128I2CMasterC() as I2C, new NineDofI2CSpeedP() as Speed;
 
   Resource = Speed;
   Speed.SubResource -> I2C;
   I2CPacket = I2C;
+#endif
 }

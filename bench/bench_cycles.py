@@ -37,36 +37,44 @@ def measure(defines=()) -> dict:
 
 
 # I2C time per sample (NineDofBoardP.read() to readDone): the bits on the
-# wire at 400 kHz plus the CPU time while SCL is held low or the bus idles
-# between transfers.  The CPU figures per event were measured by running the
-# nesC build for iris (TinyOS's stock Atm128I2CMasterC, this repository's
-# board components) in simavr 1.8 with register-level models of the three
-# chips: 1474 us per sample there (1524 us before the board held the bus for
-# the whole sample and the HMC5883L trigger joined its read).  They are
-# constants here because that run needs nesC, TinyOS and a newer simavr
-# than Debian's, which CI does not have.
+# wire plus the CPU time while SCL is held low or the bus idles between
+# transfers.  The CPU figures per event were measured by running the nesC
+# build for iris (a timing app on NineDofBoardC, this repository's board and
+# chip components) in simavr built from its current source (TWI timing
+# patched to count the START and the address byte) with register-level
+# models of the three chips, once with TinyOS's stock Atm128I2CMasterC and
+# once with the lean master (NINEDOF_LEAN_I2C=1: NineDofTwiMasterC,
+# tinyos/ninedof_twi.c), same run, same chips: 1537.0 us and 1390.5 us per
+# sample there.  They are constants here because that run needs nesC,
+# TinyOS and a newer simavr than Debian's, which CI does not have.
 SCL_HZ = 8_000_000 // (16 + 2 * 3)     # TWBR = 3 (NINEDOF_I2C_HZ 380 kHz limit): 363636 Hz
 TRANSFERS = [   # (what goes on the bus, bytes incl. address bytes, START + Sr)
     ("ADXL345   S 53w 32 Sr 53r d*6 P", 9, 2),
     ("ITG-3200  S 68w 1D Sr 68r d*6 P", 9, 2),
     ("HMC5883L  S 1Ew 02 01 Sr 1Er d*6 P (trigger + read)", 10, 2),
 ]
-CPU_EVENTS = [  # (event, count per sample, CPU cycles each)
-    ("stock TWI interrupt: START/Sr done -> address byte", 6, 207),
-    ("stock TWI interrupt: byte done -> next byte or STOP", 25, 117),
-    ("pointer written -> repeated START (writeDone, chip, read())", 3, 261),
-    ("STOP -> next chip's START (readDone, board, chip, write())", 2, 499),
-    ("read() -> first START (one grant: arbiter, bus power, TWBR)", 1, 348),
-    ("last STOP -> readDone (release, bus power off)", 1, 314),
+EVENTS = [      # (event, count per sample)
+    ("TWI interrupt: START/Sr done -> address byte", 6),
+    ("TWI interrupt: byte done -> next byte or STOP", 25),
+    ("pointer written -> repeated START (writeDone, chip, read())", 3),
+    ("STOP -> next chip's START (readDone, board, chip, write())", 2),
+    ("read() -> first START (one grant: arbiter, bus power, TWBR)", 1),
+    ("last STOP -> readDone (STOP on release, power off, release)", 1),
 ]
+CPU_CYCLES = {  # master -> CPU cycles of each event above (mean over the run)
+    "stock Atm128I2CMasterC": (204, 117, 265, 311, 350, 696),
+    "lean NineDofTwiMasterC (NINEDOF_LEAN_I2C=1)": (181, 71, 290, 346, 294, 703),
+}
+MEASURED_US = {"stock Atm128I2CMasterC": 1537.0,
+               "lean NineDofTwiMasterC (NINEDOF_LEAN_I2C=1)": 1390.5}
 
 
-def i2c_model() -> tuple[float, float, list]:
-    """(wire us, total us, rows) for one sample."""
+def i2c_model(master: str) -> tuple[float, float, list]:
+    """(wire us, total us, rows) for one sample with the given master."""
     bit = 1e6 / SCL_HZ
     cyc = 1e6 / avrsim.F_CPU
     wire = sum(nb * 9 + ns for _, nb, ns in TRANSFERS) * bit
-    rows = [(name, n, c, n * c * cyc) for name, n, c in CPU_EVENTS]
+    rows = [(name, n, c, n * c * cyc) for (name, n), c in zip(EVENTS, CPU_CYCLES[master])]
     return wire, wire + sum(r[3] for r in rows), rows
 
 
@@ -104,18 +112,25 @@ def main() -> int:
     for name, cyc, goal in rows:
         print(f"{name:50s} {cyc:8.0f} {cyc / MHZ:8.1f}  {goal}")
     print()
-    print(f"I2C per sample at {SCL_HZ / 1000:.0f} kHz, stock TinyOS I2C master (CPU cycles per "
-          "event measured in simavr on the nesC build: see bench_cycles.py)")
-    wire, total, rows = i2c_model()
+    print(f"I2C per sample at {SCL_HZ / 1000:.0f} kHz (CPU cycles per event measured in simavr "
+          "on the nesC build, outside CI: see bench_cycles.py)")
     for name, nb, ns in TRANSFERS:
         print(f"  {name:60s} {(nb * 9 + ns) * 1e6 / SCL_HZ:6.1f} us on the wire")
-    print(f"  {'wire time, three transfers':60s} {wire:6.1f} us")
-    for name, n, c, us in rows:
-        print(f"  {name:60s} {us:6.1f} us  ({n} x {c} cycles)")
-    print(f"  {'all three sensors, read() to readDone':60s} {total:6.1f} us   goal <= 1200 us")
-    isr = sum(us for name, _, _, us in rows if name.startswith("stock"))
-    print(f"  of which the stock master's interrupts: {isr:.0f} us; wire + interrupts alone: "
-          f"{wire + isr:.0f} us")
+    for master in CPU_CYCLES:
+        wire, total, rows = i2c_model(master)
+        print(f" {master}")
+        print(f"  {'wire time, three transfers':60s} {wire:6.1f} us")
+        for name, n, c, us in rows:
+            print(f"  {name:60s} {us:6.1f} us  ({n} x {c} cycles)")
+        print(f"  {'all three sensors, read() to readDone':60s} {total:6.1f} us   goal <= 1200 us"
+              f"  (measured {MEASURED_US[master]:.1f} us)")
+        isr = sum(us for name, _, _, us in rows if name.startswith("TWI interrupt"))
+        print(f"  of which the interrupts: {isr:.0f} us; wire + interrupts alone: {wire + isr:.0f} us")
+    print("lean master's TWI handler alone, avr-gcc -Os in Debian's simavr (call + reti; "
+          "the interrupt itself takes 8): "
+          + ", ".join(f"{k[8:]} {asm[k]}" for k in ("twi_isr_start", "twi_isr_addr",
+                                                   "twi_isr_byte", "twi_isr_last"))
+          + " cycles")
     period = avrsim.F_CPU / 125
     print(f"per-sample work is {100 * per_sample / period:.1f}% of the 8 ms period "
           f"({period:.0f} cycles); commit status {asm['commit_status']} (0 = accepted)")

@@ -16,6 +16,31 @@
 
 static uint16_t overhead;
 
+/* The lean TWI master's interrupt handler (NineDofTwiMasterImplP, build
+ * option NINEDOF_LEAN_I2C=1) as the nesC build compiles it: the state
+ * machine inlined, the end of an operation called through
+ * NINEDOF_TWI_CALL_SAVING.  Debian's simavr has no working TWI, so the
+ * handler is called directly, on stand-ins for TWSR / TWDR / TWCR (data
+ * memory like them: the same two-cycle lds / sts). */
+#define NINEDOF_TWI_FN static inline
+#include "ninedof_twi.c"
+static ninedof_twi_t twi;
+static volatile uint8_t twsr, twdr, twcr, twi_done;
+static uint8_t twi_buf[6];
+
+static void twi_signal_done(void) { twi_done++; }
+
+ISR(TWI_vect)
+{
+  uint8_t cmd = ninedof_twi_step(&twi, twsr & 0xF8, twdr);
+  twdr = twi.out;
+  twcr = cmd;
+  if (twi.state == NINEDOF_TWI_DONE) {
+    twi.state = NINEDOF_TWI_IDLE;
+    NINEDOF_TWI_CALL_SAVING(twi_signal_done);
+  }
+}
+
 #define MEASURE(name, stmt)                                             \
   do {                                                                  \
     uint16_t t0_, t1_;                                                  \
@@ -150,6 +175,27 @@ int main(void)
       (void)ninedof_clock_next(&clk, (uint32_t)i * 1024 / 125);
   }
   MEASURE("clock_update", (void)ninedof_clock_next(&clk, 3 * 1024 - 5));
+
+  /* the TWI handler, called like the interrupt (call + reti: 8 cycles,
+   * where the hardware takes 5 + a 3-cycle jump): START done -> address,
+   * address ACKed, a byte read (ACK the next), the last byte (STOP: the end
+   * of the operation, with its call) */
+  ninedof_twi_init(&twi);
+  (void)ninedof_twi_begin(&twi, 1, NINEDOF_I2C_START | NINEDOF_I2C_STOP, 0x68, 6, twi_buf);
+  twsr = NINEDOF_TW_START;
+  MEASURE("twi_isr_start", TWI_vect());
+  twsr = NINEDOF_TW_MR_SLA_ACK;
+  MEASURE("twi_isr_addr", TWI_vect());
+  twsr = NINEDOF_TW_MR_DATA_ACK;
+  for (i = 0; i < 4; i++)
+    TWI_vect();
+  MEASURE("twi_isr_byte", TWI_vect());
+  twsr = NINEDOF_TW_MR_DATA_NACK;
+  MEASURE("twi_isr_last", TWI_vect());
+  cli();
+  out_s("twi_done ");
+  out_u16(twi_done);
+  out_c(';');
 
   out_s("END\n");
   out_end();

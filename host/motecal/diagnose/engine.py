@@ -519,7 +519,21 @@ def _structure_text(st: ST.Structure, r: np.ndarray) -> str:
         kurt = float(stats.kurtosis(r))
         if kurt > 3:
             parts.append(f"heavy tails (excess kurtosis {kurt:.1f}): outlier poses")
+            out = _outliers(st, z)
+            if out:
+                parts.append("largest: " + ", ".join(out))
     return "; ".join(parts) if parts else "none identified"
+
+
+def _outliers(st: ST.Structure, z: np.ndarray, most: int = 8) -> list[str]:
+    """The poses (or still stretches) whose residual is over 3x the rms,
+    largest first, named by pose label and time, for the user to look at."""
+    T, pose = st.points.get("T"), st.points.get("pose")
+    if T is None or len(z) != len(T):
+        return []
+    k = [i for i in np.argsort(-z) if z[i] > 3.0][:most]
+    return [(f"pose {pose[i]} " if pose is not None and pose[i] > 0 else "")
+            + f"at {T[i]:.1f} s ({z[i]:.1f}x)" for i in k]
 
 
 def _excess_finding(s, st: ST.Structure, o, sobs, structures, a_test, record, mot, force=None):

@@ -285,7 +285,9 @@ def magnitude_points(obs: SensorObs, regime: str, drop_rows: np.ndarray | None =
         T = segs.t[idx]
         var = obs.var_of_mean(segs.n[idx])
         fold = np.arange(len(idx)) % KFOLD
-        return {"X": X, "T": T, "var": var, "fold": fold, "group": idx,
+        pose = np.array([int(obs.label[segs.rows[i][0]]) if len(segs.rows[i]) else 0
+                         for i in idx], np.int64)
+        return {"X": X, "T": T, "var": var, "fold": fold, "group": idx, "pose": pose,
                 "n": segs.n[idx], "dropped": int((~keep).sum())}
     # sweep: every (non-overflow, non-clipped) reading, thinned
     ok = ~obs.overflow

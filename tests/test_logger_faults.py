@@ -263,7 +263,9 @@ def test_corrupted_bytes_never_make_corrupt_rows(tmp_path):
     assert stats["line"]["crc_errors"] > 1000
 
 
-def test_sigterm_ends_the_session_cleanly(tmp_path):
+@pytest.mark.parametrize("sig,word", [(signal.SIGTERM, "terminated"), (signal.SIGINT, "interrupted")],
+                         ids=["SIGTERM", "Ctrl-C"])
+def test_signal_ends_the_session_cleanly(tmp_path, sig, word):
     raws = _raws(2500)
     frames, _ = sample_frames(raws)
     server = StreamServer(frames, pace=3 * RATE / 5 * 4)
@@ -274,14 +276,14 @@ def test_sigterm_ends_the_session_cleanly(tmp_path):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         _wait_rows(db, 300)
-        proc.send_signal(signal.SIGTERM)
+        proc.send_signal(sig)
         out, err = proc.communicate(timeout=20)
     finally:
         if proc.poll() is None:
             proc.kill()
         server.stop.set()
     assert proc.returncode == 0, err
-    assert "terminated" in out and "Traceback" not in err
+    assert word in out and "Traceback" not in err and "KeyboardInterrupt" not in err
     stored = _check_prefix(db, raws, "t")
     with open_store(db) as st:
         s = st.sessions()[0]
@@ -302,6 +304,10 @@ def test_bad_command_lines(tmp_path):
     cases = [
         (("--db", db, "--session", "x", "--port", "/dev/does-not-exist"), "cannot open port"),
         (("--db", db, "--session", "taken", "--port", str(rec)), "already exists"),
+        # --append continues a session: a typo must not start a second one
+        (("--db", db, "--session", "takne", "--port", str(rec), "--append"), "does not exist"),
+        (("--db", str(tmp_path / "new.db"), "--session", "taken", "--port", str(rec),
+          "--append"), "no database"),
         (("--db", "/proc/motecal.db", "--session", "x", "--port", str(rec)), "database"),
         (("--db", str(junk), "--session", "x", "--port", str(rec)), "not a motecal database"),
         (("--db", db, "--session", "x"), "no port"),

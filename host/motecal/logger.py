@@ -868,7 +868,8 @@ def run(args) -> int:
         # the port first: if it cannot be opened, no database file is made
         source = S.open_source(spec)
         stack.callback(source.close)
-        store = stack.enter_context(open_store(args.db, create=True))
+        # --append continues a session: the database must be there already
+        store = stack.enter_context(open_store(args.db, create=not args.append))
         meta = {"source": str(spec), "rate_hz": P.NINEDOF_RATE_HZ, "notes": args.notes,
                 "baud": spec.baud}
         if args.board:

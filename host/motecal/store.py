@@ -676,6 +676,10 @@ class Store:
         if info is not None and not append:
             raise UserError(f"session {name!r} already exists in {self.target} "
                             "(choose another name, or --append to add to it)")
+        if info is None and append:
+            raise UserError(f"session {name!r} does not exist in {self.target}: --append "
+                            "continues a session (see motecal sessions; leave --append out "
+                            "to start one)")
         if info is None:
             with self._tx() as cur:
                 sid = self._insert_session(cur, self._meta_row(name, kind, scales, chips, meta))

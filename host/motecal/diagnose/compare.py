@@ -249,14 +249,16 @@ def _r2(y, X):
     return float(1 - (r @ r) / (d @ d)) if d @ d > 0 else 0.0
 
 
-def _allan(x: np.ndarray, rate: float, tau_s: float) -> float:
-    """Overlapping Allan deviation at ``tau_s`` (rms over the axes); NaN when
-    x holds fewer than three averaging times."""
+def _allan(runs: list, rate: float, tau_s: float) -> float:
+    """Overlapping Allan deviation at ``tau_s`` (rms over the axes) pooled over
+    the still runs long enough for it (2 averaging times and one sample); NaN
+    when none is."""
     m = int(round(tau_s * rate))
-    if m < 1 or len(x) < 3 * m:
+    runs = [x for x in runs if m >= 1 and len(x) >= 2 * m + 1]
+    if not runs:
         return np.nan
-    _, adev, _ = allan_deviation([x], rate, m=[m])
-    return float(np.sqrt(np.mean(adev[0] ** 2)))
+    _, adev, _ = allan_deviation(runs, rate, m=[m])
+    return float(np.sqrt(np.mean(adev[0] ** 2))) if len(adev) else np.nan
 
 
 def session_stats(data: SessionData) -> dict:
@@ -293,14 +295,15 @@ def session_stats(data: SessionData) -> dict:
             D = np.column_stack([u[:, 0] * u[:, 1], u[:, 0] * u[:, 2], u[:, 1] * u[:, 2],
                                  u[:, 0] ** 3, u[:, 1] ** 3, u[:, 2] ** 3])
             st["r2_direction"] = (_r2(res, D), "r2")
+            # against the reading's size per axis (even in the reading: a +/- scale
+            # asymmetry or a scale that grows with the reading)
+            st["r2_reading"] = (_r2(res, np.abs(u)), "r2")
             st["r2_time"] = (_r2(res, F.time_basis(T, T.min(), T.max(), 4)), "r2")
             if r == "poses":
                 cal[s] = (fit, o)
         if s == "gyro" and o.blocks is not None and len(o.blocks) >= 3:
             st["between_sd"] = (float(np.mean(o.blocks.mean.std(axis=0))) / o.K, "unit")
-            segs = sorted(o.segs.rows, key=len)
-            xs = o.x[segs[-1]] / o.K
-            st["allan_1s"] = (_allan(xs, o.rate, 1.0), "unit")
+            st["allan_1s"] = (_allan([o.x[r] / o.K for r in o.segs.rows], o.rate, 1.0), "unit")
         out[s] = st
     if "gyro" in obs and "accel" in obs and obs["gyro"].blocks is not None:
         from .engine import _accel_for_blocks
@@ -311,10 +314,17 @@ def session_stats(data: SessionData) -> dict:
                                                       for k in range(3)])), "r2")
     if "accel" in cal and "mag" in cal:
         (fa, oa), (fm, om) = cal["accel"], cal["mag"]
-        g, b, _, _ = ST.pose_vectors(oa, fa, om, fm)
+        g, b, _, idx = ST.pose_vectors(oa, fa, om, fm)
         angs = angle_deg(g, b)
         if len(angs) >= 4:
             out["mag"]["dip_sd_deg"] = (float(np.std(angs)), "deg")
+        if len(idx) >= 12:
+            # each sensor's magnitude residual against the other's direction, pose by pose
+            tm = om.segs.t[idx]
+            ra = np.linalg.norm(g, axis=1) - fa.target(tm)
+            rm = np.linalg.norm(b, axis=1) - fm.target(tm)
+            out["accel"]["r2_mag"] = (_r2(ra, unit(b)), "r2")
+            out["mag"]["r2_accel"] = (_r2(rm, unit(g)), "r2")
     return out
 
 

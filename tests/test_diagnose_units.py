@@ -268,3 +268,29 @@ def test_sample_times_from_seq_when_t_is_batch_receive_time():
     assert np.allclose(sample_times(d), np.arange(n) / 125.0)
     d.t = np.arange(n) / 100.0                                # a real clock is kept
     assert np.allclose(sample_times(d), d.t)
+
+
+def test_question_one_statistics_see_reading_size_direction_and_the_other_sensor():
+    """Question 1's side-by-side statistics: the residual against direction,
+    the reading's size per axis and the other sensor (issue 7), each responding
+    to its own effect and not to the others; the gyro's Allan deviation at 1 s
+    pooled over the 2.5 s poses."""
+    from motecal.diagnose import plant as P
+    from motecal.diagnose.compare import session_stats
+
+    def stats(keys):
+        rng = np.random.default_rng(5)
+        return session_stats(P.simulate([P.make_plant(c, s, rng) for c, s in keys],
+                                        "static80", 77))
+
+    clean = stats([])
+    for s, other in (("accel", "r2_mag"), ("mag", "r2_accel")):
+        for k in ("r2_direction", "r2_reading", "r2_time", other):
+            assert 0 <= clean[s][k][0] < 0.3, (s, k, clean[s][k])
+    a = clean["gyro"]["allan_1s"][0]
+    assert np.isfinite(a) and 0 < a < clean["gyro"]["noise"][0]   # white noise averages down
+    nl = stats([("nonlinearity", "accel")])
+    assert nl["accel"]["r2_reading"][0] > 0.4
+    assert all(nl["mag"][k] == clean["mag"][k] for k in ("r2_direction", "r2_reading", "r2_time"))
+    ca = stats([("cross_axis", "mag")])
+    assert ca["mag"]["r2_direction"][0] > 0.8 and ca["mag"]["r2_reading"][0] < 0.3

@@ -68,6 +68,19 @@ def _set_scale(s):
     SCALE = s
 
 
+def _bound(rs, key, lower):
+    """Clopper-Pearson one-sided 95 % bound of the rate: a planted cause named
+    (lower bound) or a clean board with any finding (upper bound)."""
+    from scipy.stats import beta
+    n = len(rs)
+    k = sum(bool(r[key][0]) if key == "named" else bool(r[key]) for r in rs)
+    if n == 0:
+        return float("nan")
+    if lower:
+        return 0.0 if k == 0 else float(beta.ppf(0.05, k, n - k + 1))
+    return 1.0 if k == n else float(beta.ppf(0.95, k + 1, n - k))
+
+
 def cases(per: int, n_clean: int, n_pairs: int, seed0: int):
     out = []
     keys = list(P.THRESHOLDS)
@@ -96,7 +109,7 @@ def cases(per: int, n_clean: int, n_pairs: int, seed0: int):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--per", type=int, default=12, help="cases per (cause, sensor) (12)")
-    ap.add_argument("--clean", type=int, default=60, help="clean cases (60)")
+    ap.add_argument("--clean", type=int, default=150, help="clean cases (150)")
     ap.add_argument("--pairs", type=int, default=30, help="two-cause cases (30)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
@@ -147,9 +160,11 @@ def main(argv=None):
     ratios = np.array([x for r in planted + pairs for x in r["ratios"]], float)
     ratios = ratios[np.isfinite(ratios)]
     print()
-    print(f"planted cause named:        {100 * det:5.1f} %   (goal >= 95 %)")
+    print(f"planted cause named:        {100 * det:5.1f} %   (goal >= 95 %)  "
+          f"95 % lower bound {100 * _bound(planted, 'named', lower=True):.1f} %")
     print(f"  named and nothing else:   {100 * exact:5.1f} %")
     print(f"false alarms (clean boards):{100 * fa:5.1f} %   (goal <= 5 %)  "
+          f"95 % upper bound {100 * _bound(clean, 'extra', lower=False):.1f} %  "
           + ", ".join(f"{r['kind']} seed {r['seed']}: {r['extra']}" for r in clean if r["extra"]))
     print("  by kind: " + ", ".join(
         f"{k} {100 * v:.1f} % of {sum(r['kind'] == k for r in clean)}" for k, v in fa_kind.items()))

@@ -120,7 +120,8 @@ def test_accel_full_recovers_truth_in_its_gauge():
 MAG_MODELS = [("paper", ("offsets",), None), ("paper", ("scales",), None),
               ("paper", ("offsets", "scales"), None),
               ("paper", ("offsets", "scales", "angles"), None),
-              ("paper", ("offsets", "scales"), 0.48), ("full", None, None), ("full", None, 0.48)]
+              ("paper", ("offsets", "scales"), 0.48), ("paper", ("offsets", "scales", "angles"), 0.48),
+              ("paper", ("offsets", "angles"), 0.48), ("full", None, None), ("full", None, 0.48)]
 
 
 @pytest.mark.parametrize("family,groups,field", MAG_MODELS,

@@ -158,3 +158,16 @@ uint16_t ninedof_clock_next(ninedof_clock_t *c, uint32_t xtal_now)
   c->last = (uint16_t)p;
   return (uint16_t)p;
 }
+
+uint16_t ninedof_clock_arm(uint32_t target, uint32_t now, uint16_t period, uint16_t wrap)
+{
+  int32_t ahead = (int32_t)(target - now);                /* wrap-safe */
+
+  if (ahead > (int32_t)period)
+    ahead -= wrap;                   /* the counter lags: an overflow not yet counted */
+  if (ahead < NINEDOF_ALARM_MIN_TICKS)
+    return NINEDOF_ALARM_MIN_TICKS;  /* late: at once, not a timer wrap later */
+  if (ahead > (int32_t)period)
+    return period;
+  return (uint16_t)ahead;
+}

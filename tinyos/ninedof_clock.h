@@ -93,4 +93,43 @@ uint16_t ninedof_clock_first(const ninedof_clock_t *c);
  * thing in the handler) -> alarm ticks from this expiry to the next. */
 uint16_t ninedof_clock_next(ninedof_clock_t *c, uint32_t xtal_now);
 
+/* Arming the alarm for the next expiry, which the app keeps itself (the
+ * expiry just handled plus the period ninedof_clock_next() returned).
+ *
+ * TinyOS's Alarm32khz32C on iris cannot be trusted with that target as
+ * an absolute time (startAt(getAlarm(), period)):
+ *  - Its counter (Counter32khz32C: timer 1's 16 bits at 1 MHz, / 32, plus
+ *    an overflow count) lags by one timer wrap (2048 ticks, 65.5 ms) when
+ *    the alarm's compare interrupt preempts timer 1's overflow handler,
+ *    which enables interrupts before it counts the overflow: an expiry due
+ *    just after the timer wraps.  TransformAlarmC then takes the target
+ *    for one in the past.
+ *  - A target in the past, or within 3 timer ticks (3 us) of now,
+ *    Atm128AlarmC arms at now + 3 timer ticks, but on iris (timer 1 at
+ *    CPU / 8) its own code takes longer than that to write the compare
+ *    register: the compare is missed and the alarm waits a whole wrap of
+ *    the 16-bit timer, 65.5 ms.
+ * Re-armed from its previous expiry, the alarm then stays behind for good
+ * (every later target is in the past too): one expiry per 65.5 ms, seen in
+ * the simulated nesC run within seconds with the CPU 2 % off.
+ *
+ * So the app arms relative to now (startAt(now, dt)) with the dt this
+ * returns, from the target, the counter now, the period the target was
+ * set with (no expiry is further ahead) and the counter's lag when an
+ * overflow is not yet counted (`wrap`, 2048 on iris at 8 MHz):
+ *  - target - now beyond the period: the counter lags, take one wrap off
+ *    (TransformAlarmC reads the same lagging counter, so a dt relative to
+ *    it is right);
+ *  - then below NINEDOF_ALARM_MIN_TICKS (the handler ran late by about a
+ *    period or more): MIN, so the expiry comes late but at once, and the
+ *    schedule keeps its phase;
+ *  - never more than the period. */
+enum {
+  /* 3 alarm ticks (96 us): TransformAlarmC rounds now down to a tick and
+   * may read it a tick later than the app; 2 ticks remain, more than
+   * Atm128AlarmC's 3 timer ticks plus its own run time */
+  NINEDOF_ALARM_MIN_TICKS = 3,
+};
+uint16_t ninedof_clock_arm(uint32_t target, uint32_t now, uint16_t period, uint16_t wrap);
+
 #endif /* NINEDOF_CLOCK_H */

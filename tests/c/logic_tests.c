@@ -216,6 +216,171 @@ static void test_clock(void)
 }
 
 /* ---------------------------------------------------------------------- */
+/* Arming the sampling alarm (ninedof_clock_arm) against a model of TinyOS's
+ * Alarm32khz32C on iris at 8 MHz: timer 1 counts 1 us ticks (16 bits);
+ * TransformAlarmC works in alarm ticks of 32 timer ticks, over a counter
+ * (Counter32khz32C) that lags by one timer wrap, 2048 alarm ticks, in an
+ * expiry due within a few us after the timer wrapped (its compare interrupt
+ * preempts the overflow handler before that counts the overflow), and takes
+ * a target before its counter for one in the past; Atm128AlarmC arms a
+ * target within 3 timer ticks of now at now + 3, which its code writes too
+ * late on iris, so that compare comes a whole wrap (65.536 ms) later.  The
+ * app's handler runs (reads the counter, arms) some us after the
+ * interrupt. */
+typedef struct {
+  uint32_t us;         /* true time, timer ticks; its low 16 bits are TCNT1 */
+  uint32_t t0, dt;     /* TransformAlarmC's m_t0, m_dt */
+  uint32_t fire;       /* when the compare interrupt comes */
+  uint8_t lag;         /* the counter is one wrap behind */
+} alarm_model_t;
+
+enum {
+  AM_WRAP = 2048,      /* 65536 >> 5: Counter32khz32C's lag, alarm ticks */
+  AM_LAG_US = 8,       /* an expiry this soon after a wrap finds the overflow uncounted */
+};
+
+static uint32_t am_now(const alarm_model_t *m)
+{
+  return (m->us >> 5) - (m->lag ? AM_WRAP : 0);
+}
+
+static void am_hw_start(alarm_model_t *m, uint16_t t0, uint16_t dt)
+{
+  uint16_t now = (uint16_t)m->us, expires;
+  if ((uint16_t)(now + 3 - t0) >= dt) {
+    m->fire = m->us + 65536UL;                 /* compare missed: one wrap */
+    return;
+  }
+  expires = (uint16_t)(t0 + dt);
+  if (expires == 0)
+    expires = 1;
+  m->fire = m->us + (uint16_t)(expires - now);
+}
+
+static void am_set_alarm(alarm_model_t *m)
+{
+  uint32_t now = am_now(m), expires = m->t0 + m->dt, remaining = expires - now;
+  if (m->t0 <= now) {
+    if (expires >= m->t0 && expires <= now)
+      remaining = 0;
+  } else if (expires >= m->t0 || expires <= now) {
+    remaining = 0;
+  }
+  if (remaining > 1024) {
+    m->t0 = now + 1024;
+    m->dt = remaining - 1024;
+    remaining = 1024;
+  } else {
+    m->t0 += m->dt;
+    m->dt = 0;
+  }
+  am_hw_start(m, (uint16_t)(now << 5), (uint16_t)(remaining << 5));
+}
+
+static void am_start_at(alarm_model_t *m, uint32_t t0, uint32_t dt)
+{
+  m->t0 = t0;
+  m->dt = dt;
+  am_set_alarm(m);
+}
+
+/* n periods of `period` ticks, the first expiry due at alarm tick `first`;
+ * `fixed` = arm as the app does now (ninedof_clock_arm), otherwise as it
+ * did (startAt(getAlarm(), period)); the handler of expiry `slow_at` runs
+ * `slow_us` late.  Returns the longest time between expiries (us), counts
+ * those over 1.5 periods, and the time of the last expiry. */
+static uint32_t am_run(uint8_t fixed, uint16_t n, uint16_t period, uint32_t first,
+                       uint16_t slow_at, uint32_t slow_us, uint16_t *gaps, uint32_t *last)
+{
+  static alarm_model_t m;
+  uint32_t target = first, prev = 0, longest = 0, lat;
+  uint16_t k = 0;
+
+  memset(&m, 0, sizeof m);
+  m.us = 5;
+  am_start_at(&m, am_now(&m), first - am_now(&m));
+  *gaps = 0;
+  while (k < n) {
+    m.us = m.fire;
+    m.lag = (uint16_t)m.us < AM_LAG_US;
+    if (m.dt != 0) {                           /* TransformAlarmC's intermediate */
+      am_set_alarm(&m);
+      continue;
+    }
+    if (k > 0) {
+      if (m.us - prev > longest)
+        longest = m.us - prev;
+      if (m.us - prev > (uint32_t)period * 48)
+        (*gaps)++;
+    }
+    prev = m.us;
+    lat = 40 + (k % 7) * 10;                   /* to the handler's counter read */
+    if (k == slow_at)
+      lat += slow_us;
+    m.us += lat;
+    if ((uint16_t)m.us >= AM_LAG_US + lat)     /* the handler ran past the overflow handler */
+      m.lag = 0;
+    if (fixed) {
+      uint32_t now = am_now(&m);
+      target += period;
+      am_start_at(&m, now, ninedof_clock_arm(target, now, period, AM_WRAP));
+    } else {
+      am_start_at(&m, m.t0 + m.dt, period);
+    }
+    k++;
+  }
+  *last = prev;
+  return longest;
+}
+
+static void test_clock_arm(void)
+{
+  uint16_t gaps_old, gaps_new, gaps_old2, gaps_new2;
+  uint32_t last_old, last_new, last_new2, longest_old, longest_new, longest_new2;
+  /* 245 ticks a period; expiry 100 falls on a timer wrap: 76 + 100 * 245 = 12 * 2048 */
+  const uint16_t n = 500, p = 245;
+  const uint32_t first = 76;
+
+  CHECK(ninedof_clock_arm(1000, 800, 245, 2048) == 200);            /* on time */
+  CHECK(ninedof_clock_arm(1000, 755, 245, 2048) == 245);
+  CHECK(ninedof_clock_arm(1000, 998, 245, 2048) == NINEDOF_ALARM_MIN_TICKS); /* late */
+  CHECK(ninedof_clock_arm(1000, 1300, 245, 2048) == NINEDOF_ALARM_MIN_TICKS);
+  CHECK(ninedof_clock_arm(5, 0xFFFFFFF0UL, 245, 2048) == 21);       /* counter wraps */
+  /* the counter lags one overflow: 2048 ticks behind */
+  CHECK(ninedof_clock_arm(1000, 800 - 2048, 245, 2048) == 200);
+  CHECK(ninedof_clock_arm(100, 0xFFFFFFFFUL - 2047, 245, 2048) == 100);
+  CHECK(ninedof_clock_arm(1000, 10, 245, 2048) == NINEDOF_ALARM_MIN_TICKS); /* neither */
+
+  longest_old = am_run(0, n, p, first, 0xFFFF, 0, &gaps_old, &last_old);
+  longest_new = am_run(1, n, p, first, 0xFFFF, 0, &gaps_new, &last_new);
+  /* no expiry on a timer wrap (77 + k * 245), but the handler of expiry 300
+   * runs 9 ms late (more than a period) */
+  am_run(0, n, p, first + 1, 300, 9000, &gaps_old2, &last_new2);
+  longest_new2 = am_run(1, n, p, first + 1, 300, 9000, &gaps_new2, &last_new2);
+  CHECK(gaps_old > 0 && longest_old > 65536UL);   /* the model has the stall */
+  CHECK(gaps_old2 > 0);
+  CHECK(gaps_new == 0 && longest_new <= (uint32_t)(p + 1) * 32);
+  /* the schedule keeps its phase: the last expiry is due at first + 499 periods */
+  CHECK(last_new >= (first + (uint32_t)(n - 1) * p) * 32 &&
+        last_new < (first + (uint32_t)(n - 1) * p) * 32 + 32);
+  /* late once (9 ms + the handler's latency), then on the schedule again */
+  CHECK(gaps_new2 == 0 && longest_new2 < 9000 + 200);
+  CHECK(last_new2 >= (first + 1 + (uint32_t)(n - 1) * p) * 32 &&
+        last_new2 < (first + 1 + (uint32_t)(n - 1) * p) * 32 + 32);
+  /* A <expiries' longest gap, old> <gaps, old> <longest, new> <gaps, new>
+   * <with a handler 9 ms late: gaps, old> <longest, new> <gaps, new> */
+  out_c('A');
+  out_i32((int32_t)longest_old);
+  out_i32(gaps_old);
+  out_i32((int32_t)longest_new);
+  out_i32(gaps_new);
+  out_i32(gaps_old2);
+  out_i32((int32_t)longest_new2);
+  out_i32(gaps_new2);
+  out_c(';');
+}
+
+/* ---------------------------------------------------------------------- */
 static ninedof_calrx_t rx;
 static ninedof_batch_t batch;
 static ninedof_samples_msg_t msg;
@@ -495,6 +660,7 @@ int main(void)
   out_init();
   test_board();
   test_clock();
+  test_clock_arm();
   test_batching();
   test_align();
   test_status();

@@ -7,8 +7,10 @@
  * completed by the next read (ninedof_align_push): accel, gyro and field of
  * one instant, one period later.  The period is timed by a
  * "32 kHz" alarm, which on iris counts the CPU's RC oscillator (nominally
- * 31250 Hz, 250 ticks), re-armed from its own previous expiry with the
- * number of ticks ninedof_clock.c computes: at each expiry it takes the
+ * 31250 Hz, 250 ticks), due at its own previous expiry plus the number of
+ * ticks ninedof_clock.c computes (armed relative to now, see
+ * ninedof_clock_arm: never in the past, never by a lagging counter, which
+ * on iris cost a 65.5 ms timer wrap per expiry): at each expiry it takes the
  * crystal time (LocalTime<TMilli>) and keeps the long-run rate at 125.000
  * Hz of the crystal, periods differing by at most one tick.  Records of
  * consecutive periods are batched NINEDOF_BATCH to a message, corrected with the
@@ -40,6 +42,7 @@
  * @author motecal
  */
 #include <avr/eeprom.h>
+#include <MicaTimer.h>
 #include "NineDofApp.h"
 #include "NineDofBoard.h"
 
@@ -82,6 +85,9 @@ implementation
     RETRY_TICKS = 1024,
     EEPROM_TICKS = 4,            /* an EEPROM byte write takes 3.3 ms */
     FLASH_TICKS = 51,            /* red flash for a failed read: 50 ms */
+    /* Alarm32khz32C's counter: timer 1 (16 bits) / 2^MICA_DIVIDE_ONE_FOR_32KHZ_LOG2
+     * plus an overflow count; one overflow = 2048 ticks at 8 MHz */
+    NINEDOF_ALARM_WRAP = 65536UL >> MICA_DIVIDE_ONE_FOR_32KHZ_LOG2,
     PENDING = 4,                 /* samples read, not yet batched */
   };
 
@@ -93,6 +99,10 @@ implementation
   /* the 125 Hz period: set up in startSampling() before the alarm is armed,
    * then used only in Alarm.fired(), before it re-arms the alarm */
   norace ninedof_clock_t clock;
+  /* the expiry the alarm is armed for (alarm ticks) and the period it was
+   * set with: same rule as clock */
+  norace uint32_t alarmTarget;
+  norace uint16_t alarmPeriod;
 
   /* shared with the alarm and I2C interrupts */
   ninedof_counters_t counters;
@@ -136,6 +146,17 @@ implementation
     call BoardControl.start();
   }
 
+  /* Arm the alarm for alarmTarget relative to now, never for a time in the
+   * past, and right even while the counter lags by an overflow not yet
+   * counted (ninedof_clock.h: on iris either one made the alarm wait a
+   * 16-bit timer wrap, 65.5 ms, and every later one too).  With interrupts
+   * off, so TransformAlarmC reads the counter as it was read here. */
+  void armAlarm() {
+    uint32_t now = call Alarm.getNow();
+    call Alarm.startAt(now, ninedof_clock_arm(alarmTarget, now, alarmPeriod,
+                                              NINEDOF_ALARM_WRAP));
+  }
+
   void startSampling() {
     if (!radioOn || !boardOn)
       return;
@@ -144,7 +165,9 @@ implementation
         return;
       sampling = TRUE;
       ninedof_clock_init(&clock, call Atm128Calibrate.cyclesPerJiffy());
-      call Alarm.startAt(call Alarm.getNow(), ninedof_clock_first(&clock));
+      alarmPeriod = ninedof_clock_first(&clock);
+      alarmTarget = call Alarm.getNow() + alarmPeriod;
+      armAlarm();
     }
     call StatusTimer.startPeriodic(STATUS_TICKS);
   }
@@ -184,7 +207,9 @@ implementation
     bool busy;
 
     /* next period from this one's expiry, as long as the crystal says */
-    call Alarm.startAt(call Alarm.getAlarm(), ninedof_clock_next(&clock, call Crystal.get()));
+    alarmPeriod = ninedof_clock_next(&clock, call Crystal.get());
+    alarmTarget += alarmPeriod;
+    armAlarm();
     atomic {
       seq = counters.seq++;
       busy = reading;

@@ -17,19 +17,8 @@
 #include "ninedof_sampling.h"
 
 #include "test_out.h"
+#include "test_check.h"
 
-static uint16_t checks, failed;
-
-#define CHECK(cond)                                                     \
-  do {                                                                  \
-    checks++;                                                           \
-    if (!(cond)) {                                                      \
-      failed++;                                                         \
-      out_s("FAIL line ");                                              \
-      out_u16(__LINE__);                                                \
-      out_c(';');                                                       \
-    }                                                                   \
-  } while (0)
 
 /* ---------------------------------------------------------------------- */
 static void test_board(void)
@@ -666,10 +655,7 @@ int main(void)
   test_status();
   test_eeprom();
   test_basestation();
-  out_s("CHECKS ");
-  out_u16(checks);
-  out_s(" FAILED ");
-  out_u16(failed);
+  check_summary();
   out_s(" END\n");
   out_end();
   return failed != 0;

@@ -19,19 +19,8 @@
 
 #include "ninedof_twi.h"
 #include "test_out.h"
+#include "test_check.h"
 
-static uint16_t checks, failed;
-
-#define CHECK(cond)                                                     \
-  do {                                                                  \
-    checks++;                                                           \
-    if (!(cond)) {                                                      \
-      failed++;                                                         \
-      out_s("FAIL line ");                                              \
-      out_u16(__LINE__);                                                \
-      out_c(';');                                                       \
-    }                                                                   \
-  } while (0)
 
 /* ---------------------------------------------------------------------- */
 /* The TWI and one slave, at the level of TWCR commands and TWSR codes      */
@@ -444,10 +433,7 @@ int main(void)
   test_arbitration();
   test_bus_error();
   test_commands();
-  out_s("CHECKS ");
-  out_u16(checks);
-  out_s(" FAILED ");
-  out_u16(failed);
+  check_summary();
   out_s(";END\n");
   out_end();
   return 0;

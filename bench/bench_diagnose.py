@@ -68,12 +68,11 @@ def _set_scale(s):
     SCALE = s
 
 
-def _bound(rs, key, lower):
-    """Clopper-Pearson one-sided 95 % bound of the rate: a planted cause named
-    (lower bound) or a clean board with any finding (upper bound)."""
+def _bound(hits: list[bool], lower: bool) -> float:
+    """Clopper-Pearson one-sided 95 % bound of the rate of ``hits``: lower for
+    a planted cause named, upper for a clean board with any finding."""
     from scipy.stats import beta
-    n = len(rs)
-    k = sum(bool(r[key][0]) if key == "named" else bool(r[key]) for r in rs)
+    n, k = len(hits), sum(hits)
     if n == 0:
         return float("nan")
     if lower:
@@ -150,10 +149,12 @@ def main(argv=None):
         kind, thr, _ = P.THRESHOLDS[key]
         print(f"{key[0]:<18}{key[1]:<14}{kind:<10}{thr:>10.4g}  {100 * named:6.1f}%  "
               f"{100 * only:6.1f}%  {ratio:10.3f}  {', '.join(others)}")
-    det = np.mean([r["named"][0] for r in planted]) if planted else float("nan")
+    named = [bool(r["named"][0]) for r in planted]
+    det = np.mean(named) if planted else float("nan")
     exact = np.mean([r["named"][0] and not r["extra"] for r in planted]) if planted else \
         float("nan")
-    fa = np.mean([bool(r["extra"]) for r in clean]) if clean else float("nan")
+    alarms = [bool(r["extra"]) for r in clean]
+    fa = np.mean(alarms) if clean else float("nan")
     fa_kind = {k: np.mean([bool(r["extra"]) for r in clean if r["kind"] == k])
                for k in sorted({r["kind"] for r in clean})}
     both = np.mean([all(r["named"]) for r in pairs]) if pairs else float("nan")
@@ -161,10 +162,10 @@ def main(argv=None):
     ratios = ratios[np.isfinite(ratios)]
     print()
     print(f"planted cause named:        {100 * det:5.1f} %   (goal >= 95 %)  "
-          f"95 % lower bound {100 * _bound(planted, 'named', lower=True):.1f} %")
+          f"95 % lower bound {100 * _bound(named, lower=True):.1f} %")
     print(f"  named and nothing else:   {100 * exact:5.1f} %")
     print(f"false alarms (clean boards):{100 * fa:5.1f} %   (goal <= 5 %)  "
-          f"95 % upper bound {100 * _bound(clean, 'extra', lower=False):.1f} %  "
+          f"95 % upper bound {100 * _bound(alarms, lower=False):.1f} %  "
           + ", ".join(f"{r['kind']} seed {r['seed']}: {r['extra']}" for r in clean if r["extra"]))
     print("  by kind: " + ", ".join(
         f"{k} {100 * v:.1f} % of {sum(r['kind'] == k for r in clean)}" for k, v in fa_kind.items()))

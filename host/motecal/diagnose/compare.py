@@ -251,13 +251,9 @@ def _r2(y, X):
 
 def _allan(runs: list, rate: float, tau_s: float) -> float:
     """Overlapping Allan deviation at ``tau_s`` (rms over the axes) pooled over
-    the still runs long enough for it (2 averaging times and one sample); NaN
-    when none is."""
-    m = int(round(tau_s * rate))
-    runs = [x for x in runs if m >= 1 and len(x) >= 2 * m + 1]
-    if not runs:
-        return np.nan
-    _, adev, _ = allan_deviation(runs, rate, m=[m])
+    the still runs long enough for it (``stats.allan_deviation`` passes over
+    the shorter ones); NaN when none is."""
+    _, adev, _ = allan_deviation(runs, rate, m=[int(round(tau_s * rate))])
     return float(np.sqrt(np.mean(adev[0] ** 2))) if len(adev) else np.nan
 
 

@@ -381,7 +381,7 @@ class LinkTracker:
             u, k, released = self.mote(m).accept(b.seq[mi], b.count[mi], payload, rec)
             u_msg[mi] = u
             if k is not None:
-                keep[np.isin(b.rec_msg, mi)] = k    # m's records, in arrival order
+                keep[slice(None) if rsel is None else rsel] = k    # m's records, in arrival order
             for u0, (flags, rec) in released:
                 r = len(rec)
                 extra.append(Rows(np.full(r, m), u0 + np.arange(r), np.full(r, flags), rec))

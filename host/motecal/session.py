@@ -149,8 +149,9 @@ class SessionData:
         rows = self.has(sensor) if sensor else np.ones(len(self), bool)
         found = []
         for m in np.unique(self.mote[rows]):
-            sel = rows & (self.mote == m)
-            every = sel.sum() == (self.mote == m).sum()    # seq numbers this sensor's samples
+            mine = self.mote == m
+            sel = rows & mine
+            every = sel.sum() == mine.sum()    # seq numbers this sensor's samples
             r = rate_from_times(self.t[sel], self.seq[sel] if every else None)
             if r:
                 found.append(r)
@@ -166,9 +167,10 @@ class SessionData:
         if len(t) < 2:
             return np.nan_to_num(t)
         seq_t = np.zeros(len(t))
+        rate = self.rate()
         for m in np.unique(self.mote):
             sel = self.mote == m
-            seq_t[sel] = (self.seq[sel] - self.seq[sel].min()) / self.rate()
+            seq_t[sel] = (self.seq[sel] - self.seq[sel].min()) / rate
         if not np.all(np.isfinite(t)):
             return seq_t
         one = [np.diff(self.seq[self.mote == m]) for m in np.unique(self.mote)]

@@ -32,7 +32,7 @@ from collections import deque
 
 from .. import protocol as P
 from .mote import Message
-from .radio import Mac
+from .radio import Mac, UniqueFilter
 
 ADDR = 0
 QUEUE_LEN = 12            # NINEDOF_BS_QUEUE
@@ -56,7 +56,7 @@ class BaseStation:
         self._status_frame = None             # own buffer, not one of the 12
         self._rx_free = 0.0                   # when the UART receiver is next idle
         self._decoder = P.FrameDecoder()
-        self._last_dsn: dict[int, int] = {}
+        self._unique = UniqueFilter()
         self._busy_tries = 0                  # EBUSY refusals of the radio queue's head
         # counters (bs_status fields and more)
         self.radio_rx = 0
@@ -75,10 +75,9 @@ class BaseStation:
 
     # ------------------------------------------------------------ radio -> serial
     def on_frame(self, f) -> None:
-        if self._last_dsn.get(f.src) == f.dsn:
+        if self._unique.repeat(f):
             self.duplicates += 1
             return
-        self._last_dsn[f.src] = f.dsn
         self.radio_rx += 1
         msg = f.msg if isinstance(f.msg, Message) and f.msg.count else None
         if msg is not None:

@@ -54,7 +54,7 @@ from collections import deque
 import numpy as np
 
 from .. import protocol as P
-from .radio import Mac
+from .radio import Mac, UniqueFilter
 
 QUEUE_LEN = 4             # NINEDOF_SEND_QUEUE
 MAX_RETRIES = 2           # NINEDOF_RETRIES
@@ -134,7 +134,7 @@ class SimMote:
         self.status_msg: Message | None = None  # its own buffer
         self.reply_msg: Message | None = None   # its own buffer
         self._turn = REPLY                      # client served last (round robin)
-        self._last_dsn: dict[int, int] = {}     # UniqueLayer
+        self._unique = UniqueFilter()
         self.next_k = 0                      # first sample not yet put into a message
         self._buf = np.zeros((0, 9), np.int16)
         self._buf_k0 = 0
@@ -221,7 +221,7 @@ class SimMote:
             self._turn = client
             if client == STATUS:            # no ack, no retry
                 self.mac.send(BS_ADDR, P.DEFAULT_GROUP, m.am_type, m.payload, False, m,
-                              self._sent, retries=0)
+                              self._sent)
             else:
                 self.mac.send(m.dest, P.DEFAULT_GROUP, m.am_type, m.payload, True, m,
                               self._sent)
@@ -250,9 +250,8 @@ class SimMote:
         the calibration code then checks the mote id inside the message."""
         if f.dest not in (self.id, P.AM_BROADCAST) or self.cal is None:
             return
-        if self._last_dsn.get(f.src) == f.dsn:       # a repeat of the frame it has
+        if self._unique.repeat(f):                   # a repeat of the frame it has
             return
-        self._last_dsn[f.src] = f.dsn
         reply = self.cal.handle(f.am_type, bytes(f.payload))
         self._flags = int(self.cal.flags())
         if self.ee is not None:

@@ -179,12 +179,27 @@ class Channel:
         self.transmit(ack, data.end + ACK_DELAY, ACK_AIRTIME)
 
 
+class UniqueFilter:
+    """A node's receiving UniqueLayer: a frame whose (source, DSN) equals the
+    last one accepted from that source is a repeat (it is still acked)."""
+
+    def __init__(self):
+        self._last: dict[int, int] = {}
+
+    def repeat(self, f) -> bool:
+        """Whether ``f`` repeats the last frame taken from its source; if not,
+        it becomes that frame."""
+        if self._last.get(f.src) == f.dsn:
+            return True
+        self._last[f.src] = f.dsn
+        return False
+
+
 class Mac:
     """A node's sending side: CSMA rounds, link retries, ack wait.
 
-    ``send(dest, group, am_type, payload, ack_req, msg, done, src=None,
-    retries=None)`` sends one message (``src``: AM source if not this node's
-    address; ``retries``: this message's, else ``max_retries``);
+    ``send(dest, group, am_type, payload, ack_req, msg, done, src=None)``
+    sends one message (``src``: AM source if not this node's address);
     ``done(msg, ok)`` is called once, from the event loop.  One message at a
     time (the caller queues).
     """
@@ -210,11 +225,9 @@ class Mac:
         self.stats_failed = 0          # messages given up
         self.ebusy = False             # the last message given up ended in EBUSY
 
-    def send(self, dest, group, am_type, payload, ack_req, msg, done, src=None,
-             retries=None) -> None:
+    def send(self, dest, group, am_type, payload, ack_req, msg, done, src=None) -> None:
         assert not self.busy
         self.busy = True
-        self._retries = self.max_retries if retries is None else retries
         self._dsn = (self._dsn + 1) & 0xFF
         self._what = (self.addr if src is None else src, dest, group, am_type, payload,
                       self._dsn, ack_req)
@@ -275,7 +288,7 @@ class Mac:
             self._failed_attempt()
 
     def _failed_attempt(self) -> None:
-        if self._attempts <= self._retries:
+        if self._attempts <= self.max_retries:
             self._attempt()
         else:
             self.stats_failed += 1

@@ -105,8 +105,9 @@ def parse_port(text: str | None, baud: int | None = None, env=None) -> PortSpec:
         if not text:
             raise PortError("no port: give --port (device, pyserial URL, serial@DEV:BAUD, "
                             "sf@HOST:PORT) or set MOTECOM")
-    if baud is not None and baud_problem(baud):
-        raise PortError(baud_problem(baud))
+    problem = None if baud is None else baud_problem(baud)
+    if problem:
+        raise PortError(problem)
     spec_baud = None
     if "://" in text:
         kind, target = "serial", text

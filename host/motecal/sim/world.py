@@ -41,8 +41,9 @@ def check_options(motes, session, baud, loss, batch, duration) -> None:
     if not isinstance(session, str) or not all(k.strip() in KINDS for k in session.split(",")):
         raise UserError(f"unknown session {session!r} (expected one of {', '.join(KINDS)}, "
                         "or a sequence such as static80,static80)")
-    if baud_problem(baud):
-        raise UserError(f"--baud: {baud_problem(baud)}")
+    problem = baud_problem(baud)
+    if problem:
+        raise UserError(f"--baud: {problem}")
     if not (isinstance(loss, (int, float)) and 0.0 <= loss <= 1.0):
         raise UserError(f"--loss must be a probability within 0..1, not {loss}")
     if not isinstance(batch, int) or not 1 <= batch <= MAX_BATCH:

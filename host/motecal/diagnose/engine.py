@@ -26,7 +26,7 @@ from . import fitting as F
 from . import gain as G
 from . import screens as SC
 from . import structure as ST
-from .prepare import SensorObs, all_obs, sensor_obs
+from .prepare import SensorObs, all_obs, sensor_obs, session_still
 
 UNTRUSTWORTHY_FIELD = 0.05        # relative field change above which mag calibration is refused
 MIN_SWEEP_ROWS = 200
@@ -171,7 +171,8 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
                         f"time (--mote)")
     if not 0 < alpha < 1:
         raise UserError(f"--alpha must be within 0..1, not {alpha}")
-    obs = all_obs(data)
+    still = session_still(data)
+    obs = all_obs(data, still=still)
     if not obs:
         raise QualityError(f"session {data.name}: no sensor readings to diagnose")
     plan = _plan(obs)
@@ -227,7 +228,7 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
     # sensors with repeats are analysed on their unique updates
     sobs = dict(obs)
     for s in stale_on:
-        o2 = sensor_obs(data, s, dedup=True)
+        o2 = sensor_obs(data, s, dedup=True, still=still)
         if o2 is not None:
             sobs[s] = o2
             if s in clip_rows:

@@ -246,8 +246,19 @@ def effective_sigma(obs: SensorObs, groups: list[np.ndarray]) -> np.ndarray:
     return np.sqrt(num / den)
 
 
-def sensor_obs(data: SessionData, sensor: str, dedup: bool = False) -> SensorObs | None:
-    """The observations of one sensor, or None when the session has none."""
+def session_still(data: SessionData) -> np.ndarray | None:
+    """``still_labels`` of a session none of whose rows has a pose label (so
+    that every sensor needs them), else None: worked out once per session for
+    ``sensor_obs`` (it covers the whole session, not one sensor)."""
+    return still_labels(data) if not (data.label >= 1).any() else None
+
+
+def sensor_obs(data: SessionData, sensor: str, dedup: bool = False,
+               still: np.ndarray | None = None) -> SensorObs | None:
+    """The observations of one sensor, or None when the session has none.
+    ``still``: the session's ``still_labels`` when the caller has them
+    (``session_still``); else they are worked out here if the sensor's rows
+    carry no pose label."""
     has = data.has(sensor)
     if not has.any():
         return None
@@ -266,7 +277,10 @@ def sensor_obs(data: SessionData, sensor: str, dedup: bool = False) -> SensorObs
                         rate=rate * keep.mean(), overflow=overflow[keep])
     label = obs.label.copy()
     label[label == LABEL_ROT] = 0
-    still = still_labels(data) if not (label >= 1).any() else None
+    if (label >= 1).any():
+        still = None
+    elif still is None:
+        still = still_labels(data)
     groups, labelled = _segments(obs, label, still)
     obs.labelled_poses = labelled
     obs.sigma = noise_sigma(obs, groups)
@@ -290,11 +304,15 @@ def sensor_obs(data: SessionData, sensor: str, dedup: bool = False) -> SensorObs
     return obs
 
 
-def all_obs(data: SessionData, dedup: dict | None = None) -> dict[str, SensorObs]:
+def all_obs(data: SessionData, dedup: dict | None = None,
+            still: np.ndarray | None = None) -> dict[str, SensorObs]:
+    """``sensor_obs`` of every sensor the session has (``still``: as there;
+    by default ``session_still``, worked out once for all)."""
     dedup = dedup or {}
+    still = session_still(data) if still is None else still
     out = {}
     for s in SENSORS:
-        o = sensor_obs(data, s, dedup=bool(dedup.get(s)))
+        o = sensor_obs(data, s, dedup=bool(dedup.get(s)), still=still)
         if o is not None:
             out[s] = o
     return out

@@ -520,17 +520,18 @@ def _structure_text(st: ST.Structure, r: np.ndarray) -> str:
         kurt = float(stats.kurtosis(r))
         if kurt > 3:
             parts.append(f"heavy tails (excess kurtosis {kurt:.1f}): outlier poses")
-            out = _outliers(st, z)
+            out = _outliers(T, st.points.get("pose"), z)
             if out:
                 parts.append("largest: " + ", ".join(out))
     return "; ".join(parts) if parts else "none identified"
 
 
-def _outliers(st: ST.Structure, z: np.ndarray, most: int = 8) -> list[str]:
+def _outliers(T: np.ndarray, pose: np.ndarray | None, z: np.ndarray,
+              most: int = 8) -> list[str]:
     """The poses (or still stretches) whose residual is over 3x the rms,
-    largest first, named by pose label and time, for the user to look at."""
-    T, pose = st.points.get("T"), st.points.get("pose")
-    if T is None or len(z) != len(T):
+    largest first, named by pose label and time, for the user to look at
+    (none when the residuals are not one per point of ``T``)."""
+    if len(z) != len(T):
         return []
     k = [i for i in np.argsort(-z) if z[i] > 3.0][:most]
     return [(f"pose {pose[i]} " if pose is not None and pose[i] > 0 else "")

@@ -99,10 +99,9 @@ implementation
   /* the 125 Hz period: set up in startSampling() before the alarm is armed,
    * then used only in Alarm.fired(), before it re-arms the alarm */
   norace ninedof_clock_t clock;
-  /* the expiry the alarm is armed for (alarm ticks) and the period it was
-   * set with: same rule as clock */
+  /* the expiry the alarm is armed for (alarm ticks), same rule as clock;
+   * the period it was set with is clock.last */
   norace uint32_t alarmTarget;
-  norace uint16_t alarmPeriod;
 
   /* shared with the alarm and I2C interrupts */
   ninedof_counters_t counters;
@@ -153,7 +152,7 @@ implementation
    * off, so TransformAlarmC reads the counter as it was read here. */
   void armAlarm() {
     uint32_t now = call Alarm.getNow();
-    call Alarm.startAt(now, ninedof_clock_arm(alarmTarget, now, alarmPeriod,
+    call Alarm.startAt(now, ninedof_clock_arm(alarmTarget, now, clock.last,
                                               NINEDOF_ALARM_WRAP));
   }
 
@@ -165,8 +164,7 @@ implementation
         return;
       sampling = TRUE;
       ninedof_clock_init(&clock, call Atm128Calibrate.cyclesPerJiffy());
-      alarmPeriod = ninedof_clock_first(&clock);
-      alarmTarget = call Alarm.getNow() + alarmPeriod;
+      alarmTarget = call Alarm.getNow() + ninedof_clock_first(&clock);
       armAlarm();
     }
     call StatusTimer.startPeriodic(STATUS_TICKS);
@@ -207,8 +205,7 @@ implementation
     bool busy;
 
     /* next period from this one's expiry, as long as the crystal says */
-    alarmPeriod = ninedof_clock_next(&clock, call Crystal.get());
-    alarmTarget += alarmPeriod;
+    alarmTarget += ninedof_clock_next(&clock, call Crystal.get());
     armAlarm();
     atomic {
       seq = counters.seq++;

@@ -38,8 +38,7 @@ SCALE = 1.0
 
 
 def run_case(case):
-    kind, keys, seed = case[:3]
-    labelled = case[3] if len(case) > 3 else True
+    kind, keys, seed, labelled = case
     rng = np.random.default_rng([seed, 7919])
     plants = [P.make_plant(c, s, rng, SCALE) for c, s in keys]
     t0 = time.time()
@@ -86,7 +85,7 @@ def cases(per: int, n_clean: int, n_pairs: int, seed0: int):
     for i, key in enumerate(keys):
         kind = P.THRESHOLDS[key][0]
         for j in range(per):
-            out.append((kind, [key], seed0 + 1000 * i + j))
+            out.append((kind, [key], seed0 + 1000 * i + j, True))
     fifth = n_clean // 5
     kinds = [("static80", True)] * (n_clean - 3 * fifth) + [("static80", False)] * fifth + \
         [("idle", True)] * (fifth - fifth // 2) + [("idle", False)] * (fifth // 2) + \
@@ -101,7 +100,7 @@ def cases(per: int, n_clean: int, n_pairs: int, seed0: int):
             ka, kb = static[a], static[b]
             if ka[1].split("-")[0] != kb[1].split("-")[0] or ka[0] != kb[0]:
                 break
-        out.append(("static80", [ka, kb], seed0 + 800000 + j))
+        out.append(("static80", [ka, kb], seed0 + 800000 + j, True))
     return out
 
 

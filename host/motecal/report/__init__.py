@@ -28,7 +28,6 @@ import tempfile
 from pathlib import Path
 
 from .. import cliargs
-from ..cliargs import mote_id
 from ..errors import UserError
 
 INDEX = "index.html"
@@ -136,7 +135,7 @@ def register(subparsers) -> None:
     p.add_argument("--session", required=True, metavar="NAME", help="session to report on")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="output directory (new, empty, or an earlier report to replace)")
-    p.add_argument("--mote", type=mote_id, default=None, metavar="ID",
+    p.add_argument("--mote", type=cliargs.mote_id, default=None, metavar="ID",
                    help="only this mote (default: every mote of the session)")
     p.add_argument("--cal", default=None, metavar="cal.json",
                    help="calibration to show (default: the latest stored for the session, "

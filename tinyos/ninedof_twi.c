@@ -28,11 +28,12 @@ void ninedof_twi_init(ninedof_twi_t *t)
 }
 
 /* The operation has transferred all its bytes: STOP, or hold SCL low
- * (TWINT left set, no interrupt) for the next operation. */
+ * (TWINT left set, no interrupt) for the next operation.  The result is
+ * still the OK ninedof_twi_begin set: only twi_fail changes it, and that
+ * ends the operation. */
 TWI_INLINE uint8_t twi_finish(ninedof_twi_t *t)
 {
   t->state = NINEDOF_TWI_DONE;
-  t->result = NINEDOF_TWI_OK;
   if (t->flags & NINEDOF_I2C_STOP) {
     t->open = 0;
     return NINEDOF_TWCR_STOP;
@@ -133,7 +134,7 @@ NINEDOF_TWI_FN uint8_t ninedof_twi_step(ninedof_twi_t *t, uint8_t status, uint8_
       return twi_fail(t, NINEDOF_TWI_ADDR_NACK, NINEDOF_TWCR_STOP);
   } else if (s == NINEDOF_TWI_START) {
     if (status == NINEDOF_TW_START || status == NINEDOF_TW_REP_START) {
-      t->out = t->sla;
+      /* out is still the address byte ninedof_twi_begin set */
       t->state = NINEDOF_TWI_ADDR;
       return NINEDOF_TWCR_NEXT;
     }

@@ -20,7 +20,7 @@ Which rows are used
   distinct poses, directions not around the centre, a sweep covering under
   80 % of the sphere's equal-area cells) is not fitted: a gate warning when another set is;
   when none is, the reason the magnetometer is refused -- or, in a session
-  without a rotation sweep, left out with a warning (``gate.cannot_determine``).
+  without a rotation sweep, left out with a warning (``settings["skipped"]``).
 """
 from __future__ import annotations
 
@@ -109,14 +109,15 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
     all_sets = mag_data_sets(data)
     sets = {k: rows for k, (rows, why) in all_sets.items() if why is None}
     unfit = [f"set {k} not fitted: {why}" for k, (_, why) in all_sets.items() if why]
-    if data.has("mag").any():          # what the gate needs to judge a magnetometer left out
-        board.settings["mag_data_sets"] = {k: why for k, (_, why) in all_sets.items()}
     if not data.has("mag").any():
         board.settings["skipped"]["mag"] = "no magnetometer data in the session"
-    elif not all_sets:
-        board.settings["insufficient"]["mag"] = "needs a rotation sweep or static poses"
     elif not sets:
-        board.settings["insufficient"]["mag"] = "; ".join(unfit)
+        why = "; ".join(unfit) if all_sets else "needs a rotation sweep or static poses"
+        if "R" in all_sets:          # a sweep, recorded for it: refused
+            board.settings["insufficient"]["mag"] = why
+        else:                        # static poses recorded for the accelerometer: left out
+            board.settings["skipped"]["mag"] = ("no rotation sweep, and the static poses "
+                                                f"cannot determine it ({why})")
     else:
         main = "R" if "R" in sets and sets["R"].sum() >= MIN_SWEEP else "O"
         if main not in sets:

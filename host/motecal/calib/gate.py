@@ -39,9 +39,9 @@ Reasons (and the metric behind each):
 A sensor the session cannot calibrate at all (missing, or no static poses in
 a rotation session) is a warning: it is simply left out of the result.  So is
 a magnetometer in a session without a rotation sweep whose static poses
-cannot determine it (``cannot_determine``: the Razor boards' six poses, whose
-field directions do not surround the centre): the session was not recorded
-to calibrate it.  Data meant for the magnetometer -- a sweep (set R) -- that
+cannot determine it (the Razor boards' six poses, whose field directions do
+not surround the centre): the session was not recorded to calibrate it
+(``board.py`` records it under ``settings["skipped"]``).  Data meant for the magnetometer -- a sweep (set R) -- that
 fail the limits refuse the board.
 
 The orientation, hull and coverage limits are also checked *before* a
@@ -212,15 +212,6 @@ def _check_sensor(name, sc, lim: GateLimits, reasons, warnings):
         warnings.append(f"{name}: {w}")
 
 
-def cannot_determine(board, name: str) -> bool:
-    """The session cannot determine this sensor and was not recorded to: a
-    magnetometer none of whose data sets can determine a model, with no
-    rotation sweep among them (only static poses, recorded for the
-    accelerometer; ``settings["mag_data_sets"]``)."""
-    sets = board.settings.get("mag_data_sets") or {}
-    return name == "mag" and "R" not in sets
-
-
 def decide(board, limits: GateLimits = LIMITS, force: bool = False) -> GateDecision:
     """Accept or refuse a BoardCalibration; records the decision in board.gate."""
     reasons, warnings = [], []
@@ -233,10 +224,7 @@ def decide(board, limits: GateLimits = LIMITS, force: bool = False) -> GateDecis
         if why:
             warnings.append(f"{name}: not calibrated: {why}")
         why = board.settings.get("insufficient", {}).get(name)
-        if why and cannot_determine(board, name):
-            warnings.append(f"{name}: not calibrated: no rotation sweep, and the static poses "
-                            f"cannot determine it ({why})")
-        elif why:
+        if why:
             reasons.append(f"{name}: {why}")
     d = GateDecision(not reasons, reasons, warnings, forced=bool(force and reasons))
     board.gate = d.to_json()

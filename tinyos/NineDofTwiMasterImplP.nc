@@ -104,9 +104,13 @@ implementation
   }
 
   /* ---- operations ---- */
+  /* The operation in state DONE has ended: IDLE (a new one may begin from
+   * the event), then its outcome to the client. */
   void signalDone() {
-    error_t err = twi.result == NINEDOF_TWI_OK ? SUCCESS
-                : twi.result == NINEDOF_TWI_ADDR_NACK ? ENOACK : FAIL;
+    error_t err;
+    twi.state = NINEDOF_TWI_IDLE;
+    err = twi.result == NINEDOF_TWI_OK ? SUCCESS
+        : twi.result == NINEDOF_TWI_ADDR_NACK ? ENOACK : FAIL;
     if (twi.sla & 1)
       signal I2CPacket.readDone[client](err, twi.sla >> 1, twi.len, twi.buf);
     else
@@ -115,10 +119,8 @@ implementation
 
   task void doneTask() {
     atomic {
-      if (twi.state == NINEDOF_TWI_DONE) {
-        twi.state = NINEDOF_TWI_IDLE;
+      if (twi.state == NINEDOF_TWI_DONE)
         signalDone();
-      }
     }
   }
 
@@ -168,10 +170,8 @@ implementation
     uint8_t cmd = ninedof_twi_step(&twi, TWSR & 0xF8, TWDR);
     TWDR = twi.out;
     TWCR = cmd;
-    if (twi.state == NINEDOF_TWI_DONE) {
-      twi.state = NINEDOF_TWI_IDLE;
+    if (twi.state == NINEDOF_TWI_DONE)
       NINEDOF_TWI_CALL_SAVING(signalDone);   /* no call-clobber prologue */
-    }
   }
 
   default event void Resource.granted[uint8_t id]() { }

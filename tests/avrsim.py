@@ -1,14 +1,15 @@
 """Build plain C for the ATmega1281 with avr-gcc and run it in simavr.
 
-Used by tests/test_avr.py and bench/bench_cycles.py.  Programs print on
-UART0 (simavr echoes it on stderr, in colour, wrapped) and end with
-``cli(); sleep_cpu();``, which makes simavr exit.
+Used by tests/test_avr.py, tests/test_twi.py and bench/bench_cycles.py.
+Programs print on UART0 (simavr echoes it on stderr, in colour, wrapped) and
+end with ``cli(); sleep_cpu();``, which makes simavr exit.
 """
 from __future__ import annotations
 
 import re
 import shutil
 import subprocess
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -52,3 +53,31 @@ def size(elf: Path) -> dict:
     out = subprocess.run(["avr-size", str(elf)], capture_output=True, text=True,
                          check=True).stdout.splitlines()[1].split()
     return {"text": int(out[0]), "data": int(out[1]), "bss": int(out[2])}
+
+
+def host_and_avr(sources, d: Path, name: str, *, include=()) -> tuple[str, str]:
+    """Build a test program with gcc for the host and with avr-gcc for
+    simavr, side by side, run both: (host output, AVR output), newlines
+    removed.  ``include``: directories besides tinyos/."""
+    def host():
+        exe = d / f"{name}_host"
+        subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror"]
+                       + [f"-I{p}" for p in (TINYOS, *include)]
+                       + [str(s) for s in sources] + ["-o", str(exe)], check=True)
+        return subprocess.run([str(exe)], capture_output=True, text=True).stdout.replace("\n", "")
+
+    def avr():
+        return run(build(sources, d / f"{name}.elf", include=include))
+
+    with ThreadPoolExecutor(2) as pool:
+        jobs = pool.submit(host), pool.submit(avr)
+        return tuple(j.result() for j in jobs)
+
+
+def check_result(text: str) -> tuple[list[str], str]:
+    """The output of a C test program (tests/c/test_check.h): the tokens it
+    printed, each ended by ';', and the summary "CHECKS <n> FAILED <m>"
+    check_summary() prints before ";END"."""
+    assert ";END" in text, text[-300:]
+    tokens = text[:text.index(";END")].split(";")
+    return tokens[:-1], tokens[-1]

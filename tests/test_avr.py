@@ -3,8 +3,6 @@ simavr gives bit for bit what the host build (motecal.mote_c) gives: the
 correction (AVR assembly kernel vs portable C), decode/validate, the upload
 receiver's replies, and the EEPROM image."""
 import binascii
-import subprocess
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -161,40 +159,20 @@ LOGIC_SOURCES = [avrsim.CSRC / "logic_tests.c", avrsim.BASESTATION / "ninedof_bs
 def logic_outputs(tmp_path_factory):
     if avrsim.missing_tools():
         pytest.fail(f"missing {avrsim.missing_tools()}: run `make sysdeps`")
-    d = tmp_path_factory.mktemp("logic")
-    exe = d / "logic_host"
-
-    def host():
-        subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror",
-                        f"-I{avrsim.TINYOS}", f"-I{avrsim.BASESTATION}"]
-                       + [str(s) for s in LOGIC_SOURCES] + ["-o", str(exe)], check=True)
-        return subprocess.run([str(exe)], capture_output=True, text=True).stdout.replace("\n", "")
-
-    def avr():
-        return avrsim.run(avrsim.build(LOGIC_SOURCES, d / "logic.elf",
-                                       include=[avrsim.BASESTATION]))
-
-    with ThreadPoolExecutor(2) as pool:          # the two builds side by side
-        jobs = pool.submit(host), pool.submit(avr)
-        return tuple(j.result() for j in jobs)
-
-
-def _result(text):
-    assert "END" in text, text[-200:]
-    tokens = text[:text.index("END")].split(";")
-    return tokens[:-1], tokens[-1].strip()
+    return avrsim.host_and_avr(LOGIC_SOURCES, tmp_path_factory.mktemp("logic"), "logic",
+                               include=[avrsim.BASESTATION])
 
 
 def test_logic_checks_pass_on_host_and_avr(logic_outputs):
     for text in logic_outputs:
-        tokens, summary = _result(text)
+        tokens, summary = avrsim.check_result(text)
         assert not [t for t in tokens if t.startswith("FAIL")], tokens
         n = int(summary.split()[1])
         assert summary == f"CHECKS {n} FAILED 0" and n >= 50
 
 
 def test_logic_outputs_identical_and_readable_by_the_host(logic_outputs):
-    host, avr = (_result(t)[0] for t in logic_outputs)
+    host, avr = (avrsim.check_result(t)[0] for t in logic_outputs)
     assert host == avr                                      # bit for bit
     digests = [bytes.fromhex(t[1:]) for t in host if t.startswith("D")]
     # the C-packed sample messages decode with protocol.py
@@ -237,7 +215,7 @@ def test_sampling_clock_follows_the_crystal(logic_outputs):
     wrap: after locking, the phase against the crystal stays bounded (so the
     long-run rate is the crystal's), periods never jump by more than a tick,
     and the rate the loop settles on is the simulated one."""
-    tokens, _ = _result(logic_outputs[0])
+    tokens, _ = avrsim.check_result(logic_outputs[0])
     cases = [np.frombuffer(bytes.fromhex(t[1:]), ">i4") for t in tokens if t.startswith("K")]
     assert len(cases) == len(CLOCK_CASES)
     for (k, dk, pp_us, ppm), v in zip(CLOCK_CASES, cases):
@@ -261,7 +239,7 @@ def test_sampling_alarm_never_waits_a_timer_wrap(logic_outputs):
     more than a period after the one before (9 ms + latency after the late
     handler), on host and AVR alike."""
     for text in logic_outputs:
-        tokens, _ = _result(text)
+        tokens, _ = avrsim.check_result(text)
         (a,) = [t for t in tokens if t.startswith("A")]
         (longest_old, gaps_old, longest_new, gaps_new, gaps_old_late, longest_new_late,
          gaps_new_late) = (int(x) for x in np.frombuffer(bytes.fromhex(a[1:]), ">i4"))

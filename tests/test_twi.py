@@ -2,9 +2,6 @@
 NINEDOF_LEAN_I2C=1) against a model of the ATmega1281 TWI and one slave
 (tests/c/twi_tests.c), built with gcc on the host and with avr-gcc in
 simavr: every path's bus events and outcome, the same on both."""
-import subprocess
-from concurrent.futures import ThreadPoolExecutor
-
 import pytest
 
 import avrsim
@@ -29,27 +26,11 @@ EXPECTED = {
 def outputs(tmp_path_factory):
     if avrsim.missing_tools():
         pytest.fail(f"missing {avrsim.missing_tools()}: run `make sysdeps`")
-    d = tmp_path_factory.mktemp("twi")
-
-    def host():
-        exe = d / "twi_host"
-        subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror",
-                        f"-I{avrsim.TINYOS}"] + [str(s) for s in SOURCES] + ["-o", str(exe)],
-                       check=True)
-        return subprocess.run([str(exe)], capture_output=True, text=True).stdout.replace("\n", "")
-
-    def avr():
-        return avrsim.run(avrsim.build(SOURCES, d / "twi.elf"))
-
-    with ThreadPoolExecutor(2) as pool:
-        jobs = pool.submit(host), pool.submit(avr)
-        return tuple(j.result() for j in jobs)
+    return avrsim.host_and_avr(SOURCES, tmp_path_factory.mktemp("twi"), "twi")
 
 
 def _parse(text):
-    assert "END" in text, text[-300:]
-    tokens = [t for t in text[:text.index("END")].split(";") if t]
-    summary = tokens.pop()
+    tokens, summary = avrsim.check_result(text)
     scen = {}
     for t in tokens:
         assert t.startswith("T"), t                  # a FAIL line would land here

@@ -4,8 +4,9 @@
  * (magnetometer aligned with accel/gyro), batching, status, EEPROM
  * writer, the BaseStation's serial divisor and status), built twice by
  * tests/test_avr.py: with gcc on the host and with avr-gcc for the
- * ATmega1281 in simavr.  Prints "CHECKS <n> FAILED <m>" and, for the
- * host-vs-AVR comparison, a digest of every packed message ("D<hex>").
+ * ATmega1281 in simavr.  Prints, for the host-vs-AVR comparison, a digest
+ * of every packed message ("D<hex>"), and last "CHECKS <n> FAILED <m>;END"
+ * (check_summary).
  */
 #include <stdint.h>
 #include <string.h>
@@ -656,7 +657,6 @@ int main(void)
   test_eeprom();
   test_basestation();
   check_summary();
-  out_s(" END\n");
   out_end();
   return failed != 0;
 }

@@ -1,8 +1,9 @@
 /*
  * test_check.h -- the checks of the C test programs (logic_tests.c,
  * twi_tests.c): CHECK(cond) counts a check and prints "FAIL line <n>;" when
- * it does not hold; check_summary() prints "CHECKS <n> FAILED <m>", which
- * tests/test_avr.py and tests/test_twi.py read.  Include after test_out.h.
+ * it does not hold; check_summary() ends the output with "CHECKS <n> FAILED
+ * <m>;END", which tests/avrsim.py (check_result) reads for tests/test_avr.py
+ * and tests/test_twi.py.  Include after test_out.h.
  */
 #ifndef TEST_CHECK_H
 #define TEST_CHECK_H
@@ -28,6 +29,7 @@ static inline void check_summary(void)
   out_u16(checks);
   out_s(" FAILED ");
   out_u16(failed);
+  out_s(";END\n");
 }
 
 #endif /* TEST_CHECK_H */

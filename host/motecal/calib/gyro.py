@@ -27,6 +27,7 @@ from scipy.optimize import least_squares
 
 from . import eq6
 from . import ga as _ga
+from .fit import reduce_samples
 
 PRIOR_BIAS_DPS = 40.0            # ITG3200 zero-rate offset, datasheet +-40 deg/s
 MAX_MOVE_S = 10.0                # longer gaps between still poses are not integrated
@@ -64,7 +65,7 @@ class BiasMean:
 
 def mean_bias(g: np.ndarray, label=None) -> BiasMean:
     """Bias from still rates g (n, 3) in deg/s, with ``label`` the pose of
-    each row: the mean, and as its standard error the larger of sd / sqrt(n)
+    each row (>= 1, static poses): the mean, and as its standard error the larger of sd / sqrt(n)
     (white noise) and the cluster-robust standard error over poses,
     ``sqrt(P / (P - 1) sum_p n_p^2 (m_p - m)^2) / n`` (pose means m_p of n_p
     rows): drift or orientation-dependent offsets between poses make the
@@ -77,13 +78,10 @@ def mean_bias(g: np.ndarray, label=None) -> BiasMean:
     poses = np.full(3, np.nan)
     P = 0
     if label is not None:
-        labs, inv = np.unique(np.asarray(label), return_inverse=True)
-        P = len(labs)
+        red = reduce_samples(g, label)                    # pose means m_p and counts n_p
+        P = len(red.w)
         if P >= 2:
-            cnt = np.bincount(inv, minlength=P).astype(float)
-            sums = np.zeros((P, 3))
-            np.add.at(sums, inv, g)
-            dev = sums - cnt[:, None] * m                 # n_p (m_p - m)
+            dev = red.w[:, None] * (red.u - m)             # n_p (m_p - m)
             poses = np.sqrt(P / (P - 1) * (dev * dev).sum(axis=0)) / n
     std = np.fmax(white, poses)
     return BiasMean(m, std, sd, white, poses, n, P)

@@ -22,15 +22,16 @@ void ninedof_status_pack(const ninedof_counters_t *c, const ninedof_calrx_t *rx,
   nxp_set_u16(&msg->late, c->late);
 }
 
-void ninedof_align_init(ninedof_align_t *a)
-{
-  a->held = 0;
-  a->seq = 0;
-}
-
 void ninedof_align_lost(ninedof_align_t *a)
 {
   a->held = 0;
+}
+
+/* Nothing held, as after a lost read: seq and ag are read only for a held
+ * read, and ninedof_align_push sets them before it holds one. */
+void ninedof_align_init(ninedof_align_t *a)
+{
+  ninedof_align_lost(a);
 }
 
 uint8_t ninedof_align_push(ninedof_align_t *a, uint16_t seq, const int16_t rec[9],

@@ -289,14 +289,11 @@ def fit_matrix(moves: list[Move], b: np.ndarray, *, b_cov=None, dirs=None,
     n = len(moves)
     Jk = J.reshape(n, 3, 9)
     scores = np.einsum("kij,ki->kj", Jk, res.fun.reshape(n, 3))
-    M = scores.T @ scores
-    by_pose = {}
-    for k, m in enumerate(moves):
-        for p in {m.pose0, m.pose1}:
-            by_pose.setdefault(p, []).append(k)
-    pairs = {(k, l) for ks in by_pose.values() for k in ks for l in ks if k != l}
-    for k, l in pairs:
-        M += np.outer(scores[k], scores[l])
+    poses, inv = np.unique([(m.pose0, m.pose1) for m in moves], return_inverse=True)
+    S = np.zeros((n, len(poses)))                         # move k touches pose p
+    S[np.repeat(np.arange(n), 2), inv.ravel()] = 1.0
+    A = (S @ S.T) > 0                                     # moves k, l share a pose (k = l too)
+    M = scores.T @ A @ scores
     parts = {"moves": _psd(B @ M @ B) * n / max(1, n - ident.rank)}
     if dirs is not None and dirs_cov is not None:
         Kphi = -B @ J.T @ ms.direction_jacobian(G, b, dirs)

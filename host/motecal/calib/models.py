@@ -95,8 +95,7 @@ class MagnitudeModel:
             self.gauge = None
             self.field = 1.0
         else:
-            if gauge is None:
-                gauge = "field" if field is not None else "det"
+            gauge = default_gauge(gauge, field)
             if gauge not in GAUGES:
                 raise UserError(f"unknown magnetometer gauge {gauge!r} (det or field)")
             if gauge == "field" and not (field is not None and np.isfinite(field) and field > 0):
@@ -466,6 +465,20 @@ def theta_from_affine(model: MagnitudeModel, A, c, field=None):
     return np.array(theta)
 
 
+def default_gauge(gauge: str | None, field: float | None) -> str:
+    """The magnetometer gauge when none is given: "field" with a known field
+    magnitude, else "det" (det(A) = 1)."""
+    if gauge is not None:
+        return gauge
+    return "field" if field is not None else "det"
+
+
+def paper_groups(groups) -> tuple:
+    """The paper model's parameter groups: ``groups``, or all of
+    ``PARAM_GROUPS`` when None."""
+    return tuple(PARAM_GROUPS) if groups is None else tuple(groups)
+
+
 def mag_groups(groups, gauge: str | None = None, field: float | None = None):
     """The paper-model groups the magnetometer is fitted with when ``--params``
     asks for ``groups`` (they select the accelerometer's subset, as in the
@@ -475,10 +488,8 @@ def mag_groups(groups, gauge: str | None = None, field: float | None = None):
     scales -- with the same angles, which only re-parametrise them -- and
     ``note`` says so; with a known field (the field gauge) the groups are
     fitted as asked and ``note`` is None."""
-    groups = tuple(PARAM_GROUPS) if groups is None else tuple(groups)
-    if gauge is None:
-        gauge = "field" if field is not None else "det"
-    if gauge != "det" or "angles" not in groups or "scales" in groups:
+    groups = paper_groups(groups)
+    if default_gauge(gauge, field) != "det" or "angles" not in groups or "scales" in groups:
         return groups, None
     fitted = tuple(g for g in PARAM_GROUPS if g in groups or g == "scales")
     return fitted, (f"--params {','.join(groups)}: the magnetometer is fitted with "
@@ -497,7 +508,7 @@ def make_model(sensor: str, family: str = "full", groups=None, gauge: str | None
         if groups is not None and set(groups) - {"offsets", "scales", "cross"}:
             raise UserError("--params selects parameter groups of the paper model only")
         return FullModel(sensor, ("offsets", "scales", "cross"), gauge, field)
-    groups = tuple(PARAM_GROUPS) if groups is None else tuple(groups)
+    groups = paper_groups(groups)
     bad = set(groups) - set(PARAM_GROUPS)
     if bad:
         raise UserError(f"unknown parameter group(s) {', '.join(sorted(bad))}: "

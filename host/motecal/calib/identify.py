@@ -77,8 +77,8 @@ def analyse(J: np.ndarray, names, scale=None, unit: float = 1.0) -> Identifiabil
     typical = np.ones(d) if scale is None else np.broadcast_to(np.asarray(scale, float), (d,))
     effect = norms * typical / np.sqrt(max(n, 1))
     live = (norms > 0) & (effect > NULL_EFFECT * abs(unit))
-    scale = np.where(live, norms, 1.0)
-    Js = np.where(live, J, 0.0) / scale
+    colnorm = np.where(live, norms, 1.0)
+    Js = np.where(live, J, 0.0) / colnorm
     if Js.shape[0] > d:                      # same singular values, d x d work
         Js = np.linalg.qr(Js, mode="r")
     _, s, Vt = np.linalg.svd(Js, full_matrices=True)
@@ -91,7 +91,7 @@ def analyse(J: np.ndarray, names, scale=None, unit: float = 1.0) -> Identifiabil
     inv = np.zeros(d)
     inv[:rank] = 1.0 / s_full[:rank] ** 2
     cov_s = (Vt.T * inv) @ Vt
-    cov = cov_s / np.outer(scale, scale)
+    cov = cov_s / np.outer(colnorm, colnorm)
     return Identifiability(list(names), rank, s_full, ident, null, cov)
 
 

@@ -381,7 +381,7 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
         params=params, A=G / lsb, c=-G @ b, mse_before=bf.e6_before, mse_after=e6,
         min_before=float(mag_b.min()), max_before=float(mag_b.max()),
         min_after=float(mag_a.min()), max_after=float(mag_a.max()),
-        n_samples=len(g), n_poses=len(np.unique(label)), dataset="still", rank=3 + (9 if model != "bias" else 0),
+        n_samples=len(g), n_poses=bm.n_poses, dataset="still", rank=3 + (9 if model != "bias" else 0),
         notes=notes, validation=validation, quality=q,
         ga={"seed": seed, "generations": bf.ga_generations, "stop": bf.ga_stop,
             "trace": bf.trace},

@@ -25,6 +25,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "host"))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))   # test helpers
 
 import numpy as np  # noqa: E402
 from scipy.optimize import differential_evolution  # noqa: E402
@@ -32,8 +33,8 @@ from scipy.optimize import differential_evolution  # noqa: E402
 from motecal.calib import eq6, fit, gyro, tables  # noqa: E402
 from motecal.calib.board import calibrate_board  # noqa: E402
 from motecal.calib.models import make_model  # noqa: E402
-from motecal.calib.synthetic import paper_sized_session, vector_error  # noqa: E402
-from motecal.session import LABEL_ROT  # noqa: E402
+from synthetic import paper_sized_session, vector_error  # noqa: E402
+from motecal.sessions.session import LABEL_ROT  # noqa: E402
 
 
 def best_time(f, reps=5):

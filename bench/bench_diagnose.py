@@ -27,10 +27,11 @@ from multiprocessing import Pool  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "host"))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))   # test helpers
 
 import numpy as np  # noqa: E402
 
-from motecal.diagnose import plant as P  # noqa: E402
+import plant as P  # noqa: E402
 from motecal.diagnose.engine import diagnose  # noqa: E402
 
 

@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from motecal import protocol as P
+from motecal.line import protocol as P
 from motecal.sim.network import Network
 
 BAUDS = (57600, 115200, 250000)

@@ -17,10 +17,12 @@ import time
 
 import numpy as np
 
-from motecal import protocol as P
-from motecal import sources as S
-from motecal.logger import LinkTracker, Logger, decode_sample_frames
-from motecal.store import open_store
+from motecal.capture.link import LinkTracker
+from motecal.capture.logger import Logger
+from motecal.line import protocol as P
+from motecal.line import sources as S
+from motecal.line.samples import decode_sample_frames
+from motecal.sessions.store import open_store
 
 GOAL = 200_000
 

@@ -70,7 +70,7 @@ class Simulator:
 def magnitudes(db: Path, session: str) -> dict:
     """Per mote: accel (g) and mag (gauss) magnitude of each static pose's mean,
     with the nominal datasheet scales (what the mote sends, raw or corrected)."""
-    from motecal.store import open_store
+    from motecal.sessions.store import open_store
     with open_store(str(db)) as st:
         data = st.load_session(session)
     out = {}

@@ -17,11 +17,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..session import SessionData
-from ..sim.model import SimModel, load_model
-from ..sim.physics import K_NOMINAL
-from ..sim.trajectory import make_trajectory
-from .causes import THRESHOLDS  # noqa: F401 - the documented thresholds live with the vocabulary
+from motecal.diagnose.causes import THRESHOLDS  # noqa: F401 - the documented thresholds live with the vocabulary
+from motecal.sessions.session import SessionData
+from motecal.sim.model import SimModel, load_model
+from motecal.sim.physics import K_NOMINAL
+from motecal.sim.trajectory import make_trajectory
 
 SPAN = 3.0
 
@@ -171,7 +171,7 @@ def truth_gain(diag, plant: Plant) -> float | None:
     model over the rms a perfect model leaves (the noise of the held-out
     means); for spread terms, the same held-out statistic with the true
     parameters in place of the fitted ones."""
-    from . import gain as G
+    from motecal.diagnose import gain as G
     f = next((f for f in diag.findings if f.cause == plant.cause and f.sensor == plant.sensor),
              None)
     if f is None:

@@ -19,9 +19,9 @@ import copy
 
 import numpy as np
 
-from ..session import SessionData
-from ..sphere import unit
-from .models import lower_factor
+from motecal.calib.models import lower_factor
+from motecal.maths.sphere import unit
+from motecal.sessions.session import SessionData
 
 PAPER_POSES = 80
 PAPER_PER_POSE = 200
@@ -29,7 +29,7 @@ PAPER_SWEEP = 5000
 
 
 def _model(name: str, accel_noise_mg: float | None):
-    from ..sim import SimModel, load_model
+    from motecal.sim import SimModel, load_model
     m = load_model(name)
     if accel_noise_mg is None:
         return m
@@ -46,7 +46,7 @@ def paper_sized_session(seed: int = 0, model: str = "general", *,
                         n_poses: int = PAPER_POSES, per_pose: int = PAPER_PER_POSE,
                         mote: int = 1) -> SessionData:
     """One simulated board, paper-sized (see the module doc)."""
-    from ..sim import make_trajectory
+    from motecal.sim import make_trajectory
     sm = _model(model, accel_noise_mg)
     board = sm.board(mote, seed)
     traj = make_trajectory("static80", seed, n_poses=n_poses, still_s=per_pose / sm.rate_hz,

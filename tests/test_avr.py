@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import avrsim
-from motecal import fixedpoint as FP
-from motecal import mote_c as M
-from motecal import protocol as P
+from motecal.firmware import fixedpoint as FP
+from motecal.firmware import mote_c as M
+from motecal.line import protocol as P
 
 MOTE = 0x0102
 NREC = 300

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from motecal import fixedpoint as FP
-from motecal import mote_c as M
-from motecal import protocol as P
+from motecal.firmware import fixedpoint as FP
+from motecal.firmware import mote_c as M
+from motecal.line import protocol as P
 
 R = {n: c for c, (n, _) in P.CAL_REASONS.items()}
 OK, E_MOTE, E_FRAG, E_INCOMPLETE, E_CRC, E_VERSION, E_RANGE, E_FORMAT, E_ACTION = (

@@ -11,9 +11,9 @@ from motecal.calib import fit, gate, tables
 from motecal.calib.board import calibrate_board, mag_data_sets
 from motecal.calib.models import make_model, theta_from_affine
 from motecal.calib.result import BoardCalibration
-from motecal.calib.synthetic import paper_sized_session, true_affine, vector_error
+from synthetic import paper_sized_session, true_affine, vector_error
 from motecal.errors import UserError
-from motecal.session import LABEL_ROT, SessionData
+from motecal.sessions.session import LABEL_ROT, SessionData
 
 
 @pytest.fixture(scope="module")
@@ -290,7 +290,7 @@ def test_a_rotation_the_logger_accepted_passes_the_gate(model, seed, mote):
     (sphere.coverage): a guided sweep the logger stopped at >= 90 % shows the
     gate that number before the fit and stays above ``min_mag_coverage``
     after it (these two lost the most, 3 points, in 144 simulated sweeps)."""
-    from motecal.guide import RotationCapture
+    from motecal.capture.guide import RotationCapture
     from motecal.sim import simulate_session
     d = simulate_session("rotation", motes=(mote,), seed=seed, model=model)[mote]
     cap = RotationCapture(mote)

@@ -4,12 +4,12 @@ import json
 import numpy as np
 import pytest
 
-from motecal import importer
-from motecal.calib.cli import out_path
-from motecal.calib.synthetic import paper_sized_session
-from motecal.cli import main
-from motecal.session import SessionData
-from motecal.store import open_store
+from motecal.commands.calibrate import out_path
+from motecal.sessions import importer
+from synthetic import paper_sized_session
+from motecal.commands.main import main
+from motecal.sessions.session import SessionData
+from motecal.sessions.store import open_store
 
 
 def _concat(name, parts):

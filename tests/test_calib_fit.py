@@ -14,7 +14,7 @@ import pytest
 
 from motecal.calib import fit
 from motecal.calib.models import PARAM_GROUPS, make_model, theta_from_affine
-from motecal.sphere import fibonacci_sphere
+from motecal.maths.sphere import fibonacci_sphere
 
 NOISE = 0.005
 

@@ -6,7 +6,7 @@ import pytest
 from motecal.calib import eq6, gyro
 from motecal.calib.board import calibrate_board
 from motecal.calib.models import lower_factor
-from motecal.calib.synthetic import paper_sized_session, true_affine
+from synthetic import paper_sized_session, true_affine
 
 
 def integer_rates(seed, n=16000, sd=(6, 7, 5)):

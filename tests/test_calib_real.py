@@ -6,9 +6,9 @@ import json
 import numpy as np
 import pytest
 
-from motecal import importer
 from motecal.calib import gate
 from motecal.calib.board import calibrate_board
+from motecal.sessions import importer
 
 
 @pytest.fixture(scope="module")
@@ -116,7 +116,7 @@ def test_rotation_session_calibrates_the_magnetometer_only(measured):
 def test_razor_board_calibrate_command_accepts_it(measured, tmp_path, capsys):
     """What the README promises: the Razor boards are accepted with --model
     paper --params offsets,scales (exit 0), the magnetometer left out."""
-    from motecal.cli import main
+    from motecal.commands.main import main
     files = sorted((measured / "sensorstick-boards" / "razor1").glob("razor1_acc_*.raw"))
     db, out = tmp_path / "r.db", tmp_path / "cal.json"
     assert main(["import", *map(str, files), "--db", str(db), "--session", "razor1"]) == 0

@@ -4,8 +4,8 @@ import re
 
 import pytest
 
-from motecal import cli
-from motecal.cliargs import between, description, int_range, mote_id, plain, positive, seed
+from motecal.commands import main as cli
+from motecal.commands.args import between, description, int_range, mote_id, plain, positive, seed
 
 
 def test_positive_numbers():

@@ -6,11 +6,11 @@ import json
 import numpy as np
 import pytest
 
-from motecal.cli import main
-from motecal.diagnose import plant as P
-from motecal.session import SessionData
+from motecal.commands.main import main
+import plant as P
+from motecal.sessions.session import SessionData
+from motecal.sessions.store import open_store
 from motecal.sim import load_model
-from motecal.store import open_store
 
 
 @pytest.fixture(scope="module")

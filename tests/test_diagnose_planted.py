@@ -10,10 +10,10 @@ import re
 import numpy as np
 import pytest
 
-from motecal.diagnose import plant as P
+import plant as P
 from motecal.diagnose.engine import diagnose
+from motecal.sessions.store import open_store
 from motecal.sim import load_model
-from motecal.store import open_store
 
 SEED = 20260  # one random draw per (cause, sensor); change it and the test must still pass
 KEYS = list(P.THRESHOLDS)
@@ -71,7 +71,7 @@ def test_clean_unlabelled_board_gives_no_finding(kind):
 def test_clean_unguided_log_gives_no_finding(tmp_path):
     """The same through the real path: sim -> log (unguided, batch receive
     times) -> diagnose."""
-    from motecal.cli import main
+    from motecal.commands.main import main
     bin_, db = tmp_path / "q.bin", tmp_path / "d.db"
     assert main(["sim", "--model", "paper", "--session", "static80", "--seed", "1",
                  "--motes", "1", "--out", str(bin_), "--quiet"]) == 0

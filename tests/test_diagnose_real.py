@@ -8,7 +8,7 @@ import pytest
 from scipy.linalg import sqrtm
 
 from motecal.diagnose.engine import diagnose
-from motecal.importer import read_any
+from motecal.sessions.importer import read_any
 from motecal.sim import SimModel
 
 

@@ -13,7 +13,7 @@ from motecal.diagnose import screens as SC
 from motecal.diagnose import structure as ST
 from motecal.diagnose.compare import SampledTrajectory, distance, read_times
 from motecal.diagnose.prepare import sensor_obs, unique_updates
-from motecal.session import SessionData
+from motecal.sessions.session import SessionData
 from motecal.sim import SimModel, load_model
 
 
@@ -246,7 +246,7 @@ def test_distance_is_zero_for_equal_statistics_and_grows_with_difference():
 
 
 def test_json_has_exactly_the_issue_keys():
-    from motecal.diagnose import plant as P
+    import plant as P
     from motecal.diagnose.engine import diagnose
     ses = P.simulate([], "idle", 3, duration=20.0)
     d = diagnose(ses, simulate=False)
@@ -275,7 +275,7 @@ def test_question_one_statistics_see_reading_size_direction_and_the_other_sensor
     the reading's size per axis and the other sensor (issue 7), each responding
     to its own effect and not to the others; the gyro's Allan deviation at 1 s
     pooled over the 2.5 s poses."""
-    from motecal.diagnose import plant as P
+    import plant as P
     from motecal.diagnose.compare import session_stats
 
     def stats(keys):

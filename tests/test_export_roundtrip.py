@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from motecal.calib.board import calibrate_board
-from motecal.cli import main
-from motecal.session import SessionData, batch_times, rate_from_times
-from motecal.store import open_store
+from motecal.commands.main import main
+from motecal.sessions.session import SessionData, batch_times, rate_from_times
+from motecal.sessions.store import open_store
 
 
 @pytest.fixture(scope="module")

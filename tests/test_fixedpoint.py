@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from motecal import fixedpoint as FP
-from motecal import mote_c
-from motecal import protocol as P
-from motecal.session import NOMINAL_SCALES
+from motecal.firmware import fixedpoint as FP
+from motecal.firmware import mote_c
+from motecal.line import protocol as P
+from motecal.sessions.session import NOMINAL_SCALES
 
 
 def physical(sensor, rng, scale_err=0.05, cross=0.02, offset_counts=100):

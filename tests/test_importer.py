@@ -8,9 +8,9 @@ import warnings
 import numpy as np
 import pytest
 
-from motecal import importer as I
 from motecal.errors import UserError
-from motecal.session import LABEL_NONE, LABEL_ROT, SessionData
+from motecal.sessions import importer as I
+from motecal.sessions.session import LABEL_NONE, LABEL_ROT, SessionData
 
 BOARDS = ("razor1", "razor2")
 RUNS = ("full-sphere", "rotate-ccw-around-z-pointing-up", "unmoved-with-x-pointing-forward",
@@ -439,7 +439,7 @@ def test_unknown_formats(tmp_path):
 # ---------------------------------------------------------------- motecal import (CLI, store)
 
 def _motecal(capsys, *argv):
-    from motecal.cli import main
+    from motecal.commands.main import main
     code = main([str(a) for a in argv])
     out, err = capsys.readouterr()
     return code, out, err
@@ -451,7 +451,7 @@ def _db_state(db):
 
 
 def test_cli_import_saves_whole_sessions(measured_dir, tmp_path, capsys, razor_static):
-    from motecal.store import open_store
+    from motecal.sessions.store import open_store
     db = tmp_path / "m.db"
     files, expected = razor_static["razor1"]
     code, out, err = _motecal(capsys, "import", *files, "--db", db, "--session", "razor1")
@@ -518,7 +518,7 @@ def test_cli_failed_import_leaves_db_unchanged(measured_dir, tmp_path, capsys):
 
 
 def test_cli_csv_export_format_imports(tmp_path, capsys):
-    from motecal.store import open_store
+    from motecal.sessions.store import open_store
     raw, t = _synthetic()
     n = len(raw)
     src = SessionData("u", raw, np.full(n, 4), np.arange(100, 100 + n), t, np.zeros(n), np.zeros(n))

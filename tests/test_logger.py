@@ -4,13 +4,15 @@ state machines, and whole in-process runs into sqlite."""
 import numpy as np
 import pytest
 
-from motecal import protocol as P
-from motecal import sources as S
-from motecal.guide import GuidedFlow, PoseCapture, RotationCapture, describe_up, sketch_up
-from motecal.logger import LinkTracker, Logger, MoteLink, decode_sample_frames
-from motecal.session import LABEL_ROT
-from motecal.sphere import SphereCoverage, fibonacci_sphere
-from motecal.store import open_store
+from motecal.capture.guide import GuidedFlow, PoseCapture, RotationCapture, describe_up, sketch_up
+from motecal.capture.link import LinkTracker, MoteLink
+from motecal.capture.logger import Logger
+from motecal.line import protocol as P
+from motecal.line import sources as S
+from motecal.line.samples import decode_sample_frames
+from motecal.maths.sphere import SphereCoverage, fibonacci_sphere
+from motecal.sessions.session import LABEL_ROT
+from motecal.sessions.store import open_store
 from test_logger_streams import pose_trajectory, sample_frames
 
 
@@ -370,7 +372,7 @@ def test_logger_run_from_recorded_file(tmp_path):
 
 def test_plain_status_line_never_counts_past_the_last_pose(tmp_path):
     import io
-    from motecal.logger import PlainDisplay
+    from motecal.commands.log_screen import PlainDisplay
     raw = pose_trajectory(n_poses=3, seed=11)[0]
     frames, _ = sample_frames({1: raw}, seq0={1: 0})
     rec = tmp_path / "rec.bin"
@@ -394,7 +396,7 @@ def test_a_frame_cut_short_when_the_line_ends_is_not_a_crc_error(tmp_path, capsy
     rec.write_bytes(b"".join(frames) + frames[0][:20])    # the recording stops mid-frame
     with open_store(str(tmp_path / "run.db"), create=True) as st:
         w = st.open_session("r", kind="free", meta={"source": str(rec)})
-        from motecal.logger import PlainDisplay
+        from motecal.commands.log_screen import PlainDisplay
         Logger(S.parse_port(str(rec)), w, LinkTracker(), display=PlainDisplay()).run()
         line = st.link_stats("r")["line"]
     assert (line["cut_off"], line["crc_errors"], line["frames"]) == (1, 0, len(frames))
@@ -406,7 +408,8 @@ def test_a_finished_guided_log_stops_within_the_drain_not_at_the_end_of_the_line
     """After the last pose the logger reads on for DRAIN_S of sample time, not
     3 s of wall time: a line read faster than real time (a simulator served
     as fast as it is read, a recording) is not swallowed to its end."""
-    from motecal.logger import DRAIN_S, PlainDisplay
+    from motecal.capture.logger import DRAIN_S
+    from motecal.commands.log_screen import PlainDisplay
     raw = pose_trajectory(n_poses=3, seed=13)[0]
     tail = np.tile(raw[-1], (30000, 1))                 # the board stays where it is
     frames, _ = sample_frames({1: np.vstack([raw, tail])}, seq0={1: 0})
@@ -425,7 +428,7 @@ def test_a_finished_guided_log_stops_within_the_drain_not_at_the_end_of_the_line
 
 
 def test_push_many_decides_like_push_row_by_row():
-    from motecal.still import StillDetector
+    from motecal.sessions.still import StillDetector
     rng = np.random.default_rng(12)
     rows = rng.normal(0, 1, (2500, 9)) + [0, 0, 256, 20, -10, 5, 200, 0, -400]
     rows[400:600, :3] += rng.normal(0, 25, (200, 3))          # shaking
@@ -444,7 +447,7 @@ def test_push_many_decides_like_push_row_by_row():
 
 
 def test_argument_mistakes_are_one_line(tmp_path, capsys):
-    from motecal import cli
+    from motecal.commands import main as cli
     rec = tmp_path / "rec.bin"
     rec.write_bytes(b"")
     base = ["log", "--db", str(tmp_path / "x.db"), "--session", "s", "--port", str(rec)]

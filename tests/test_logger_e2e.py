@@ -12,10 +12,10 @@ import sys
 
 import numpy as np
 
-from motecal.session import LABEL_ROT
+from motecal.sessions.session import LABEL_ROT
+from motecal.sessions.store import open_store
 from motecal.sim.serve import pty_in_thread, serve_in_thread
 from motecal.sim.world import World
-from motecal.store import open_store
 
 
 def _log(*args, timeout=240):

@@ -12,9 +12,10 @@ import time
 import numpy as np
 import pytest
 
-from motecal import sources as S
-from motecal.logger import LinkTracker, Logger
-from motecal.store import open_store
+from motecal.capture.link import LinkTracker
+from motecal.capture.logger import Logger
+from motecal.line import sources as S
+from motecal.sessions.store import open_store
 from test_logger_streams import sample_frames
 
 RATE = 125.0

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from motecal import protocol as P
-from motecal.sphere import fibonacci_sphere
+from motecal.line import protocol as P
+from motecal.maths.sphere import fibonacci_sphere
 
 G = 256.0            # ADXL345 counts per g
 GYRO = 14.375        # ITG3200 counts per deg/s
@@ -104,7 +104,7 @@ def sample_frames(raw_by_mote: dict, *, batch=5, seq0=None, status_every=0, grou
 
 
 def test_trajectory_poses_are_still_and_distinct():
-    from motecal.still import segment_still
+    from motecal.sessions.still import segment_still
     raw, truth = pose_trajectory(n_poses=5, seed=2)
     lab = segment_still(raw.astype(float), 125.0)
     assert lab.max() == 5

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from motecal import protocol as P
+from motecal.line import protocol as P
 
 
 def test_crc_is_xmodem():

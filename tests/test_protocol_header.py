@@ -3,8 +3,8 @@ import subprocess
 
 import pytest
 
-from motecal import protocol as P
-from motecal.cheader import parse_header
+from motecal.line import protocol as P
+from cheader import parse_header
 
 from conftest import REPO
 

@@ -12,16 +12,16 @@ from matplotlib.image import imread
 
 from motecal.calib import BoardCalibration, calibrate_board, decide
 from motecal.calib import tables as CT
-from motecal.cli import main
+from motecal.commands.main import main
 from motecal.errors import UserError
-from motecal.importer import read_razor_float, read_razor_text
 from motecal.report import build as B
 from motecal.report import figures as F
 from motecal.report import tables as T
 from motecal.report import write_report
-from motecal.session import LABEL_ROT, SessionData
+from motecal.sessions.importer import read_razor_float, read_razor_text
+from motecal.sessions.session import LABEL_ROT, SessionData
+from motecal.sessions.store import open_store
 from motecal.sim import simulate_session
-from motecal.store import open_store
 
 SEED = 7
 

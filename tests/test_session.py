@@ -1,7 +1,7 @@
 """SessionData.rate: the one sample-rate rule of importer, diagnosis and report."""
 import numpy as np
 
-from motecal.session import SessionData
+from motecal.sessions.session import SessionData
 
 
 def _data(t, raw, meta):

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import serial
 
-from motecal import protocol as P
+from motecal.line import protocol as P
 
 pytestmark = pytest.mark.timeout(120)
 

@@ -6,11 +6,11 @@ import json
 import numpy as np
 import pytest
 
-from motecal import protocol as P
 from motecal import upload as U
 from motecal.calib.board import calibrate_board
 from motecal.errors import UserError
-from motecal.mote_c import EepromWriter
+from motecal.firmware.mote_c import EepromWriter
+from motecal.line import protocol as P
 from motecal.sim import simulate_session
 from motecal.sim.world import World, WorldPort
 
@@ -84,6 +84,6 @@ def test_eeprom_file_that_cannot_be_written_is_refused_at_start(tmp_path):
 
 
 def test_erased_eeprom_boots_raw():
-    from motecal.mote_c import CalReceiver
+    from motecal.firmware.mote_c import CalReceiver
     w = EepromWriter(CalReceiver(3))
     assert w.restored.slot is None and not w.busy and not w.step()

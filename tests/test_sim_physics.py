@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from motecal.errors import UserError
-from motecal.session import HMC5883L_OVERFLOW, LABEL_ROT, SessionData
-from motecal.sim import (SimModel, builtin_models, load_model, make_trajectory,
-                         simulate_session, write_truth)
+from motecal.sessions.session import HMC5883L_OVERFLOW, LABEL_ROT, SessionData
+from motecal.sessions.still import segment_still
+from motecal.sim import (SimModel, builtin_models, load_model, make_trajectory, simulate_session,
+                         write_truth)
 from motecal.sim.physics import K_NOMINAL, TERMS
 from motecal.sim.trajectory import Trajectory
-from motecal.still import segment_still
 
 KA, KG, KM = K_NOMINAL["accel"], K_NOMINAL["gyro"], K_NOMINAL["mag"]
 ENV = {"gravity_g": 1.0, "field_gauss": 0.48, "inclination_deg": 60.0, "declination_deg": 0.0}

@@ -6,7 +6,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from motecal.errors import UserError
-from motecal.session import LABEL_NONE, LABEL_ROT
+from motecal.sessions.session import LABEL_NONE, LABEL_ROT
 from motecal.sim.trajectory import (STANDARD_G, Trajectory, make_trajectory)
 
 RATE = 125.0

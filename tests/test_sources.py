@@ -9,8 +9,8 @@ import tty
 import numpy as np
 import pytest
 
-from motecal import protocol as P
-from motecal import sources as S
+from motecal.line import protocol as P
+from motecal.line import sources as S
 
 
 def _frame(mote=1, seq=0, n=5, value=0):

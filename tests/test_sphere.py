@@ -3,7 +3,7 @@ the quality gate, the simulator, the diagnosis and the report share."""
 import numpy as np
 import pytest
 
-from motecal import sphere as S
+from motecal.maths import sphere as S
 
 
 def test_unit_and_angles():

@@ -3,7 +3,7 @@ the diagnosis compares: white rate noise falls as tau^-1/2, a rate random walk
 rises as tau^+1/2."""
 import numpy as np
 
-from motecal.stats import allan_deviation
+from motecal.maths.stats import allan_deviation
 
 
 def _slope(tau, adev, lo, hi):

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from motecal.still import StillDetector, segment_still, still_mask, StillThresholds
+from motecal.sessions.still import StillDetector, segment_still, still_mask, StillThresholds
 
 
 def _synthetic(rate=125.0, seed=0):

@@ -9,11 +9,11 @@ import sys
 import numpy as np
 import pytest
 
-from motecal import store as store_mod
+from motecal.commands.export import CSV_HEADER, export_csv
 from motecal.errors import UserError
-from motecal.session import LABEL_ROT, SessionData
-from motecal.store import SCHEMA_VERSION, open_store
-from motecal.store_cli import CSV_HEADER, export_csv
+from motecal.sessions import store as store_mod
+from motecal.sessions.session import LABEL_ROT, SessionData
+from motecal.sessions.store import SCHEMA_VERSION, open_store
 
 
 def _session(name="s1", n=12, motes=(1, 2), seed=0):
@@ -273,7 +273,7 @@ def test_export_csv_format_and_atomic(tmp_path, monkeypatch):
         assert x[4:] == ["" if np.isnan(v) else str(int(v)) for v in data.raw[i]]
     # a failure while writing leaves the old file untouched and no temp file
     out.write_text("previous\n")
-    import motecal.importer
+    import motecal.sessions.importer
 
     class Boom(Exception):
         pass
@@ -283,7 +283,7 @@ def test_export_csv_format_and_atomic(tmp_path, monkeypatch):
             f.write("mote,seq\n1,2\n")
         raise Boom()
 
-    monkeypatch.setattr(motecal.importer, "write_csv", half_then_fail)
+    monkeypatch.setattr(motecal.sessions.importer, "write_csv", half_then_fail)
     with pytest.raises(Boom):
         export_csv(data, str(out))
     assert out.read_text() == "previous\n"
@@ -405,9 +405,10 @@ def test_postgres_sessions_calibrations_atomic(pg_url, monkeypatch):
 
 
 def test_postgres_two_base_stations_log_into_one_server(pg_url, tmp_path):
-    from motecal import sources as S
-    from motecal.guide import GuidedFlow
-    from motecal.logger import LinkTracker, Logger
+    from motecal.line import sources as S
+    from motecal.capture.guide import GuidedFlow
+    from motecal.capture.link import LinkTracker
+    from motecal.capture.logger import Logger
     from test_logger_streams import pose_trajectory, sample_frames
     recs, sent = {}, {}
     for k, motes in enumerate(((1, 2), (7,))):

@@ -5,7 +5,7 @@ with a sequence byte, waiting for the 0x43 ack), reaching a mote's
 calibration code through the radio."""
 import pytest
 
-from motecal import protocol as P
+from motecal.line import protocol as P
 from motecal.sim.world import World
 
 tos = pytest.importorskip("tinyos3.tos")

@@ -12,15 +12,15 @@ mote and a BaseStation that does not ack are retried and then reported.
 import numpy as np
 import pytest
 
-from motecal import fixedpoint as FP
-from motecal import mote_c
-from motecal import protocol as P
 from motecal import upload as U
 from motecal.calib.board import calibrate_board
 from motecal.errors import QualityError
+from motecal.firmware import fixedpoint as FP
+from motecal.firmware import mote_c
+from motecal.line import protocol as P
+from motecal.line.sources import PortSpec
 from motecal.sim import simulate_session
 from motecal.sim.world import World, WorldPort
-from motecal.sources import PortSpec
 
 ALL = 0b111
 

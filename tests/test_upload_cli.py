@@ -11,12 +11,12 @@ import sys
 import numpy as np
 import pytest
 
-from motecal import fixedpoint as FP
-from motecal import mote_c
-from motecal import protocol as P
 from motecal import upload as U
 from motecal.calib.result import BoardCalibration, SensorCalibration
-from motecal.cli import main
+from motecal.commands.main import main
+from motecal.firmware import fixedpoint as FP
+from motecal.firmware import mote_c
+from motecal.line import protocol as P
 from motecal.sim.serve import serve_in_thread
 from motecal.sim.world import World
 

@@ -21,15 +21,16 @@ import sys
 
 import numpy as np
 
-from motecal import fixedpoint as FP
-from motecal import mote_c
 from motecal import upload as U
-from motecal.guide import DEFAULT_MIN_ANGLE, DEFAULT_POSE_SAMPLES, GuidedFlow
-from motecal.logger import LinkTracker, Logger
-from motecal.session import SENSOR_SLICES
+from motecal.capture.guide import DEFAULT_MIN_ANGLE, DEFAULT_POSE_SAMPLES, GuidedFlow
+from motecal.capture.link import LinkTracker
+from motecal.capture.logger import Logger
+from motecal.firmware import fixedpoint as FP
+from motecal.firmware import mote_c
+from motecal.sessions.session import SENSOR_SLICES
+from motecal.sessions.store import open_store
 from motecal.sim.serve import serve_in_thread
 from motecal.sim.world import World, WorldPort
-from motecal.store import open_store
 
 V1 = U.flags_for(1, 0b111)            # corrected, version 1
 

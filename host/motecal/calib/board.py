@@ -30,10 +30,10 @@ import numpy as np
 
 from .. import __version__
 from ..errors import UserError
-from ..session import (HMC5883L_OVERFLOW, LABEL_NONE, LABEL_ROT, NOMINAL_CHIPS, UNITS,
-                       SessionData)
-from ..sphere import coverage, distinct_directions, unit
-from ..still import StillThresholds
+from ..maths.sphere import coverage, distinct_directions, unit
+from ..sessions.session import (HMC5883L_OVERFLOW, LABEL_NONE, LABEL_ROT, NOMINAL_CHIPS, UNITS,
+                                SessionData)
+from ..sessions.still import StillThresholds
 from . import fit as _fit
 from . import gate as _gate
 from . import gyro as _gyro

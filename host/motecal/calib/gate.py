@@ -60,8 +60,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from ..sphere import DISTINCT_DEG, coverage, distinct_directions, sphere_centre, unit
-from ..still import StillThresholds
+from ..maths.sphere import DISTINCT_DEG, coverage, distinct_directions, sphere_centre, unit
+from ..sessions.still import StillThresholds
 
 
 @dataclass(frozen=True)

@@ -49,7 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import UserError
-from ..sphere import unit
+from ..maths.sphere import unit
 
 PARAM_GROUPS = ("offsets", "scales", "angles")
 MODEL_FAMILIES = ("paper", "full")

@@ -27,7 +27,7 @@ import itertools
 
 import numpy as np
 
-from ..session import SessionData
+from ..sessions.session import SessionData
 from . import fit as _fit
 from . import gyro as _gyro
 from .board import mag_data_sets

@@ -32,10 +32,10 @@ from enum import Enum
 
 import numpy as np
 
-from .session import LABEL_ROT, NOMINAL_SCALES
-from .sphere import (COVERAGE_BANDS, COVERAGE_SECTORS, SphereCoverage, angle_deg,
-                     fibonacci_sphere, sphere_centre, unit)
-from .still import StillDetector, StillThresholds
+from ..maths.sphere import (COVERAGE_BANDS, COVERAGE_SECTORS, SphereCoverage, angle_deg,
+                            fibonacci_sphere, sphere_centre, unit)
+from ..sessions.session import LABEL_ROT, NOMINAL_SCALES
+from ..sessions.still import StillDetector, StillThresholds
 
 DEFAULT_POSES = 80
 DEFAULT_POSE_SAMPLES = 200

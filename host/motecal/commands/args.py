@@ -20,9 +20,8 @@ import argparse
 import math
 import re
 
-MOTE_ID_MIN = 1
-MOTE_ID_MAX = 0xFFFE
-BAUD_MIN, BAUD_MAX = 300, 4_000_000      # serial rates: a port's, the simulator's line
+from ..line.protocol import MOTE_ID_MAX, MOTE_ID_MIN
+from ..line.sources import baud_problem
 
 
 def positive(kind=float):
@@ -73,15 +72,6 @@ def between(lo: float, hi: float):
     return parse
 
 
-def baud_problem(value) -> str | None:
-    """Why ``value`` is no baud rate (None if it is one): the one rule of
-    ``--baud``, ``serial@DEV:BAUD`` and the simulator's line."""
-    if isinstance(value, bool) or not isinstance(value, int) \
-            or not BAUD_MIN <= value <= BAUD_MAX:
-        return f"baud rate must be a whole number {BAUD_MIN}..{BAUD_MAX}, not {value!r}"
-    return None
-
-
 def baud_rate(text):
     """Argument type: a baud rate (``baud_problem``)."""
     try:
@@ -97,8 +87,8 @@ def baud_rate(text):
 def session_name(text):
     """Argument type: a session name as the store accepts it
     (``store.check_session_name``), checked before anything is opened."""
-    from .errors import UserError
-    from .store import check_session_name
+    from ..errors import UserError
+    from ..sessions.store import check_session_name
     try:
         return check_session_name(text)
     except UserError as e:

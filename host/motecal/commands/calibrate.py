@@ -24,12 +24,12 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ..cliargs import description, int_range, mote_id, positive, seed
+from ..calib.board import calibrate_board
+from ..calib.gate import decide
+from ..calib.models import MODEL_FAMILIES, parse_groups
+from ..calib.result import BoardCalibration
 from ..errors import QualityError, UserError
-from .board import calibrate_board
-from .gate import decide
-from .models import MODEL_FAMILIES, parse_groups
-from .result import BoardCalibration
+from .args import description, int_range, mote_id, positive, seed
 
 
 MAX_KFOLD = 100          # more folds than poses leave nothing out; each one is a refit
@@ -58,7 +58,7 @@ def register(subparsers):
                    help=f"held-out validation folds: 0 (off) or 2..{MAX_KFOLD} (default 5)")
     p.add_argument("--force", action="store_true",
                    help="save boards the quality gate refuses (the reasons stay in cal.json)")
-    from ..upload import add_calibrate_options
+    from .upload import add_calibrate_options
     add_calibrate_options(p)             # --upload --port --baud: the one-step form
     p.set_defaults(func=run)
     return p
@@ -132,8 +132,8 @@ def summary(board: BoardCalibration) -> str:
 
 
 def run(args) -> int:
-    from ..store import open_store
-    from ..upload import calibrate_step
+    from ..sessions.store import open_store
+    from .upload import calibrate_step
     step = calibrate_step(args)          # None without --upload; checks the port first
     with open_store(args.db) as store:
         data = store.load_session(args.session, args.mote)

@@ -17,9 +17,9 @@ import sys
 import textwrap
 from pathlib import Path
 
-from ..cliargs import between, description, mote_id, seed
+from ..diagnose.gain import DEFAULT_ALPHA, MIN_FOLD_WINS, per_test_alpha
 from ..errors import UserError
-from .gain import DEFAULT_ALPHA, MIN_FOLD_WINS, per_test_alpha
+from .args import between, description, mote_id, seed
 
 
 def register(subparsers):
@@ -103,9 +103,9 @@ def _write_json(path: Path, obj):
 
 
 def run(args) -> int:
-    from ..calib.cli import out_path
-    from ..store import open_store
-    from .engine import diagnose
+    from .calibrate import out_path
+    from ..sessions.store import open_store
+    from ..diagnose.engine import diagnose
     for opt in ("json", "model_out"):
         v = getattr(args, opt)
         if v:
@@ -130,7 +130,7 @@ def run(args) -> int:
             _write_json(p, d.model)
             print(f"   extended model written to {p} (motecal sim --model {p})")
         if args.report:
-            from .plots import write_report
+            from ..diagnose.plots import write_report
             folder = Path(args.report) / (f"mote{m}" if several else "")
             files = write_report(d, data.for_mote(m), folder)
             print(f"   report: {len(files)} files in {folder}")

@@ -1,17 +1,14 @@
-"""``motecal export`` (a session to the project CSV) and ``motecal sessions``
-(what a database holds)."""
+"""``motecal export``: a stored session to the project CSV."""
 from __future__ import annotations
 
 import errno
-import json
 import os
 import secrets
-import sys
 
-from . import importer
-from .cliargs import mote_id
-from .errors import UserError
-from .store import open_store
+from ..errors import UserError
+from ..sessions import importer
+from ..sessions.store import open_store
+from .args import mote_id
 
 CSV_HEADER = importer.CSV_HEADER
 
@@ -68,28 +65,6 @@ def export(args) -> int:
     return 0
 
 
-def list_sessions(args) -> int:
-    with open_store(args.db) as store:
-        rows = store.sessions()
-        if args.json:
-            for r in rows:
-                r["link"] = store.link_stats(r["name"])
-            json.dump(rows, sys.stdout, indent=1)
-            print()
-            return 0
-    if not rows:
-        print(f"{args.db}: no sessions")
-        return 0
-    head = ("name", "kind", "motes", "samples", "poses", "started", "ended", "source")
-    table = [head] + [(r["name"], r["kind"], ",".join(map(str, r["motes"])), str(r["samples"]),
-                       str(r["poses"]), r["started"] or "", r["ended"] or "(open)",
-                       r["source"] or "") for r in rows]
-    widths = [max(len(row[i]) for row in table) for i in range(len(head))]
-    for row in table:
-        print("  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip())
-    return 0
-
-
 def register(sub) -> None:
     p = sub.add_parser("export", help="write a session as the project CSV",
                        description="Write a stored session as CSV: mote,seq,t,label,ax,ay,az,"
@@ -99,8 +74,3 @@ def register(sub) -> None:
     p.add_argument("--csv", required=True, metavar="OUT", help="CSV file to write")
     p.add_argument("--mote", type=mote_id, help="only this mote")
     p.set_defaults(func=export)
-
-    p = sub.add_parser("sessions", help="list the sessions in a database")
-    p.add_argument("--db", required=True, help="database: sqlite file or postgresql:// URL")
-    p.add_argument("--json", action="store_true", help="JSON with link statistics")
-    p.set_defaults(func=list_sessions)

@@ -11,23 +11,23 @@ import argparse
 import importlib
 import sys
 
-from . import __doc__ as motecal_doc, __version__
-from .cliargs import description
-from .errors import UserError
+from .. import __doc__ as motecal_doc, __version__
+from ..errors import UserError
+from .args import description
 
 # Subcommands in the order of the data path: name -> (module, one-line help).
 # Only the module of the command being run is imported, so a command starts
 # without loading every other command's dependencies (scipy, matplotlib, ...).
 COMMANDS = {
-    "sim": ("motecal.sim.cli", "simulate motes, radio, BaseStation and serial line"),
-    "log": ("motecal.logger", "log samples from a port into a database, guiding a person"),
-    "sessions": ("motecal.store_cli", "list the sessions in a database"),
-    "export": ("motecal.store_cli", "write a session as the project CSV"),
-    "import": ("motecal.importer", "import measured data files as a session"),
-    "calibrate": ("motecal.calib.cli", "calibrate accelerometer, gyroscope and magnetometer"),
-    "upload": ("motecal.upload", "send a calibration to a mote, or read/reset it"),
-    "diagnose": ("motecal.diagnose.cli", "what the simulation gets wrong, its cause and the gain"),
-    "report": ("motecal.report", "the paper's tables and figures as an HTML report"),
+    "sim": ("motecal.commands.sim", "simulate motes, radio, BaseStation and serial line"),
+    "log": ("motecal.commands.log", "log samples from a port into a database, guiding a person"),
+    "sessions": ("motecal.commands.sessions", "list the sessions in a database"),
+    "export": ("motecal.commands.export", "write a session as the project CSV"),
+    "import": ("motecal.commands.import_", "import measured data files as a session"),
+    "calibrate": ("motecal.commands.calibrate", "calibrate accelerometer, gyroscope and magnetometer"),
+    "upload": ("motecal.commands.upload", "send a calibration to a mote, or read/reset it"),
+    "diagnose": ("motecal.commands.diagnose", "what the simulation gets wrong, its cause and the gain"),
+    "report": ("motecal.commands.report", "the paper's tables and figures as an HTML report"),
 }
 COMMAND_MODULES = tuple(dict.fromkeys(m for m, _ in COMMANDS.values()))
 

@@ -5,9 +5,9 @@ import argparse
 import sys
 import time
 
-from .. import protocol as P
-from ..cliargs import baud_rate, positive
 from ..errors import UserError
+from ..line import protocol as P
+from .args import baud_rate, positive
 
 
 def _host_port(text: str):
@@ -86,8 +86,8 @@ def _summary(world, wall: float) -> str:
 
 
 def run(args) -> int:
-    from .serve import PtyLine, TcpLine, write_file
-    from .world import World
+    from ..sim.serve import PtyLine, TcpLine, write_file
+    from ..sim.world import World
 
     n_out = sum(x is not None and x is not False for x in (args.out, args.serve, args.pty or None))
     if n_out != 1:

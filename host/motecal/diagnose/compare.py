@@ -34,11 +34,11 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..session import NOMINAL_CHIPS, NOMINAL_SCALES, SessionData
+from ..maths.sphere import angle_deg, unit
+from ..maths.stats import allan_deviation
+from ..sessions.session import NOMINAL_CHIPS, NOMINAL_SCALES, SessionData
 from ..sim.model import SimModel
 from ..sim.trajectory import Trajectory, up_to_rotation
-from ..sphere import angle_deg, unit
-from ..stats import allan_deviation
 from . import fitting as F
 from . import screens as SC
 from . import structure as ST

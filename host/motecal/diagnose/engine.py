@@ -18,8 +18,8 @@ from scipy import stats
 from ..calib.gate import hull_depth
 from ..errors import QualityError, UserError
 from ..jsonable import finite, jsonable
-from ..session import SessionData
-from ..sphere import angle_deg, distinct_directions, unit
+from ..maths.sphere import angle_deg, distinct_directions, unit
+from ..sessions.session import SessionData
 from . import causes as C
 from . import extend as X
 from . import fitting as F

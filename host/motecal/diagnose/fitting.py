@@ -36,7 +36,7 @@ from scipy import stats
 
 from ..calib.fit import polish
 from ..calib.models import MagnitudeModel, make_model, theta_from_affine
-from ..sphere import unit
+from ..maths.sphere import unit
 
 DRIFT_J = 4          # drift basis functions per axis
 

@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..session import HMC5883L_OVERFLOW, LABEL_ROT, SessionData
-from ..still import segment_recording
+from ..sessions.session import HMC5883L_OVERFLOW, LABEL_ROT, SessionData
+from ..sessions.still import segment_recording
 
 SENSORS = ("accel", "gyro", "mag")
 BLOCK_S = 2.0              # time block length (s)

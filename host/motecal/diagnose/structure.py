@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import sphere as S
+from ..maths import sphere as S
 from . import fitting as F
 from .prepare import SensorObs
 

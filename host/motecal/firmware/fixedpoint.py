@@ -21,9 +21,9 @@ from typing import Mapping
 
 import numpy as np
 
-from . import protocol as P
-from .errors import QualityError
-from .session import HMC5883L_OVERFLOW, NOMINAL_SCALES, SENSOR_SLICES, UNITS
+from ..errors import QualityError
+from ..line import protocol as P
+from ..sessions.session import HMC5883L_OVERFLOW, NOMINAL_SCALES, SENSOR_SLICES, UNITS
 
 SHIFT_MIN, SHIFT_MAX = 8, 14
 INT16_MAX, INT32_MAX = 32767, 2**31 - 1

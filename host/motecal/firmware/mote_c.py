@@ -26,11 +26,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import protocol as P
-from .errors import UserError
+from ..errors import UserError
+from ..line import protocol as P
 
-SRC_DIR = Path(os.environ.get("MOTECAL_TINYOS",
-                              Path(__file__).resolve().parent.parent.parent / "tinyos"))
+# host/motecal/firmware/mote_c.py -> the repository's tinyos/
+SRC_DIR = Path(os.environ.get("MOTECAL_TINYOS", Path(__file__).resolve().parents[3] / "tinyos"))
 CFLAGS = ("-std=c99", "-O2", "-shared", "-fPIC", "-Wall", "-Wextra")
 E_FORMAT = next(c for c, (n, _) in P.CAL_REASONS.items() if n == "NINEDOF_CAL_E_FORMAT")
 REPLY_MAX = 32          # >= the largest reply (ninedof_cal_report_msg, 28 bytes)

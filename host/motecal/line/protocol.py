@@ -31,6 +31,8 @@ PROTO_PACKET_NOACK = 0x45   # 'E': packet, no ack (what motes send)
 DISPATCH_AM = 0x00
 AM_HEADER = struct.Struct(">HHBBB")   # dest, src, length, group, type
 AM_BROADCAST = 0xFFFF
+MOTE_ID_MIN = 1                        # a sensing mote's id: 0 is the BaseStation,
+MOTE_ID_MAX = 0xFFFE                   # 0xFFFF the broadcast address
 DEFAULT_GROUP = 0x22
 MAX_FRAME = 255                        # unescaped bytes between flags
 

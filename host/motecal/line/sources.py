@@ -26,9 +26,20 @@ from dataclasses import dataclass
 import serial
 from serial.urlhandler import protocol_socket
 
+from ..errors import UserError
 from . import protocol as P
-from .cliargs import baud_problem
-from .errors import UserError
+
+BAUD_MIN, BAUD_MAX = 300, 4_000_000      # serial rates: a port's, the simulator's line
+
+
+def baud_problem(value) -> str | None:
+    """Why ``value`` is no baud rate (None if it is one): the one rule of
+    ``--baud``, ``serial@DEV:BAUD`` and the simulator's line."""
+    if isinstance(value, bool) or not isinstance(value, int) \
+            or not BAUD_MIN <= value <= BAUD_MAX:
+        return f"baud rate must be a whole number {BAUD_MIN}..{BAUD_MAX}, not {value!r}"
+    return None
+
 
 DEFAULT_BAUD = 250000          # the BaseStation's rate in this project
 SF_DEFAULT_PORT = 9002

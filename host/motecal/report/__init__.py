@@ -27,7 +27,6 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from .. import cliargs
 from ..errors import UserError
 
 INDEX = "index.html"
@@ -109,38 +108,3 @@ def write_report(store, session, out_dir, mote: int | None = None, *, cal=None,
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return out / INDEX
-
-
-def run(args) -> int:
-    from ..store import open_store
-    store = open_store(args.db)
-    try:
-        def log(msg):
-            if not args.quiet:
-                print(msg, flush=True)
-        index = write_report(store, args.session, args.out, mote=args.mote, cal=args.cal,
-                             seed=args.seed, log=log)
-    finally:
-        store.close()
-    print(f"report written: {index}")
-    return 0
-
-
-def register(subparsers) -> None:
-    p = subparsers.add_parser(
-        "report", help="the paper's tables and figures for a session (HTML, PNG, CSV, Markdown)",
-        description="Write the seed paper's Tables I-III (Markdown and CSV), figures (PNG) "
-                    "and an index.html for one session of the database.")
-    p.add_argument("--db", required=True, metavar="FILE", help="session database")
-    p.add_argument("--session", required=True, metavar="NAME", help="session to report on")
-    p.add_argument("--out", required=True, metavar="DIR",
-                   help="output directory (new, empty, or an earlier report to replace)")
-    p.add_argument("--mote", type=cliargs.mote_id, default=None, metavar="ID",
-                   help="only this mote (default: every mote of the session)")
-    p.add_argument("--cal", default=None, metavar="cal.json",
-                   help="calibration to show (default: the latest stored for the session, "
-                        "else calibrate now with the full model)")
-    p.add_argument("--seed", type=cliargs.seed, default=0,
-                   help="seed of the GA runs made for the tables (default 0)")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
-    p.set_defaults(func=run)

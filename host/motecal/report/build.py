@@ -20,10 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import sphere as S
 from ..errors import QualityError, UserError
-from ..session import SENSOR_SLICES, UNITS, SessionData
-from ..stats import allan_deviation
+from ..maths import sphere as S
+from ..maths.stats import allan_deviation
+from ..sessions.session import SENSOR_SLICES, UNITS, SessionData
 from . import figures as F
 from . import html as H
 from .tables import Column, Table, write as write_table

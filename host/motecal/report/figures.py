@@ -16,7 +16,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from .. import sphere as S
+from ..maths import sphere as S
 
 DPI = 100
 MAX_POINTS = 6000                 # scatter plots draw at most this many points

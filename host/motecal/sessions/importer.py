@@ -25,12 +25,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import UserError
-from .protocol import NINEDOF_RATE_HZ
-from .session import (ADXL345_LSB_PER_G, COLUMNS, HMC5883L_LSB_PER_GAUSS,
-                      HMC5883L_OVERFLOW, ITG3200_LSB_PER_DPS, LABEL_NONE, LABEL_ROT,
-                      NOMINAL_CHIPS, NOMINAL_SCALES, SENSOR_SLICES, UNITS, SessionData,
-                      batch_times, label_from_text, label_to_text, rate_from_times)
+from ..errors import UserError
+from ..line.protocol import NINEDOF_RATE_HZ
+from .session import (ADXL345_LSB_PER_G, COLUMNS, HMC5883L_LSB_PER_GAUSS, HMC5883L_OVERFLOW,
+                      ITG3200_LSB_PER_DPS, LABEL_NONE, LABEL_ROT, NOMINAL_CHIPS, NOMINAL_SCALES,
+                      SENSOR_SLICES, UNITS, SessionData, batch_times, label_from_text,
+                      label_to_text, rate_from_times)
 from .still import StillThresholds, segment_recording, window_rows
 
 FORMATS = ("csv", "razor-text", "razor-float", "timestamped-csv")
@@ -805,7 +805,7 @@ def read_any(paths, fmt: str = "auto", chip=None, kind: str = "auto") -> Session
     return data
 
 
-# ------------------------------------------------------------------ summary and CLI
+# ------------------------------------------------------------------ summary
 
 def _fmt_scale(sensor, scale) -> str:
     return f"{scale:g} LSB/{UNITS[sensor] if sensor != 'gyro' else '(deg/s)'}"
@@ -846,36 +846,3 @@ def summary(data: SessionData) -> str:
     if m.get("notes"):
         text += f" Notes: {m['notes']}."
     return text
-
-
-def run(args) -> int:
-    data = read_any(args.files, fmt=args.format, chip=args.chip or None, kind=args.kind)
-    data.name = args.session
-    from .store import open_store
-    with open_store(args.db, create=True) as store:
-        store.save_session(data, replace=args.replace)
-    print(summary(data))
-    print(f"Saved to {args.db} as session '{args.session}'.")
-    return 0
-
-
-def register(subparsers) -> None:
-    p = subparsers.add_parser(
-        "import", help="import measured data files into a session",
-        description="Read measured data (the motecal CSV, Razor AHRS text or float logs, "
-                    "timestamped CSV pairs) and save it as one session; nothing is written "
-                    "when a file is bad.")
-    p.add_argument("files", nargs="+", metavar="FILE",
-                   help="data files (or one timestamped run directory)")
-    p.add_argument("--db", required=True, metavar="FILE", help="session database (created if missing)")
-    p.add_argument("--session", required=True, metavar="NAME", help="session name to write")
-    p.add_argument("--format", default="auto", choices=("auto",) + FORMATS,
-                   help="input format (default: detected from the content)")
-    p.add_argument("--chip", action="append", default=[], metavar="SENSOR=CHIP",
-                   help="override a chip and its scale, e.g. mag=hmc5843, gyro=itg3205, "
-                        "accel=mpu6050 or mag=name:LSB_PER_UNIT (repeatable)")
-    p.add_argument("--kind", default="auto", choices=KINDS,
-                   help="static (still segments are poses), rotation (all rows 'rot'), "
-                        "idle, or auto (decided from stillness; default)")
-    p.add_argument("--replace", action="store_true", help="replace an existing session")
-    p.set_defaults(func=run)

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .protocol import NINEDOF_RATE_HZ
+from ..line.protocol import NINEDOF_RATE_HZ
 
 COLUMNS = ("ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz")
 SENSOR_SLICES = {"accel": slice(0, 3), "gyro": slice(3, 6), "mag": slice(6, 9)}

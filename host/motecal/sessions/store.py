@@ -28,9 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import UserError
-from .session import (COLUMNS, NOMINAL_CHIPS, NOMINAL_SCALES, SessionData,
-                      label_from_text, label_to_text)
+from ..errors import UserError
+from .session import (COLUMNS, NOMINAL_CHIPS, NOMINAL_SCALES, SessionData, label_from_text,
+                      label_to_text)
 
 SCHEMA_VERSION = 3
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..session import SessionData
+from ..sessions.session import SessionData
 from .model import (BoardModel, SimModel, builtin_models, load_model,  # noqa: F401
                     write_truth)
 from .physics import Environment, BoardSampler, SampleDetail, chip_stage  # noqa: F401

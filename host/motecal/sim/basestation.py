@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from collections import deque
 
-from .. import protocol as P
+from ..line import protocol as P
 from .mote import Message
 from .radio import Mac, UniqueFilter
 

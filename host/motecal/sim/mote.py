@@ -53,7 +53,7 @@ from collections import deque
 
 import numpy as np
 
-from .. import protocol as P
+from ..line import protocol as P
 from .radio import Mac, UniqueFilter
 
 QUEUE_LEN = 4             # NINEDOF_SEND_QUEUE
@@ -123,7 +123,7 @@ class SimMote:
         self.cal = cal
         self.ee = None
         if cal is not None and hasattr(cal, "image"):
-            from ..mote_c import EepromWriter
+            from ..firmware.mote_c import EepromWriter
             self.ee = EepromWriter(cal, eeprom)        # restores the set in force
         self._ee_writing = False
         self.eeprom_writes = 0                        # images completed

@@ -21,7 +21,7 @@ from collections import deque
 
 import numpy as np
 
-from .. import protocol as P
+from ..line import protocol as P
 from .basestation import BaseStation
 from .mote import SimMote
 from .radio import Channel
@@ -112,7 +112,7 @@ class SentLog:
 def _default_cal_factory():
     """``CalReceiver`` from motecal.mote_c when it can be loaded, else None."""
     try:
-        from ..mote_c import CalReceiver
+        from ..firmware.mote_c import CalReceiver
     except (ImportError, OSError):
         return None
     return CalReceiver

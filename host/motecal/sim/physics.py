@@ -26,8 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..session import (ADXL345_LSB_PER_G, HMC5883L_LSB_PER_GAUSS, HMC5883L_OVERFLOW,
-                       ITG3200_LSB_PER_DPS, SENSOR_SLICES)
+from ..sessions.session import (ADXL345_LSB_PER_G, HMC5883L_LSB_PER_GAUSS, HMC5883L_OVERFLOW,
+                                ITG3200_LSB_PER_DPS, SENSOR_SLICES)
 from .trajectory import Motion, Trajectory
 
 SENSORS = ("accel", "gyro", "mag")

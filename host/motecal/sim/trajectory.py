@@ -47,8 +47,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..errors import UserError
-from ..session import LABEL_NONE, LABEL_ROT
-from ..sphere import fibonacci_sphere, unit
+from ..maths.sphere import fibonacci_sphere, unit
+from ..sessions.session import LABEL_NONE, LABEL_ROT
 
 KINDS = ("static80", "rotation", "idle", "free")
 STANDARD_G = 9.80665                     # m/s^2 per g

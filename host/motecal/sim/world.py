@@ -22,10 +22,9 @@ import math
 import os
 from pathlib import Path
 
-from .. import protocol as P
-from ..cliargs import baud_problem
 from ..errors import UserError
-from ..sources import PortSpec, Source, SourceEnded
+from ..line import protocol as P
+from ..line.sources import PortSpec, Source, SourceEnded, baud_problem
 from .model import load_model, write_truth
 from .network import Network
 from .trajectory import KINDS, make_trajectory

@@ -1,0 +1,191 @@
+"""``motecal upload``: a calibration (cal.json) to a mote, through the
+BaseStation and the radio, then verified.
+
+    motecal upload cal.json --port URL [--mote ID] [--version N] [--timeout S] [--retries N]
+    motecal upload cal.json --dry-run [--mote ID] [--version N]
+    motecal upload --show [cal.json] --port URL --mote ID
+    motecal upload --reset --port URL --mote ID [--version N]
+
+Protocol (messages of ``tinyos/NineDofMsg.h``), one message at a time:
+
+1. CAL_QUERY offset 0 -> CAL_REPORT: the version in force; the new set gets
+   that + 1 (65535 -> 1) unless ``--version``.
+2. The set (``fixedpoint.build_calset``, 102 bytes) in fragments of
+   NINEDOF_FRAG_DATA (20) bytes: CAL_FRAG -> CAL_FRAG_ACK (status) each.
+3. CAL_COMMIT (APPLY, length, CRC-16 of the set) -> CAL_COMMIT_ACK (status,
+   the CRC the mote computed, the version in force, sensors corrected).
+4. Read-back: CAL_QUERY offsets 0, 20, .. 100 -> CAL_REPORTs; the set in
+   force must equal the set sent byte for byte.
+5. The mote's next sample messages must carry the corrected flag and the
+   version's low 4 bits.
+
+Transport.  Each message goes to the serial line as a 0x44 frame with a
+sequence byte; the BaseStation acknowledges it with a 0x43 frame (SerialP).
+No 0x43 within ``SERIAL_ACK_TIMEOUT``: the same frame is sent again, up to
+``SERIAL_RETRIES`` times, then the upload stops (no BaseStation on the port).
+The BaseStation sends PC packets by radio without link-layer acks, so a lost
+fragment (or a lost reply) is the host's business: no reply within
+``--timeout`` seconds and the message is sent again, up to ``--retries``
+times.  Every message is idempotent on the mote (fragments restage the same
+bytes, a repeated commit of the set in force is acknowledged again), so a
+repeat is harmless.  A SerialForwarder (``sf@``) does the serial acks
+itself; then only the replies are waited for.
+
+Errors are one line on stderr: bad input exits 2, a set that cannot be
+represented or that the mote's own checks would refuse exits 3, and an
+upload that fails (no answer, rejected, verification failed) exits 1.
+"""
+from __future__ import annotations
+
+import sys
+
+from ..errors import UserError
+from ..line import sources as S
+from ..upload.calfile import build_set, cal_from_board, check_set, load_cal
+from ..upload.describe import dry_run_lines, show_lines
+from ..upload.link import DEFAULT_RETRIES, DEFAULT_TIMEOUT, Link
+from ..upload.uploader import (MAX_VERSION, Options, Result, Uploader, check_cal, next_version,
+                               summary, upload_cal)
+from .args import baud_rate, int_range, mote_id, positive
+from .upload_screen import PlainProgress, make_progress
+
+def _open(spec: S.PortSpec) -> S.Source:
+    if spec.kind == "file":
+        raise UserError(f"{spec} is a recorded file: upload needs a live port (device, "
+                        "pyserial URL, serial@DEV:BAUD or sf@HOST:PORT)")
+    return S.open_source(spec)
+
+
+# --------------------------------------------------------------------------
+# Command line
+# --------------------------------------------------------------------------
+def register(sub) -> None:
+    p = sub.add_parser(
+        "upload", help="send a calibration to a mote (fixed point, verified)",
+        description="Send a calibration (cal.json from motecal calibrate) through the "
+                    "BaseStation to a mote, which then corrects its samples itself; "
+                    "verified by reading the set back and by the flags of the next samples.")
+    p.add_argument("cal", nargs="?", metavar="cal.json", help="calibration file")
+    p.add_argument("--port", help="the BaseStation: device, pyserial URL, serial@DEV:BAUD "
+                                  "or sf@HOST:PORT; default $MOTECOM")
+    p.add_argument("--baud", type=baud_rate, help="baud rate (default 250000)")
+    p.add_argument("--mote", type=mote_id, help="target mote (default: the mote of cal.json)")
+    p.add_argument("--version", type=int_range("version", 1, MAX_VERSION),
+                   help="version of the new set, 1..65535 (default: the one in force + 1)")
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument("--dry-run", action="store_true",
+                      help="print the fixed-point values and their rounding error; no port")
+    mode.add_argument("--reset", action="store_true", help="put the mote back to raw output")
+    mode.add_argument("--show", action="store_true",
+                      help="read back and print the set in force (with cal.json: compare)")
+    p.add_argument("--timeout", type=positive(float), default=DEFAULT_TIMEOUT,
+                   help=f"seconds to wait for each reply of the mote ({DEFAULT_TIMEOUT:g})")
+    p.add_argument("--retries", type=int_range("whole number", 0), default=DEFAULT_RETRIES,
+                   help=f"repeats of a message that gets no reply ({DEFAULT_RETRIES})")
+    p.add_argument("--force", action="store_true",
+                   help="upload a calibration the quality gate refused")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    cal = load_cal(args.cal) if args.cal else None
+    if cal is None and not (args.reset or args.show):
+        raise UserError("give a calibration file (cal.json), or --reset / --show")
+    if cal is not None and args.reset:
+        raise UserError("--reset takes no calibration file")
+    mote = args.mote if args.mote is not None else (cal.mote if cal else None)
+    if mote is None:
+        raise UserError("--mote is needed with --reset and --show")
+    if cal is not None and cal.mote != mote and not args.show:
+        raise UserError(f"{cal.path} calibrates the board of mote {cal.mote}, not mote {mote} "
+                        f"(use that mote's cal.json, or --mote {cal.mote})")
+    if args.dry_run:
+        for line in dry_run_lines(cal, mote, args.version):
+            print(line)
+        sys.stdout.flush()
+        check_set(build_set(cal, mote, args.version or 1)[0], mote, cal.path)
+        return 0
+    opts = Options(timeout=args.timeout, retries=args.retries, version=args.version,
+                   force=args.force)
+    if not (args.show or args.reset):
+        check_cal(cal, mote, opts)
+    spec = S.parse_port(args.port, args.baud)
+    with _open(spec) as source:
+        if args.show:
+            return _show(source, mote, cal, opts)
+        if args.reset:
+            return _reset(source, mote, opts)
+        res = upload_cal(source, cal, mote, opts, progress=make_progress())
+    print(summary(res))
+    return 0
+
+
+def _show(source, mote, cal, opts) -> int:
+    link = Link(source, timeout=opts.timeout, retries=opts.retries,
+                progress=PlainProgress(steps=False))     # only the repeats, then the set
+    up = Uploader(link, mote)
+    inf = up.read_set()
+    for line in show_lines(inf, cal):
+        print(line)
+    return 0
+
+
+def _reset(source, mote, opts) -> int:
+    progress = make_progress()
+    link = Link(source, timeout=opts.timeout, retries=opts.retries, progress=progress)
+    up = Uploader(link, mote, progress)
+    try:
+        t0 = link.clock()
+        old = up.in_force()
+        version = opts.version or next_version(old.version)
+        progress.note(f"mote {mote}: version {old.version} in force; reset to raw output, "
+                      f"version {version}")
+        res = up.reset(version, old.version, opts.verify_wait)
+        res.seconds = link.clock() - t0
+    finally:
+        progress.close()
+    print(summary(res, "raw output"))
+    return 0
+
+
+# --------------------------------------------------------------------------
+# The one-step form: motecal calibrate ... --upload --port URL --mote ID
+# --------------------------------------------------------------------------
+def add_calibrate_options(parser) -> None:
+    """``--upload``, ``--port``, ``--baud`` for ``motecal calibrate``."""
+    g = parser.add_argument_group("upload (one step: calibrate, gate, upload, verify)")
+    g.add_argument("--upload", action="store_true",
+                   help="send each accepted calibration to its mote and verify it")
+    g.add_argument("--port", help="with --upload: the BaseStation (device, pyserial URL, "
+                                  "serial@DEV:BAUD, sf@HOST:PORT); default $MOTECOM")
+    g.add_argument("--baud", type=baud_rate, help="with --upload: baud rate (250000)")
+
+
+def calibrate_step(args):
+    """For ``motecal calibrate``: None without ``--upload``, else a function
+    ``step(board, path)`` that uploads a delivered calibration to its mote and
+    verifies it.  The port is checked here, before calibrating."""
+    if not getattr(args, "upload", False):
+        if getattr(args, "port", None) or getattr(args, "baud", None):
+            raise UserError("--port and --baud go with --upload")
+        return None
+    spec = S.parse_port(args.port, args.baud)
+    if spec.kind == "file":
+        _open(spec)
+    opts = Options(force=bool(getattr(args, "force", False)))
+
+    def step(board, path=None) -> Result:
+        where = str(path) if path else f"mote {board.mote}"
+        try:
+            cal = cal_from_board(board, where)
+            check_cal(cal, cal.mote, opts)
+            print(f"  uploading to mote {board.mote} through {spec}", flush=True)
+            with _open(spec) as source:
+                res = upload_cal(source, cal, cal.mote, opts, progress=make_progress())
+        except UserError as e:              # same exit status, saying what was done
+            raise UserError(f"calibration saved ({where}), not uploaded: {e}",
+                            exit_code=e.exit_code) from None
+        print("  " + summary(res), flush=True)
+        return res
+
+    return step

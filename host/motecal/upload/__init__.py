@@ -1,0 +1,18 @@
+"""A calibration to a mote (``motecal upload``): cal.json -> the mote's
+fixed-point set -> fragments, commit, read-back and sample check over the
+BaseStation.
+
+* ``calfile``  -- cal.json read and checked (``CalFile``, ``load_cal``), the
+  set built and checked by the mote's own C code (``build_set``, ``check_set``);
+* ``link``     -- one mote over a source: serial acks, replies, repeats;
+* ``uploader`` -- the protocol steps (``Uploader``, ``upload_cal``) and the
+  verification;
+* ``describe`` -- the set in force and a dry run as text lines.
+"""
+from .calfile import CalFile, build_set, cal_from_board, check_set, load_cal, mote_check  # noqa: F401
+from .describe import dry_run_lines, show_lines  # noqa: F401
+from .link import (SERIAL_ACK_TIMEOUT, SERIAL_RETRIES, Link, LinkStats, NoAnswer,  # noqa: F401
+                   NullProgress, Rejected, UploadFailed)
+from .uploader import (MAX_VERSION, VERIFY_MESSAGES, InForce, Options, Result,  # noqa: F401
+                       Uploader, check_cal, describe_flags, flags_for, fragments, next_version,
+                       sensor_names, summary, upload_cal)

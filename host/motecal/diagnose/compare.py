@@ -43,6 +43,7 @@ from . import fitting as F
 from . import screens as SC
 from . import structure as ST
 from .prepare import SensorObs, all_obs, sample_times
+from .regimes import accel_for_blocks, regime
 
 SMOOTH_S = 0.08
 CHUNK_S = 4.0
@@ -274,7 +275,6 @@ def session_stats(data: SessionData) -> dict:
         sat = SC.saturation(o)
         st["at_limits"] = (float(sat.effect) if sat is not None and sat.practical else 0.0,
                            "fraction")
-        from .engine import regime
         r = regime(o)
         if s in ("accel", "mag") and r in ("poses", "sweep"):
             pts = ST.magnitude_points(o, r)
@@ -302,9 +302,8 @@ def session_stats(data: SessionData) -> dict:
             st["allan_1s"] = (_allan([o.x[r] / o.K for r in o.segs.rows], o.rate, 1.0), "unit")
         out[s] = st
     if "gyro" in obs and "accel" in obs and obs["gyro"].blocks is not None:
-        from .engine import _accel_for_blocks
         g = obs["gyro"]
-        a = _accel_for_blocks(g, None, obs["accel"])
+        a = accel_for_blocks(g, None, obs["accel"])
         if a is not None and len(a) >= 6:
             out["gyro"]["r2_accel"] = (float(np.mean([_r2(g.blocks.mean[:, k], a)
                                                       for k in range(3)])), "r2")
@@ -379,11 +378,11 @@ def _table(meas, start, ext=None):
     return rows
 
 
-def comparison(data: SessionData, diag, seed: int = 0) -> dict:
+def comparison(data: SessionData, diag, seed: int = 0, *, rediagnose) -> dict:
     """Question 1 (whole session: measured vs the paper model's simulation)
     and question 4's statistics (held-out half: measured vs the paper and the
-    extended model fitted on the other half)."""
-    from .engine import diagnose
+    extended model fitted on the other half, by ``rediagnose``: the engine's
+    ``diagnose``)."""
     out = {}
     try:
         traj, t_sim = trajectory_like(data, diag)
@@ -398,8 +397,8 @@ def comparison(data: SessionData, diag, seed: int = 0) -> dict:
     b = ~a
     if diag.findings and a.sum() > 50 and b.sum() > 50:
         try:
-            half = diagnose(data.select(a), alpha=diag.alpha, seed=seed, simulate=False,
-                            force=diag.causes())
+            half = rediagnose(data.select(a), alpha=diag.alpha, seed=seed, simulate=False,
+                              force=diag.causes())
         except Exception as e:                      # noqa: BLE001 - reported, not fatal
             out["heldout"] = {"note": f"half-data refit failed: {e}"}
             return out

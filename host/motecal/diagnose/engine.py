@@ -15,10 +15,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from ..calib.gate import hull_depth
 from ..errors import QualityError, UserError
 from ..jsonable import finite, jsonable
-from ..maths.sphere import angle_deg, distinct_directions, unit
+from ..maths.sphere import angle_deg, unit
 from ..sessions.session import SessionData
 from . import causes as C
 from . import extend as X
@@ -27,9 +26,9 @@ from . import gain as G
 from . import screens as SC
 from . import structure as ST
 from .prepare import SensorObs, all_obs, sensor_obs, session_still
+from .regimes import MIN_SWEEP_ROWS, accel_for_blocks, regime, shared_rows, sweep_surrounds
 
 UNTRUSTWORTHY_FIELD = 0.05        # relative field change above which mag calibration is refused
-MIN_SWEEP_ROWS = 200
 
 
 @dataclass
@@ -98,46 +97,12 @@ def _jsonable(x):
 # ---------------------------------------------------------------------------
 # regimes and plan
 # ---------------------------------------------------------------------------
-def regime(obs: SensorObs) -> str | None:
-    s = obs.sensor
-    nseg = 0 if obs.segs is None else len(obs.segs)
-    if s == "gyro":
-        return "still" if obs.blocks is not None else None
-    if nseg >= ST.MIN_POSES and distinct_directions(obs.segs.mean) >= ST.MIN_POSES:
-        return "poses"
-    if s == "mag" and obs.moving is not None and obs.moving.sum() >= MIN_SWEEP_ROWS \
-            and sweep_surrounds(obs):
-        return "sweep"
-    if nseg >= 1:
-        return "single"
-    return None
-
-
-MIN_SWEEP_HULL = 0.2    # a sweep's directions must surround its centre this deep
-
-
-def sweep_surrounds(obs: SensorObs) -> bool:
-    """Do the readings' directions (from the mid-range centre) surround it?
-    A turn about one axis draws a circle: offsets and scales along that axis
-    are then not identifiable and no calibration term can be tested."""
-    x = obs.x[~obs.overflow]
-    if len(x) < 10:
-        return False
-    c = 0.5 * (np.percentile(x, 1, axis=0) + np.percentile(x, 99, axis=0))
-    return hull_depth((x - c)[:: max(1, len(x) // 2000)]) >= MIN_SWEEP_HULL
-
-
 CANDIDATES = {
     "poses": ["cross_axis", "nonlinearity", "bias_drift"],
     "sweep": ["cross_axis", "field_disturbance"],
     "single": ["bias_drift"],
     "still": ["g_sensitivity", "bias_drift"],
 }
-
-
-def _shared_rows(a: SensorObs | None, b: SensorObs | None) -> bool:
-    return a is not None and b is not None and len(a.rows) == len(b.rows) and \
-        np.array_equal(a.rows, b.rows)
 
 
 def _plan(obs: dict) -> list:
@@ -151,7 +116,7 @@ def _plan(obs: dict) -> list:
                 cands.remove("g_sensitivity")
             plan += [(s, c) for c in cands]
             plan.append((s, "excess"))
-    if _shared_rows(obs.get("accel"), obs.get("gyro")) and obs["accel"].segs is not None:
+    if shared_rows(obs.get("accel"), obs.get("gyro")) and obs["accel"].segs is not None:
         plan.append(("accel", "motion"))
     return plan
 
@@ -259,7 +224,7 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
         elif r == "single":
             st = ST.analyse_linear(o, cands, level, per_orientation=True)
         else:
-            acc_g = _accel_for_blocks(o, structures.get("accel"), sobs.get("accel"))
+            acc_g = accel_for_blocks(o, structures.get("accel"), sobs.get("accel"))
             drop = None
             if s in clip_rows:
                 drop = np.array([clip_rows[s][g].any() for g in o.blocks.rows])
@@ -351,38 +316,13 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
                   start_model, structures, screens, sobs, notes=notes)
     if simulate:
         from .compare import comparison
-        d.comparison = comparison(data, d, seed=seed)
+        d.comparison = comparison(data, d, seed=seed, rediagnose=diagnose)
     return d
 
 
 # ---------------------------------------------------------------------------
 # helpers
 # ---------------------------------------------------------------------------
-def _accel_for_blocks(g: SensorObs, acc_st, acc: SensorObs | None):
-    """Specific force (g) during each gyro block, from the calibrated
-    accelerometer (its starting model when fitted, else nominal scale)."""
-    if acc is None:
-        return None
-    out = np.full((len(g.blocks), 3), np.nan)
-    shared = _shared_rows(acc, g)
-    for i, rows in enumerate(g.blocks.rows):
-        if shared:
-            xa = acc.x[rows]
-        else:
-            t0, t1 = g.t[rows[0]], g.t[rows[-1]]
-            m = (acc.t >= t0) & (acc.t <= t1)
-            if m.sum() < 3:
-                continue
-            xa = acc.x[m]
-        out[i] = xa.mean(axis=0)
-    if np.isnan(out).any():
-        return None
-    if acc_st is not None and acc_st.regime == "poses":
-        fit = acc_st.fit0
-        return fit.calibrate(out, np.zeros(len(out)))
-    return out / acc.K
-
-
 TILT_RATIO = 0.3        # length change / vector change below which a drift is a tilt
 
 

@@ -199,7 +199,7 @@ def write_report(d, data, folder) -> list[str]:
     full["details"] = d.details_json()
     (folder / "diagnosis.json").write_text(json.dumps(full, indent=1) + "\n", encoding="utf-8")
     files.append("diagnosis.json")
-    from ..commands.diagnose import render
+    from .summary import render
     (folder / "summary.txt").write_text(render(d) + "\n", encoding="utf-8")
     files.append("summary.txt")
     return files

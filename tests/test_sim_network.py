@@ -249,7 +249,7 @@ def test_sequence_numbers_wrap():
 
 
 def test_pc_frames_acked_and_forwarded_to_the_mote():
-    mote_c = pytest.importorskip("motecal.firmware.mote_c")
+    from motecal.firmware import mote_c
     net = make_net(2, duration=3.0, cal_factory=mote_c.CalReceiver)
     out = bytearray(net.run_until(0.5))
     q = P.message_frame(P.CAL_QUERY, dest=2, src=0, ack_seq=0x7E, mote=2, offset=0)
@@ -288,7 +288,7 @@ def test_radio_paths_are_the_firmwares():
     a reply goes to the sender from its own buffer, not behind the queued
     samples; the BaseStation asks the mote for an ack and repeats its frame
     (same DSN) at most twice, and the mote answers a repeat only once."""
-    mote_c = pytest.importorskip("motecal.firmware.mote_c")
+    from motecal.firmware import mote_c
     net = make_net(1, duration=4.0, cal_factory=mote_c.CalReceiver)
     air = _on_air(net)
     net.run_until(2.5)
@@ -380,7 +380,7 @@ def _calset(mote, version, accel_offset):
 
 
 def test_upload_through_the_network_corrects_on_the_mote():
-    mote_c = pytest.importorskip("motecal.firmware.mote_c")
+    from motecal.firmware import mote_c
     net = make_net(2, duration=6.0, cal_factory=mote_c.CalReceiver)
     out = bytearray(net.run_until(1.0))
     cs = _calset(1, 3, 100)

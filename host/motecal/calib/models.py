@@ -129,14 +129,6 @@ class MagnitudeModel:
     def free_field(self) -> bool:
         return self.sensor == "mag" and self.gauge == "det"
 
-    def describe(self) -> str:
-        g = "+".join(self.groups)
-        s = f"{self.family}({g})"
-        if self.sensor == "mag":
-            s += (" gauge det(A)=1 (geometric-mean scale = datasheet gain)" if self.gauge == "det"
-                  else f" gauge |B|={self.field:g} gauss (given)")
-        return s
-
     def _offset_params(self):
         r = PRIOR_OFFSET[self.sensor]
         return [ParamInfo(f"o_{a}", 0.0, -r, r, self.unit, "offsets") for a in "xyz"]

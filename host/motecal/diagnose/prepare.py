@@ -104,16 +104,6 @@ def sample_times(data: SessionData) -> np.ndarray:
     return data.sample_times()
 
 
-def _times(data: SessionData, rows: np.ndarray, rate: float) -> np.ndarray:
-    return sample_times(data)[rows]
-
-
-def _runs(mask: np.ndarray):
-    """(start, stop) of runs of True."""
-    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
-
-
 def _table(obs: SensorObs, groups: list[np.ndarray], seg_of: list[int]) -> Table:
     k = len(groups)
     mean = np.zeros((k, 3))
@@ -268,7 +258,7 @@ def sensor_obs(data: SessionData, sensor: str, dedup: bool = False,
     code = OVERFLOW_CODES.get(sensor)
     overflow = np.all(x == code, axis=1) if code is not None else np.zeros(len(x), bool)
     obs = SensorObs(sensor=sensor, chip=(data.chips or {}).get(sensor), K=float(data.scales[sensor]),
-                    x=x, t=_times(data, rows, rate), label=data.label[rows],
+                    x=x, t=sample_times(data)[rows], label=data.label[rows],
                     part=recording_parts(data)[rows], rows=rows, rate=rate, overflow=overflow)
     if dedup:
         keep = unique_updates(x) | overflow

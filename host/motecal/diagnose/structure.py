@@ -79,9 +79,6 @@ class Structure:
     noise_floor: float = np.nan    # rms a perfect model leaves on the points (sensor unit)
     notes: list = field(default_factory=list)
 
-    def candidates_tested(self) -> list[str]:
-        return sorted({t.cause for t in self.tests})
-
     @property
     def causes(self) -> list[str]:
         return [cause_of(c) for c in self.accepted]

@@ -16,7 +16,7 @@ import binascii
 import re
 import struct
 from dataclasses import dataclass, field
-from typing import Iterable, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -463,10 +463,3 @@ def message_frame(spec: MessageSpec, *, dest: int, src: int = 0,
     """Serial frame for one fixed-size message."""
     return encode_am(AMPacket(dest, src, group, spec.am_type, spec.pack(**values)),
                      ack_seq=ack_seq)
-
-
-def iter_am(frames: Iterable[Frame]):
-    for fr in frames:
-        am = fr.am()
-        if am is not None:
-            yield am

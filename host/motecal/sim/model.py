@@ -308,10 +308,6 @@ class SimModel:
         self._defaults = defaults
         self._boards = boards
 
-    @property
-    def explicit_boards(self) -> list[int]:
-        return sorted(self._boards)
-
     def board(self, mote_id: int, seed: int) -> BoardModel:
         """The board on mote ``mote_id``: explicit if listed, else drawn from
         ``defaults`` with (seed, mote_id)."""

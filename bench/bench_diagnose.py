@@ -1,7 +1,7 @@
 """Benchmark of the diagnosis: detection and false-alarm rates over generated
 cases (prints figures next to the goals; exit 0).
 
-Cases (``motecal.diagnose.plant``):
+Cases (``tests/plant.py``):
 * planted: every (cause, sensor) of the vocabulary at a random size between
   its documented threshold and 3x it, random seed, in the session kind it
   needs (static80, idle or rotation); the diagnosis is not told what;

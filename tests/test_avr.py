@@ -1,5 +1,5 @@
 """The calibration C code built with avr-gcc for the ATmega1281 and run in
-simavr gives bit for bit what the host build (motecal.mote_c) gives: the
+simavr gives bit for bit what the host build (motecal.firmware.mote_c) gives: the
 correction (AVR assembly kernel vs portable C), decode/validate, the upload
 receiver's replies, and the EEPROM image."""
 import binascii

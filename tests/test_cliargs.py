@@ -1,4 +1,4 @@
-"""The subcommands' shared argument types and plain-text help (motecal.cliargs)."""
+"""The subcommands' shared argument types and plain-text help (motecal.commands.args)."""
 import argparse
 import re
 

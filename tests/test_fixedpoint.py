@@ -1,4 +1,4 @@
-"""Physical calibration -> fixed-point calibration set (host/motecal/fixedpoint.py)."""
+"""Physical calibration -> fixed-point calibration set (host/motecal/firmware/fixedpoint.py)."""
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st

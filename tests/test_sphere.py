@@ -1,4 +1,4 @@
-"""Directions on the sphere (motecal.sphere): the one definition the logger,
+"""Directions on the sphere (motecal.maths.sphere): the one definition the logger,
 the quality gate, the simulator, the diagnosis and the report share."""
 import numpy as np
 import pytest

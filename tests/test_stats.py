@@ -1,4 +1,4 @@
-"""Overlapping Allan deviation (motecal.stats), the one the report draws and
+"""Overlapping Allan deviation (motecal.maths.stats), the one the report draws and
 the diagnosis compares: white rate noise falls as tau^-1/2, a rate random walk
 rises as tau^+1/2."""
 import numpy as np

@@ -1,7 +1,7 @@
 """End to end through one running simulated world (mote 1 on a rig that
 does two static80 sessions in a row, ``session="static80,static80"``):
 
-1. log the first session, guided, raw (``motecal.logger.Logger`` in process,
+1. log the first session, guided, raw (``motecal.capture.logger.Logger`` in process,
    reading the world in simulated time up to the end of the first part);
 2. ``motecal calibrate --db .. --session raw --out cal.json --upload --port
    socket://.. --mote 1``, a subprocess talking to the same world over TCP

@@ -1,9 +1,12 @@
 """motecal: calibrate 9DOF sensor boards (ADXL345, ITG3200, HMC5883L) on IRIS motes.
 
-Data path: firmware (tinyos/, basestation/) -> serial line -> protocol -> logger
--> store -> calib -> upload back to the mote; sim stands in for the hardware;
-diagnose compares measured data with the simulator's model; report renders
-the paper's tables and figures.
+Data path, one sub-package per stage: firmware (tinyos/, basestation/) -> serial
+line (``line``) -> logging (``capture``) into sessions and their store
+(``sessions``) -> calibration (``calib``) -> the mote's fixed point (``firmware``)
+-> ``upload`` back to the mote; ``sim`` stands in for the hardware; ``diagnose``
+compares measured data with the simulator's model; ``report`` renders the
+paper's tables and figures; ``commands`` is the command line.  Layers and the
+rule that keeps imports pointing down: docs/CONTRIBUTING.md.
 """
 import os as _os
 

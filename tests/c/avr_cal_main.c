@@ -3,7 +3,7 @@
  *
  * tests/test_avr.py generates "vectors.h" (calibration sets, raw records and
  * a script of upload messages, all in flash), builds this file with avr-gcc
- * and compares what it prints on UART0 with the host build (motecal.mote_c)
+ * and compares what it prints on UART0 with the host build (motecal.firmware.mote_c)
  * bit for bit.  Output: hex tokens, each item ending in ';', then "END".
  */
 #include <avr/interrupt.h>

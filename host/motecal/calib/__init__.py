@@ -12,7 +12,9 @@ models, the whole board (accelerometer, gyroscope, magnetometer) in one run.
 * ``board``    -- ``calibrate_board``: one mote's session -> ``BoardCalibration``.
 * ``result``   -- ``SensorCalibration`` / ``BoardCalibration`` and cal.json.
 * ``gate``     -- the quality gate: one accept/reject decision with reasons.
-* ``cli``      -- ``motecal calibrate``.
+* ``tables``   -- the paper's Tables I-III computed from a session.
+
+The command is ``motecal.commands.calibrate``.
 """
 from .board import calibrate_board  # noqa: F401
 from .gate import GateDecision, GateLimits, decide  # noqa: F401

@@ -15,7 +15,7 @@ Reasons (and the metric behind each):
   sphere, 0.58 for the six +-axis poses, < 0 when all lie in one hemisphere)
   below ``min_hull_depth``;
 * non-still "static" data -- a labelled pose whose per-axis standard deviation
-  exceeds the stillness thresholds of ``motecal.still`` (accel 0.02 g, gyro
+  exceeds the stillness thresholds of ``motecal.sessions.still`` (accel 0.02 g, gyro
   1.5 deg/s);
 * magnetometer sweep covering too little of the sphere -- the share of the
   sphere's 100 equal-area cells holding a calibrated direction

@@ -10,9 +10,13 @@ model and its gain (``motecal diagnose``; see the README's section "Diagnosis").
 * ``gain``      -- the criterion (Bonferroni level, held-out check);
 * ``extend``    -- the extended model as a simulator model file;
 * ``compare``   -- the same session re-simulated, statistics side by side;
+* ``regimes``   -- what a sensor's observations allow (poses, sweep, single, still);
 * ``engine``    -- the four questions in order (``diagnose``);
-* ``plant``     -- hidden effects for the tests and the bench;
-* ``plots``, ``cli`` -- ``--report`` pictures and the command.
+* ``summary``   -- the text summary of a diagnosis;
+* ``plots``     -- the ``--report`` pictures.
+
+The command is ``motecal.commands.diagnose``; the hidden effects the tests and
+the bench plant are in ``tests/plant.py``.
 """
 from .causes import CAUSES  # noqa: F401
 from .engine import Diagnosis, Finding, diagnose  # noqa: F401

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 # Detectability thresholds: (cause, sensor[-variant]) -> (session kind the
 # effect is planted in, threshold, what the size measures).  Planted at a
-# random size between the threshold and 3x it (motecal.diagnose.plant), the
+# random size between the threshold and 3x it (tests/plant.py), the
 # cause is named in >= 95 % of cases (tests/test_diagnose_planted.py, bench).
 THRESHOLDS = {
     ("cross_axis", "accel"): ("static80", 0.002, "max |symmetric coupling|"),

@@ -2,7 +2,7 @@
 time blocks and noise level.  Pure functions on a ``SessionData``.
 
 * A **segment** is one still orientation: a static pose (label >= 1) or, in
-  data without pose labels, a still stretch found by ``motecal.still`` on
+  data without pose labels, a still stretch found by ``motecal.sessions.still`` on
   every sensor at once (as the importer labels poses), with ``TRIM_S`` left
   out at both ends: the slow start and end of a smooth move pass the
   stillness thresholds of one 0.4 s window but are not still (judged per

@@ -1,10 +1,10 @@
 """Import measured data into a session: the project CSV and the real-data formats
 of ``../shared/data/measured`` (Razor AHRS text and float logs, timestamped CSV pairs).
 
-Readers are pure functions returning :class:`motecal.session.SessionData` in raw
+Readers are pure functions returning :class:`motecal.sessions.session.SessionData` in raw
 counts, axes as recorded, with the chips, scales (LSB per unit), rates and sources
 in ``scales`` / ``chips`` / ``meta``.  Unlabelled data gets labels from the
-stillness detector (:func:`motecal.still.segment_still`):
+stillness detector (:func:`motecal.sessions.still.segment_still`):
 
 * ``static``: still segments become poses 1..K in time order; when several files
   are read into one session each file is one pose (its longest still segment);

@@ -110,7 +110,7 @@ class SentLog:
 
 
 def _default_cal_factory():
-    """``CalReceiver`` from motecal.mote_c when it can be loaded, else None."""
+    """``CalReceiver`` from motecal.firmware.mote_c when it can be loaded, else None."""
     try:
         from ..firmware.mote_c import CalReceiver
     except (ImportError, OSError):

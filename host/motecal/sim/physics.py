@@ -5,7 +5,7 @@ Per sensor and sample::
     u  physical input        accel: specific force (g, body)
                              gyro:  angular rate (deg/s, body)
                              mag:   Earth field (gauss, body) = R.T @ B_world
-    x = K * u                nominal counts (K from motecal.session)
+    x = K * u                nominal counts (K from motecal.sessions.session)
     x = term_n(...term_1(x)) the sensor's terms, in list order
     x += noise * N(0, 1)     white noise, per-axis sigma in counts (added just
                              before the first ``saturation`` term if there is one,

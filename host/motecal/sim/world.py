@@ -5,7 +5,7 @@ BaseStation and serial line (network), in one object other code can drive.
     data = w.run_until(10.0)        # serial bytes up to simulated t = 10 s
     w.write(frame)                  # PC -> BaseStation bytes, at w.now
     w.done, w.stats, w.sent[1].seq, w.sent[1].raw, w.truth()
-    port = WorldPort(w)             # a motecal.sources.Source in simulated time
+    port = WorldPort(w)             # a motecal.line.sources.Source in simulated time
 
 Mote ids are 1..N; the BaseStation is 0.  The session lasts the trajectory's
 duration (or ``duration``); ``done`` is True once it is over and every queue
@@ -165,7 +165,7 @@ def _save_eeproms(path: Path, ee: dict[int, bytearray]) -> None:
 
 
 class WorldPort(Source):
-    """The world's serial line as a ``motecal.sources.Source``, in process and
+    """The world's serial line as a ``motecal.line.sources.Source``, in process and
     in simulated time: every ``read()`` runs the world ``step`` simulated
     seconds further and returns the frames completed meanwhile; ``send()``
     puts a frame into the BaseStation's UART.  ``clock()`` is the simulated

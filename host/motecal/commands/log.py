@@ -1,18 +1,9 @@
 """``motecal log``: record what the BaseStation forwards into the database,
 optionally guiding a person through 80 static poses or a rotation sweep.
 
-Data path, all vectorised per read (``bench/bench_logger.py`` measures it):
-source bytes -> ``protocol.FrameDecoder`` (in ``sources``) -> sample messages
-decoded together (``decode_sample_frames``) -> sequence numbers unwrapped and
-checked per mote (``LinkTracker``: gaps = lost samples, duplicates dropped,
-late ones filling gaps counted as reordered) -> ``store.SessionWriter``, which
-commits a transaction every 0.25 s.  Other messages (mote and BaseStation
-status) go into the link statistics; anything unusable is counted and skipped.
-
-The port may vanish (unplugged, TCP closed): the logger commits, records a
-``disconnect`` event, retries with backoff and resumes.  Ctrl-C and SIGTERM
-end the session cleanly: everything received is committed and the session is
-marked ended.
+The loop is ``capture.logger.Logger`` (data path, reconnects, clean stop:
+see there); this module parses the options, opens the port and the store,
+installs the signal handlers and picks the screen (``log_screen``).
 """
 from __future__ import annotations
 

@@ -1,35 +1,10 @@
 """``motecal upload``: a calibration (cal.json) to a mote, through the
-BaseStation and the radio, then verified.
+BaseStation and the radio, then verified (the protocol: ``upload.uploader``).
 
     motecal upload cal.json --port URL [--mote ID] [--version N] [--timeout S] [--retries N]
     motecal upload cal.json --dry-run [--mote ID] [--version N]
     motecal upload --show [cal.json] --port URL --mote ID
     motecal upload --reset --port URL --mote ID [--version N]
-
-Protocol (messages of ``tinyos/NineDofMsg.h``), one message at a time:
-
-1. CAL_QUERY offset 0 -> CAL_REPORT: the version in force; the new set gets
-   that + 1 (65535 -> 1) unless ``--version``.
-2. The set (``fixedpoint.build_calset``, 102 bytes) in fragments of
-   NINEDOF_FRAG_DATA (20) bytes: CAL_FRAG -> CAL_FRAG_ACK (status) each.
-3. CAL_COMMIT (APPLY, length, CRC-16 of the set) -> CAL_COMMIT_ACK (status,
-   the CRC the mote computed, the version in force, sensors corrected).
-4. Read-back: CAL_QUERY offsets 0, 20, .. 100 -> CAL_REPORTs; the set in
-   force must equal the set sent byte for byte.
-5. The mote's next sample messages must carry the corrected flag and the
-   version's low 4 bits.
-
-Transport.  Each message goes to the serial line as a 0x44 frame with a
-sequence byte; the BaseStation acknowledges it with a 0x43 frame (SerialP).
-No 0x43 within ``SERIAL_ACK_TIMEOUT``: the same frame is sent again, up to
-``SERIAL_RETRIES`` times, then the upload stops (no BaseStation on the port).
-The BaseStation sends PC packets by radio without link-layer acks, so a lost
-fragment (or a lost reply) is the host's business: no reply within
-``--timeout`` seconds and the message is sent again, up to ``--retries``
-times.  Every message is idempotent on the mote (fragments restage the same
-bytes, a repeated commit of the set in force is acknowledged again), so a
-repeat is harmless.  A SerialForwarder (``sf@``) does the serial acks
-itself; then only the replies are waited for.
 
 Errors are one line on stderr: bad input exits 2, a set that cannot be
 represented or that the mote's own checks would refuse exits 3, and an

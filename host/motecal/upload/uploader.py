@@ -1,10 +1,6 @@
-"""The upload protocol (``motecal upload``): a calibration (cal.json) to a mote, through the
-BaseStation and the radio, then verified.
-
-    motecal upload cal.json --port URL [--mote ID] [--version N] [--timeout S] [--retries N]
-    motecal upload cal.json --dry-run [--mote ID] [--version N]
-    motecal upload --show [cal.json] --port URL --mote ID
-    motecal upload --reset --port URL --mote ID [--version N]
+"""The upload protocol: a calibration (cal.json) to a mote, through the
+BaseStation and the radio, then verified (the command is
+``motecal.commands.upload``).
 
 Protocol (messages of ``tinyos/NineDofMsg.h``), one message at a time:
 
@@ -30,10 +26,6 @@ times.  Every message is idempotent on the mote (fragments restage the same
 bytes, a repeated commit of the set in force is acknowledged again), so a
 repeat is harmless.  A SerialForwarder (``sf@``) does the serial acks
 itself; then only the replies are waited for.
-
-Errors are one line on stderr: bad input exits 2, a set that cannot be
-represented or that the mote's own checks would refuse exits 3, and an
-upload that fails (no answer, rejected, verification failed) exits 1.
 """
 from __future__ import annotations
 

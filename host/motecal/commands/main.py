@@ -15,19 +15,20 @@ from .. import __doc__ as motecal_doc, __version__
 from ..errors import UserError
 from .args import description
 
-# Subcommands in the order of the data path: name -> (module, one-line help).
+# Subcommands in the order of the data path: name -> (module in this package,
+# one-line help).
 # Only the module of the command being run is imported, so a command starts
 # without loading every other command's dependencies (scipy, matplotlib, ...).
 COMMANDS = {
-    "sim": ("motecal.commands.sim", "simulate motes, radio, BaseStation and serial line"),
-    "log": ("motecal.commands.log", "log samples from a port into a database, guiding a person"),
-    "sessions": ("motecal.commands.sessions", "list the sessions in a database"),
-    "export": ("motecal.commands.export", "write a session as the project CSV"),
-    "import": ("motecal.commands.import_", "import measured data files as a session"),
-    "calibrate": ("motecal.commands.calibrate", "calibrate accelerometer, gyroscope and magnetometer"),
-    "upload": ("motecal.commands.upload", "send a calibration to a mote, or read/reset it"),
-    "diagnose": ("motecal.commands.diagnose", "what the simulation gets wrong, its cause and the gain"),
-    "report": ("motecal.commands.report", "the paper's tables and figures as an HTML report"),
+    "sim": ("sim", "simulate motes, radio, BaseStation and serial line"),
+    "log": ("log", "log samples from a port into a database, guiding a person"),
+    "sessions": ("sessions", "list the sessions in a database"),
+    "export": ("export", "write a session as the project CSV"),
+    "import": ("import_", "import measured data files as a session"),
+    "calibrate": ("calibrate", "calibrate accelerometer, gyroscope and magnetometer"),
+    "upload": ("upload", "send a calibration to a mote, or read/reset it"),
+    "diagnose": ("diagnose", "what the simulation gets wrong, its cause and the gain"),
+    "report": ("report", "the paper's tables and figures as an HTML report"),
 }
 COMMAND_MODULES = tuple(dict.fromkeys(m for m, _ in COMMANDS.values()))
 
@@ -53,7 +54,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     wanted = [COMMANDS[word][0]] if word in COMMANDS else \
         (list(COMMAND_MODULES) if argv is None else [])
     for name in wanted:
-        importlib.import_module(name).register(sub)
+        importlib.import_module(f".{name}", __package__).register(sub)
     for cmd, (_, text) in COMMANDS.items():     # the others, for --help
         if cmd not in sub.choices:
             sub.add_parser(cmd, help=text)

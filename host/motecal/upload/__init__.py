@@ -9,7 +9,8 @@ BaseStation.
   verification;
 * ``describe`` -- the set in force and a dry run as text lines.
 """
-from .calfile import CalFile, build_set, cal_from_board, check_set, load_cal, mote_check  # noqa: F401
+from .calfile import (CalFile, build_set, cal_from_board, check_set, load_cal,  # noqa: F401
+                      mote_check)
 from .describe import dry_run_lines, show_lines  # noqa: F401
 from .link import (SERIAL_ACK_TIMEOUT, SERIAL_RETRIES, Link, LinkStats, NoAnswer,  # noqa: F401
                    NullProgress, Rejected, UploadFailed)

@@ -63,7 +63,8 @@ def record(name: str, goal: str, measured, unit: str = "", met=None, note: str =
     digits), a string, or None (not measured here)."""
     bench = bench or Path(sys.argv[0]).name
     shown = fmt(measured, digits) + (f" {unit}" if unit and measured is not None else "")
-    row = dict(name=name, goal=goal, measured=shown, met=(None if measured is None else met),
+    met = None if measured is None or met is None else bool(met)
+    row = dict(name=name, goal=goal, measured=shown, met=met,
                note=note, bench=f"bench/{bench}")
     print(f"RESULT {name}: {shown}  (goal {goal or '-'}) -> {verdict(row['met'])}"
           + (f"  [{note}]" if note else ""), flush=True)

@@ -183,6 +183,9 @@ def main(argv=None):
     record("diagnosis: both causes of a pair named", ">= 95 % (#7)", 100 * both, "%",
            both >= 0.95, digits=3, note=f"{len(pairs)} pairs")
     if len(ratios):
+        record("diagnosis: fitted gain / the planted truth's gain", "", np.median(ratios), "",
+               None, digits=2, note=f"median; 10-90 % {np.percentile(ratios, 10):.2f}-"
+                                    f"{np.percentile(ratios, 90):.2f}")
         print(f"fitted gain / truth's gain: median {np.median(ratios):.3f}, 10-90 % "
               f"{np.percentile(ratios, 10):.3f}-{np.percentile(ratios, 90):.3f}")
     return 0

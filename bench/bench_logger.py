@@ -97,7 +97,7 @@ def main() -> int:
             fps = n_frames / t_all
             record(f"logger end to end, {batch} record(s)/frame", f">= {GOAL} frames/s (#3)",
                    fps, "frames/s", fps >= GOAL, digits=3,
-                   note=f"{rows / t_all:.3g} records/s; bytes to committed sqlite rows, one core")
+                   note=f"{rows / t_all:.0f} records/s; bytes to committed sqlite rows, one core")
             record(f"  of which decoding alone, {batch} record(s)/frame", "", n_frames / t_dec,
                    "frames/s", None, digits=3)
             record(f"  of which sqlite inserts alone, {batch} record(s)/frame", "", rows / t_ins,

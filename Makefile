@@ -2,7 +2,8 @@
 #
 #   make demo    the main job end to end on the simulator (sqlite), ends with a report
 #   make test    every test: Python (pytest), C logic with gcc, and avr-gcc + simavr
-#   make bench   benchmarks: measured figures next to the goals (not pass/fail)
+#   make bench   benchmarks: measured figures next to the goals (not pass/fail),
+#                written to bench/RESULTS.md and README.md's goals table
 
 SHELL := /bin/bash
 VENV ?= .venv
@@ -50,8 +51,15 @@ test: venv sysdeps
 demo: venv demodeps
 	$(PY) scripts/demo.py --out $(DEMO_DIR)
 
+# Every bench prints its tables and records its figures (bench/results.py);
+# the figures then go to bench/RESULTS.md and README.md's goals table.
+BENCH_RESULTS := build/bench-results.jsonl
 bench: venv sysdeps
-	@for b in bench/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
+	@mkdir -p build && rm -f $(BENCH_RESULTS)
+	@for b in bench/bench_*.py; do echo "== $$b"; \
+	  MOTECAL_BENCH_RESULTS=$(CURDIR)/$(BENCH_RESULTS) $(PY) $$b || exit 1; done
+	$(PY) bench/results.py $(BENCH_RESULTS) bench/RESULTS.md
+	$(PY) bench/goals_table.py
 
 clean:
 	rm -rf $(VENV) $(DEMO_DIR) build .pytest_cache

@@ -33,6 +33,7 @@ import numpy as np  # noqa: E402
 
 import plant as P  # noqa: E402
 from motecal.diagnose.engine import diagnose  # noqa: E402
+from results import record  # noqa: E402
 
 
 SCALE = 1.0
@@ -174,7 +175,18 @@ def main(argv=None):
         if not all(r["named"]):
             print(f"    missed in pair {r['keys']} seed {r['seed']}: named {r['named']}, "
                   f"extra {r['extra']}")
+    record("diagnosis: planted cause named", ">= 95 % (#7)", 100 * det, "%", det >= 0.95,
+           digits=3, note=f"{len(planted)} cases; 95 % lower bound "
+                          f"{100 * _bound(named, lower=True):.1f} %")
+    record("diagnosis: false alarms on clean boards", "<= 5 % (#7)", 100 * fa, "%", fa <= 0.05,
+           digits=2, note=f"{sum(alarms)} of {len(clean)}; 95 % upper bound "
+                          f"{100 * _bound(alarms, lower=False):.1f} %")
+    record("diagnosis: both causes of a pair named", ">= 95 % (#7)", 100 * both, "%",
+           both >= 0.95, digits=3, note=f"{len(pairs)} pairs")
     if len(ratios):
+        record("diagnosis: fitted gain / the planted truth's gain", "", np.median(ratios), "",
+               None, digits=2, note=f"median; 10-90 % {np.percentile(ratios, 10):.2f}-"
+                                    f"{np.percentile(ratios, 90):.2f}")
         print(f"fitted gain / truth's gain: median {np.median(ratios):.3f}, 10-90 % "
               f"{np.percentile(ratios, 10):.3f}-{np.percentile(ratios, 90):.3f}")
     return 0

@@ -1,5 +1,5 @@
 """The diagnosis on the measured data sets (../shared/data/measured): the
-results documented in README.md (Diagnosis), kept as expectations.
+results documented in docs/diagnose.md, kept as expectations.
 (~30 s)"""
 import json
 

@@ -459,9 +459,9 @@ def test_simulate_other_kinds(kind):
         assert np.all(s.label == LABEL_ROT)
 
 
-def test_readme_section_documents_every_term_and_parameter():
+def test_model_doc_documents_every_term_and_parameter():
     from pathlib import Path
-    doc = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "simulator-model.md").read_text()
     for tid, cls in TERMS.items():
         assert f"`{tid}`" in doc, tid
         for prm in cls.params:

@@ -9,10 +9,10 @@ import numpy as np
 import hand as H
 from motecal.calib.board import calibrate_board
 from motecal.calib.gate import decide
-from motecal.cli import main
-from motecal.importer import read_razor_float
-from motecal.session import LABEL_ROT
-from motecal.store import open_store
+from motecal.commands.main import main
+from motecal.sessions.importer import read_razor_float
+from motecal.sessions.session import LABEL_ROT
+from motecal.sessions.store import open_store
 
 
 def _db(tmp_path, data, name="s"):

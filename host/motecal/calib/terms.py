@@ -78,8 +78,13 @@ def apply_diagnosis(data: SessionData, diagnosis: dict) -> tuple[SessionData, li
                 bad |= x[:, a] == float(h["limit_counts"])
             if "overflow_code" in params:
                 bad |= np.all(x == float(params["overflow_code"]), axis=1)
-            raw[bad, sl] = np.nan
-            used.append(f"{s} saturation: {int(bad.sum())} clipped readings left out")
+            # a static pose with clipped readings: its other readings are a
+            # truncated sample (their mean is biased), so the whole pose goes
+            poses = np.unique(data.label[bad & (data.label >= 1)])
+            whole = np.isin(data.label, poses) & (data.label >= 1)
+            raw[bad | whole, sl] = np.nan
+            used.append(f"{s} saturation: {int(bad.sum())} clipped readings left out"
+                        + (f" ({len(poses)} poses with them, whole)" if len(poses) else ""))
         elif c == "unexplained" and ev.get("outlier_times_s"):
             times = np.asarray(ev["outlier_times_s"], float)
             idx = np.searchsorted(t, times)

@@ -508,6 +508,14 @@ def _fit_subset(pts, spec, trange, keep):
     return F.fit_linear(X[keep], pts["Y"][keep], pts["W"][keep], names, groups), X
 
 
+def _nanmean(x) -> float:
+    """Mean of the finite values; NaN (quietly) when there are none (a fold
+    whose blocks all lie in orientations with no training block)."""
+    x = np.asarray(x, float)
+    ok = np.isfinite(x)
+    return float(x[ok].mean()) if ok.any() else float("nan")
+
+
 def _heldout_linear(st: Structure, obs: SensorObs, fit_fn):
     pts = st.points
     fold = pts["fold"]
@@ -525,8 +533,8 @@ def _heldout_linear(st: Structure, obs: SensorObs, fit_fn):
                 if not np.any((pts["cgroup"] == g) & ~te):
                     usable &= pts["cgroup"] != g
             r[usable] = pts["Y"][usable] - X[usable] @ fk.beta
-        out[spec] = float(np.sqrt(np.nanmean(r * r))) / obs.K
-        folds[spec] = np.array([np.nanmean(r[fold == f] ** 2) for f in np.unique(fold)])
+        out[spec] = float(np.sqrt(_nanmean(r * r))) / obs.K
+        folds[spec] = np.array([_nanmean(r[fold == f] ** 2) for f in np.unique(fold)])
     for c in st.accepted:
         st.heldout[cause_of(c)] = (out[full - {c}], out[full])
         st.fold_wins[cause_of(c)] = int(np.sum(folds[full] < folds[full - {c}]))

@@ -28,7 +28,7 @@ from ..sessions.still import StillThresholds, segment_recording
 TRIM_S = 0.2               # left out at both ends of a still stretch
 MIN_STILL_S = 0.6          # shortest still stretch kept (hand-held poses of 1.6 s, trimmed)
 MIN_SEG_SAMPLES = 20       # and at least this many rows
-TURN_AVG_S = 0.2           # the gyro rate averaged over this long at a stretch's ends ...
+TURN_AVG_S = 0.5           # the gyro rate averaged over this long at a stretch's ends ...
 TURN_DPS = 0.5             # ... must be within this of its median: else still turning
 MIN_POSE_ORIENTATIONS = 6  # still stretches covering this many orientations are poses
 

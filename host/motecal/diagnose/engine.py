@@ -369,7 +369,7 @@ def _tilt_in_mag(acc: SensorObs, mag: SensorObs | None) -> dict:
     if mag is None or acc.blocks is None or mag.n < 10:
         return {}
     b = acc.blocks
-    P, M, Wt = [], [], []
+    P, M = [], []
     for si in np.unique(b.seg):
         idx = np.flatnonzero(b.seg == si)
         if len(idx) < 3:

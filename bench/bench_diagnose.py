@@ -164,8 +164,8 @@ def _pct(x):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--per", type=int, default=12, help="cases per (cause, sensor) (12)")
-    ap.add_argument("--clean", type=int, default=20, help="clean cases per session kind (20)")
+    ap.add_argument("--per", type=int, default=10, help="cases per (cause, sensor) (10)")
+    ap.add_argument("--clean", type=int, default=16, help="clean cases per session kind (16)")
     ap.add_argument("--pairs", type=int, default=30, help="two-cause cases (30)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)

@@ -394,3 +394,56 @@ def read_float_log(paths, *, columns=None, rate_hz=None, chip=None, scale=None, 
                                "rate_dps": turn_dps}
                               for i, r in enumerate(data.meta["turntable"]["segments"], start=1)]
     return _finish(data, None, kind, None, has_labels=True)
+
+
+# ------------------------------------------------------------------ detection and dispatch
+
+SECTIONS_FORMAT = "imucal-sections"      # a section list: read with its session CSV
+
+
+def detect_text(lines: list[str], text: str = "") -> str | None:
+    """The foreign format of a text file from its first lines, or None."""
+    if text.lstrip().startswith("{") and is_section_list(text):
+        return SECTIONS_FORMAT
+    first = next((s.strip() for s in lines if s.strip()), "")
+    cols = [c.strip() for c in first.split(",")]
+    if cols and cols[0] == "part" and set(ACC_COLS + GYR_COLS) <= set(cols):
+        return "imucal-annotated"
+    if len(cols) == 7 and sorted(cols[1:]) == sorted(ACC_COLS + GYR_COLS):
+        return "imucal-session"
+    if F.looks_like_float_log(lines):
+        return "float-log"
+    return None
+
+
+def read_any(paths, found: dict, *, chip=None, kind="auto", **opts):
+    """Read a session of foreign files; ``found`` maps each path to its format."""
+    fmts = set(found.values())
+    if fmts <= {"imucal-session", SECTIONS_FORMAT}:
+        csvs = [p for p, f in found.items() if f == "imucal-session"]
+        lists = [p for p, f in found.items() if f == SECTIONS_FORMAT]
+        if len(csvs) != 1 or len(lists) > 1:
+            raise UserError("imucal-session: give one session CSV (and at most one section "
+                            "list JSON)")
+        return read_imucal_session(csvs[0], lists[0] if lists else None, chip=chip, kind=kind,
+                                   **_only(opts, "rate_hz", "scale", "units", "gravity",
+                                           "angle_deg"))
+    if len(fmts) > 1:
+        listing = "; ".join(f"{p}: {f}" for p, f in found.items())
+        raise UserError(f"files of different formats in one session ({listing})")
+    fmt = fmts.pop()
+    if fmt == SECTIONS_FORMAT:
+        raise UserError("a section list alone: give the imucal session CSV with it")
+    if fmt == "imucal-annotated":
+        if len(found) != 1:
+            raise UserError("imucal-annotated: import one file per session")
+        return read_imucal_annotated(next(iter(found)), chip=chip, kind=kind,
+                                     **_only(opts, "rate_hz", "scale", "units", "gravity",
+                                             "angle_deg"))
+    return read_float_log(list(found), chip=chip, kind=kind,
+                          **_only(opts, "columns", "rate_hz", "scale", "units", "gravity",
+                                  "rate_dps", "rpm"))
+
+
+def _only(opts: dict, *names) -> dict:
+    return {k: v for k, v in opts.items() if k in names and v is not None}

@@ -94,6 +94,7 @@ int main(void) {
     np.testing.assert_allclose(got[:, 0:3] / 256.0, acc, atol=2e-6)
     gb = -np.linalg.solve(board.gyro.A, board.gyro.c)
     np.testing.assert_allclose(got[:, 3:6], (raw[:, 3:6] - gb) * 0.06957, rtol=1e-5, atol=1e-4)
+    assert board.gyro.lsb_per_unit == 14.375 and "GYRO_GAIN 0.06957" in e.text
     mag = board.mag.apply(raw[:, 6:9]) * board.mag.lsb_per_unit
     np.testing.assert_allclose(got[:, 6:9], mag, rtol=1e-5, atol=2e-3)
     # the module's own reading back agrees with gcc's

@@ -74,10 +74,18 @@ def _lost(board) -> dict:
                              f"nominal scale): dropped"]
     if board.gyro is not None:
         G = board.gyro.A * board.gyro.lsb_per_unit
-        lost["gyro"] = [f"offsets only: the firmware's one GYRO_GAIN ({FIRMWARE_GYRO_GAIN} "
+        lost["gyro"] = [f"offsets only: the firmware's one GYRO_GAIN ({fmt_float(gyro_gain(board), 6)} "
                         f"deg/s per LSB) replaces the fitted scale and misalignment "
                         f"(largest |G - I| {np.abs(G - np.eye(3)).max():.4f})"]
     return lost
+
+
+def gyro_gain(board) -> float:
+    """deg/s per LSB: the firmware's ITG-3200 constant for that chip's nominal
+    scale (14.375 LSB per deg/s), else the session's nominal scale (set
+    GYRO_GAIN to it in the firmware; the block says so)."""
+    lsb = board.gyro.lsb_per_unit if board is not None and board.gyro else 14.375
+    return FIRMWARE_GYRO_GAIN if abs(lsb - 14.375) < 1e-9 else 1.0 / lsb
 
 
 def _apply_fns(k: dict, board) -> dict:
@@ -93,7 +101,7 @@ def _apply_fns(k: dict, board) -> dict:
             ((np.asarray(raw, f32) - off) * scale).astype(float) / GRAVITY
     if "GYRO_AVERAGE_OFFSET_X" in k:
         off = np.array([k[f"GYRO_AVERAGE_OFFSET_{a}"] for a in AXES], f32)
-        gain = f32(FIRMWARE_GYRO_GAIN)
+        gain = f32(gyro_gain(board))
         out["gyro"] = lambda raw, off=off, gain=gain: \
             ((np.asarray(raw, f32) - off) * gain).astype(float)
     if "magn_ellipsoid_center" in k:
@@ -133,8 +141,13 @@ def write_c(board) -> Export:
                          for r in k["magn_ellipsoid_transform"])
         lines.append(f"const float magn_ellipsoid_transform[3][3] = {{{rows}}};")
     if board.gyro is not None:
-        lines.append(f"// Gyroscope: average offsets in counts (the firmware's GYRO_GAIN "
-                     f"{FIRMWARE_GYRO_GAIN} deg/s per LSB stays)")
+        gain = gyro_gain(board)
+        if gain == FIRMWARE_GYRO_GAIN:
+            lines.append(f"// Gyroscope: average offsets in counts (the firmware's GYRO_GAIN "
+                         f"{FIRMWARE_GYRO_GAIN} deg/s per LSB stays)")
+        else:
+            lines.append(f"// Gyroscope: average offsets in counts; this chip's nominal gain: "
+                         f"set GYRO_GAIN to {fmt_float(gain)} deg/s per LSB")
         for a in AXES:
             lines.append(f"#define GYRO_AVERAGE_OFFSET_{a} ((float) "
                          f"{fmt_float(k[f'GYRO_AVERAGE_OFFSET_{a}'])})")
@@ -167,7 +180,8 @@ def write_yaml(board) -> Export:
                      + ", ".join("[" + ", ".join(fmt_float(v) for v in r) + "]"
                                  for r in k["magn_ellipsoid_transform"]) + "]")
     if board.gyro is not None:
-        lines.append("### gyroscope (average offsets, counts)")
+        lines.append("### gyroscope (average offsets, counts; the firmware's GYRO_GAIN: "
+                     f"{fmt_float(gyro_gain(board))} deg/s per LSB)")
         for a in AXES:
             lines.append(f"gyro_average_offset_{a.lower()}: "
                          f"{fmt_float(k[f'GYRO_AVERAGE_OFFSET_{a}'])}")

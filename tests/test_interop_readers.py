@@ -214,3 +214,25 @@ def test_units_and_scales_parsing():
     with pytest.raises(UserError, match="positive"):
         F.parse_scales("mag=-3")
     assert F.unit_factor("ut") == 0.01 and F.unit_factor("m/s^2", 9.81) == 1 / 9.81
+
+
+# ---------------------------------------------------------------- MotionCal Raw: lines
+
+def test_motioncal_raw_lines(tmp_path):
+    rng = np.random.default_rng(4)
+    n = 400
+    raw = np.column_stack([rng.integers(-8200, 8200, (n, 3)), rng.integers(-50, 50, (n, 3)),
+                           rng.integers(-600, 600, (n, 3))])
+    lines = ["Uni:0.1,0.2,9.8,0,0,0,10,20,30"] + ["Raw:" + ",".join(map(str, r)) for r in raw]
+    p = tmp_path / "motioncal.log"
+    p.write_text("\n".join(lines) + "\n")
+    assert X.detect_text(lines) == "motioncal"
+    d = X.read_motioncal(p, rate_hz=50)
+    np.testing.assert_array_equal(d.raw, raw)
+    assert d.scales == {"accel": pytest.approx(8192 * 9.80665 / 9.8), "gyro": 16.0, "mag": 1000.0}
+    assert "1 non-Raw lines skipped" in d.meta["notes"]
+    bad = tmp_path / "bad.log"
+    bad.write_text("\n".join(lines[:7] + ["Raw:1,2,3"] + lines[7:]) + "\n")
+    with pytest.raises(UserError) as e:
+        X.read_motioncal(bad)
+    assert str(e.value) == f"{bad}: line 8: expected 9 values after Raw:, found 3"

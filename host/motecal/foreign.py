@@ -33,7 +33,7 @@ from .importer import _fail, _finish, _read_text_lines, _session, add_note
 from .session import LABEL_ROT, SENSOR_SLICES, UNITS
 from .still import segment_recording
 
-FORMATS = ("imucal-annotated", "imucal-session", "float-log")
+FORMATS = ("imucal-annotated", "imucal-session", "float-log", "motioncal")
 FACES = ("x_p", "x_a", "y_p", "y_a", "z_p", "z_a")
 ROTATIONS = ("x_rot", "y_rot", "z_rot")
 SECTIONS = FACES + ROTATIONS
@@ -396,6 +396,65 @@ def read_float_log(paths, *, columns=None, rate_hz=None, chip=None, scale=None, 
     return _finish(data, None, kind, None, has_labels=True)
 
 
+# ------------------------------------------------------------------ MotionCal's Raw: lines
+
+# What the sketches that feed MotionCal print (Adafruit's sensor calibration
+# examples): accel m/s^2 * 8192 / 9.8, gyro deg/s * 16, mag uT * 10.
+MOTIONCAL_SCALES = {"accel": 8192.0 * F.G0 / 9.8, "gyro": 16.0, "mag": 1000.0}
+
+
+def read_motioncal(path, *, rate_hz=None, scale=None, chip=None, kind="auto"):
+    """MotionCal's serial log: ``Raw:ax,ay,az,gx,gy,gz,mx,my,mz`` integer lines
+    (scales above unless ``scale`` says otherwise); other ``Word:`` lines
+    (``Uni:``, ``Cal1:``) are skipped and counted in a note."""
+    lines = _read_text_lines(path)
+    rows, skipped = [], 0
+    for lineno, line in enumerate(lines, start=1):
+        s = line.strip()
+        if not s:
+            continue
+        if not s.startswith("Raw:"):
+            head = s.split(":", 1)[0]
+            if ":" in s and head.isalpha():
+                skipped += 1
+                continue
+            raise _fail(path, lineno, f"not a MotionCal line (Raw:...): {s[:60]!r}")
+        parts = s[4:].split(",")
+        if len(parts) != 9:
+            raise _fail(path, lineno, f"expected 9 values after Raw:, found {len(parts)}")
+        vals = []
+        for j, tok in enumerate(parts, start=1):
+            try:
+                v = int(tok.strip())
+            except ValueError:
+                raise _fail(path, lineno, f"value {j} is not an integer count: "
+                            f"{tok.strip()!r}") from None
+            if not -32768 <= v <= 32768:
+                raise _fail(path, lineno, f"value {j} = {v} is outside 16 bits")
+            vals.append(v)
+        rows.append(vals)
+    if not rows:
+        raise _fail(path, len(lines) or 1, "no Raw: line")
+    rate = 100.0 if rate_hz is None else _need_rate(rate_hz, "motioncal")
+    raw = np.array(rows, float)
+    n = len(raw)
+    meta = {"format": "motioncal", "source": str(path),
+            "files": [{"file": str(path), "rows": [0, n], "samples": n}],
+            "rate_hz": rate, "rates_hz": {s: rate for s in SENSOR_SLICES},
+            "clocks": f"shared: t = row / {rate:g} Hz", "axis_frame": FLOAT_FRAME}
+    if rate_hz is None:
+        add_note(meta, "no sample rate given (--rate-hz): t = row / 100 assumed")
+    if skipped:
+        add_note(meta, f"{skipped} non-Raw lines skipped")
+    data = _session(Path(path).stem, raw, np.arange(n) / rate, meta=meta)
+    lsbs = dict(MOTIONCAL_SCALES)
+    lsbs.update(_chip_scales(chip))
+    lsbs.update(F.parse_scales(scale))
+    _apply_scales(data, lsbs, chip)
+    data.chips = {s: "MotionCal Raw" for s in SENSOR_SLICES}
+    return _finish(data, None, kind, None)
+
+
 # ------------------------------------------------------------------ detection and dispatch
 
 SECTIONS_FORMAT = "imucal-sections"      # a section list: read with its session CSV
@@ -413,6 +472,8 @@ def detect_text(lines: list[str], text: str = "") -> str | None:
         return "imucal-session"
     if F.looks_like_float_log(lines):
         return "float-log"
+    if any(s.strip().startswith("Raw:") for s in lines[:50]):
+        return "motioncal"
     return None
 
 
@@ -440,6 +501,11 @@ def read_any(paths, found: dict, *, chip=None, kind="auto", **opts):
         return read_imucal_annotated(next(iter(found)), chip=chip, kind=kind,
                                      **_only(opts, "rate_hz", "scale", "units", "gravity",
                                              "angle_deg"))
+    if fmt == "motioncal":
+        if len(found) != 1:
+            raise UserError("motioncal: import one log per session")
+        return read_motioncal(next(iter(found)), chip=chip, kind=kind,
+                              **_only(opts, "rate_hz", "scale"))
     return read_float_log(list(found), chip=chip, kind=kind,
                           **_only(opts, "columns", "rate_hz", "scale", "units", "gravity",
                                   "rate_dps", "rpm"))

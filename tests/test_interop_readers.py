@@ -236,3 +236,22 @@ def test_motioncal_raw_lines(tmp_path):
     with pytest.raises(UserError) as e:
         X.read_motioncal(bad)
     assert str(e.value) == f"{bad}: line 8: expected 9 values after Raw:, found 3"
+
+
+def test_read_session_detects_foreign_and_native(tmp_path, measured):
+    s = D.ferraris(9)
+    ann = D.write_annotated(s, tmp_path / "mystery.txt")
+    csv_path, lst = D.write_session(s, tmp_path / "other.dat")
+    assert [X.detect(p) for p in (ann, csv_path, lst)] == \
+        ["imucal-annotated", "imucal-session", "imucal-sections"]
+    d = X.read_session([ann], rate_hz=200, scale="accel=2048,gyro=16.4")
+    assert d.meta["format"] == "imucal-annotated"
+    assert X.read_session([lst, csv_path], rate_hz=200).meta["format"] == "imucal-session"
+    razor = measured / "sensorstick-boards" / "razor1" / "razor1_acc_x_pos.raw"
+    assert X.read_session([razor]).meta["format"] == "razor-text"
+    with pytest.raises(UserError, match="--units: only for float inputs"):
+        X.read_session([razor], units="si")
+    with pytest.raises(UserError, match="different formats"):
+        X.read_session([razor, ann], rate_hz=200)
+    with pytest.raises(UserError, match="give one session CSV"):
+        X.read_session([lst], rate_hz=200)

@@ -513,3 +513,69 @@ def read_any(paths, found: dict, *, chip=None, kind="auto", **opts):
 
 def _only(opts: dict, *names) -> dict:
     return {k: v for k, v in opts.items() if k in names and v is not None}
+
+
+FLOAT_OPTIONS = ("units", "scale", "gravity", "rate_hz", "rate_dps", "rpm", "columns",
+                 "angle_deg")
+
+
+def detect(path) -> str | None:
+    """A foreign format of one file from its content, or None (a native
+    format, or unknown: ``importer.detect_format`` says which)."""
+    p = Path(path)
+    if p.is_dir():
+        return None
+    try:
+        with open(p, "rb") as f:
+            head = f.read(8192)
+    except OSError as e:
+        raise UserError(f"{p}: cannot read: {e.strerror or e}") from None
+    try:
+        text = head.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        if e.start < len(head) - 3:
+            return None
+        text = head[:e.start].decode("utf-8-sig")
+    lines = text.splitlines()
+    if len(head) == 8192 and lines:
+        lines = lines[:-1]                    # the last line may be cut
+    return detect_text(lines, text if len(head) < 8192 else "")
+
+
+def read_session(paths, fmt: str = "auto", chip=None, kind: str = "auto", **opts):
+    """``motecal import``'s reader: the native formats (``importer.read_any``)
+    and the foreign ones, detected from content; options of float inputs
+    (``FLOAT_OPTIONS``) are refused for formats that do not take them."""
+    from .importer import FORMATS as NATIVE, read_any as read_native
+    if isinstance(paths, (str, Path)):
+        paths = [paths]
+    paths = [Path(p) for p in paths]
+    if not paths:
+        raise UserError("no input file given")
+    for p in paths:
+        if not p.exists():
+            raise UserError(f"{p}: no such file or directory")
+    given = {k: v for k, v in opts.items() if v not in (None, [], ())}
+    if fmt == "auto":
+        found = {p: detect(p) for p in paths}
+        if all(f is None for f in found.values()):
+            fmt = "native"
+        elif any(f is None for f in found.values()):
+            from .importer import detect_format
+            listing = "; ".join(f"{p}: {f or detect_format(p)}" for p, f in found.items())
+            raise UserError(f"files of different formats in one session ({listing})")
+    elif fmt in NATIVE:
+        found, fmt = None, "native:" + fmt
+    elif fmt in FORMATS:
+        found = {p: (SECTIONS_FORMAT if fmt == "imucal-session" and detect(p) == SECTIONS_FORMAT
+                     else fmt) for p in paths}
+    else:
+        raise UserError(f"unknown format {fmt!r}")
+    if fmt.startswith("native"):
+        if given:
+            names = ", ".join("--" + k.replace("_", "-") for k in given)
+            raise UserError(f"{names}: only for float inputs and other tools' formats "
+                            f"(imucal, FreeIMU-cal, MotionCal)")
+        return read_native(paths, fmt=fmt.partition(":")[2] or "auto", chip=chip, kind=kind)
+    data = read_any(paths, found, chip=chip, kind=kind, **given)
+    return data

@@ -272,3 +272,29 @@ def apply(gyro_cal, rf: RotationFit):
         "residual_rms_rel": rf.residual_rms, "observations": rf.table(),
         "assumptions": {"angle_sd_deg": ANGLE_SD_DEG, "rate_sd_rel": RATE_SD_REL}}
     return gyro_cal
+
+
+MAX_G_DEVIATION = 0.3       # as calib.gyro's matrix fit: a G further from I is refused
+
+
+def refine_board(board, data) -> None:
+    """``calibrate_board``'s hook: when the session lists known rotations,
+    the gyroscope's scale (and misalignment) comes from them (notes and a
+    gate warning say why when it cannot)."""
+    if board.gyro is None or not (data.meta or {}).get("rotations"):
+        return
+    warn = board.gyro.quality.setdefault("warnings", [])
+    try:
+        rf = from_session(data, board.gyro, board.accel)
+    except (ValueError, np.linalg.LinAlgError) as e:
+        warn.append(f"known rotations not used: {e}")
+        return
+    if rf is None:
+        warn.append("known rotations not used: none has enough rows")
+        return
+    if np.abs(rf.G - np.eye(3)).max() > MAX_G_DEVIATION:
+        warn.append(f"known rotations not used: max |G - I| "
+                    f"{np.abs(rf.G - np.eye(3)).max():.3f} (limit {MAX_G_DEVIATION:g})")
+        return
+    apply(board.gyro, rf)
+    board.gyro.rank = 3 + (9 if rf.model == "matrix" else 3)

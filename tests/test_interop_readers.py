@@ -114,7 +114,7 @@ def test_freeimu_turntable_gyro_scales(tmp_path):
         path = D.write_float_log(t["rad_s"], tmp_path / f"33RPMgyr{seed}.txt")
         d = X.read_float_log(path, rate_hz=t["rate"], rpm=100 / 3)
         assert d.scales["gyro"] == pytest.approx(t["lsb"], rel=1e-4)
-        assert len(d.meta["turntable"]["segments"]) == 3 and d.meta["turntable"]["rate_dps"] == 200
+        assert len(d.meta["turntable"]["segments"]) == 3 and d.meta["turntable"]["rates_dps"] == [200]
         from motecal.calib import rotations as R
         b = np.array([d.physical("gyro")[d.label == p].mean(axis=0) for p in d.poses()]).mean(0)
         obs = R.observations(d, b)
@@ -131,6 +131,21 @@ def test_turntable_needs_turns(tmp_path):
     path = D.write_float_log(t["rad_s"], tmp_path / "gyr.txt")
     with pytest.raises(UserError, match="no steady turn at 270 deg/s"):
         X.read_float_log(path, rate_hz=t["rate"], rpm=45)
+
+
+def test_turntable_two_speeds_in_two_files(tmp_path):
+    """FreeIMU-cal's 33 1/3 and 45 rpm runs of one board, one file each."""
+    a, b = D.turntable(5), D.turntable(5, rpm=45)
+    pa = D.write_float_log(a["rad_s"], tmp_path / "33RPMgyr.txt")
+    pb = D.write_float_log(b["rad_s"], tmp_path / "45RPMgyr.txt")
+    d = X.read_float_log([pa, pb], rate_hz=100, rpm="33.3333333,45")
+    tt = d.meta["turntable"]
+    assert tt["rates_dps"] == [pytest.approx(200), 270] and len(tt["segments"]) == 6
+    assert [round(r) for r in tt["segment_rates_dps"]] == [200] * 3 + [270] * 3
+    from motecal.calib import rotations as R
+    b0 = np.array([d.physical("gyro")[d.label == p].mean(axis=0) for p in d.poses()]).mean(0)
+    rf = R.fit(R.observations(d, b0), b_std=np.full(3, 0.01))
+    assert np.abs(np.diag(rf.G) - a["k"]).max() < 2e-3
 
 
 # ---------------------------------------------------------------- bad files

@@ -288,33 +288,50 @@ def parse_float_log(path, lines: list[str], ncol: int, fail) -> tuple[np.ndarray
 
 # ------------------------------------------------------------------ turntable runs
 
-def turntable_rate_dps(rate_dps=None, rpm=None) -> float | None:
-    if rate_dps is not None and rpm is not None:
-        raise UserError("give the turntable rate once: --rate-dps or --rpm")
-    if rpm is not None:
-        rate_dps = float(rpm) * 6.0
-    if rate_dps is None:
-        return None
-    if not np.isfinite(rate_dps) or rate_dps <= 0:
-        raise UserError("the turntable rate must be a positive number")
-    return float(rate_dps)
+def _rates(v) -> list:
+    if v is None:
+        return []
+    items = v if isinstance(v, (list, tuple)) else [v]
+    out = []
+    for item in items:
+        for tok in str(item).split(","):
+            tok = tok.strip()
+            if tok:
+                try:
+                    out.append(float(tok))
+                except ValueError:
+                    raise UserError(f"turntable rate {tok!r} is not a number") from None
+    return out
 
 
-def turntable_segments(gyro_dps: np.ndarray, segments: np.ndarray, rate_dps: float,
+def turntable_rates_dps(rate_dps=None, rpm=None) -> list:
+    """The turntable's speeds in deg/s from ``--rate-dps`` and/or ``--rpm``
+    (each a number, a comma list or a list: FreeIMU-cal's 33 1/3 and 45)."""
+    rates = _rates(rate_dps) + [r * 6.0 for r in _rates(rpm)]
+    for r in rates:
+        if not np.isfinite(r) or r <= 0:
+            raise UserError("a turntable rate must be a positive number")
+    return sorted(set(rates))
+
+
+def turntable_segments(gyro_dps: np.ndarray, segments: np.ndarray, rates_dps,
                        tol: float = 0.1) -> tuple[list, list]:
     """Split steady segments (labels 1..K from the stillness detector, which
-    judges spreads, so a steady turn counts) into turns at ``rate_dps``
-    (|mean rate| within ``tol`` of it, bias included) and rests (|mean| below
-    ``tol`` of it).  Returns ``(turns, rests)`` as lists of row index arrays."""
+    judges spreads, so a steady turn counts) into turns at one of
+    ``rates_dps`` (|mean rate| within ``tol`` of it, bias included) and rests
+    (|mean| below ``tol`` of the slowest).  Returns ``(turns, rests)``:
+    turns as ``(rows, rate)``, rests as row index arrays."""
+    rates = np.atleast_1d(np.asarray(rates_dps, float))
     turns, rests = [], []
     for k in range(1, int(segments.max(initial=0)) + 1):
         idx = np.flatnonzero(segments == k)
         if not len(idx):
             continue
         m = float(np.linalg.norm(np.nanmean(gyro_dps[idx], axis=0)))
-        if abs(m - rate_dps) <= tol * rate_dps:
-            turns.append(idx)
-        elif m <= tol * rate_dps:
+        near = np.abs(m - rates) <= tol * rates
+        if near.any():
+            turns.append((idx, float(rates[np.argmin(np.abs(m - rates))])))
+        elif m <= tol * rates.min():
             rests.append(idx)
     return turns, rests
 
@@ -323,8 +340,8 @@ def label_turntable(label: np.ndarray, turns: list, rests: list) -> dict:
     """Turn rows become ``rot``; rests become poses 1..; returns the
     ``meta["turntable"]["segments"]`` row ranges."""
     label[:] = 0
-    for idx in turns:
+    for idx, _ in turns:
         label[idx] = LABEL_ROT
     for k, idx in enumerate(rests, start=1):
         label[idx] = k
-    return [[int(i[0]), int(i[-1]) + 1] for i in turns]
+    return [[int(i[0]), int(i[-1]) + 1] for i, _ in turns]

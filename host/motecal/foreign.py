@@ -344,7 +344,7 @@ def read_float_log(paths, *, columns=None, rate_hz=None, chip=None, scale=None, 
         notes.append("no sample rate given (--rate-hz): t = row / 100 assumed")
     else:
         rate = _need_rate(rate_hz, "float-log")
-    turn_dps = F.turntable_rate_dps(rate_dps, rpm)
+    turn_dps = F.turntable_rates_dps(rate_dps, rpm)
     units = F.parse_units(units)
     blocks, files, sensors_all, pos, line_at = [], [], None, 0, []
     for p in paths:
@@ -374,7 +374,7 @@ def read_float_log(paths, *, columns=None, rate_hz=None, chip=None, scale=None, 
                     raw, np.arange(n) / rate, meta=meta)
     _apply_scales(data, lsbs, chip)
     parts = [tuple(f["rows"]) for f in files]
-    if turn_dps is None:
+    if not turn_dps:
         return _finish(data, None, kind, parts, pose_per_part=len(parts) > 1)
     if "gyro" not in lsbs:
         raise UserError(f"{paths[0]}: a turntable rate needs gyroscope data")
@@ -386,13 +386,14 @@ def read_float_log(paths, *, columns=None, rate_hz=None, chip=None, scale=None, 
         k0 += int(s.max(initial=0))
     turns, rests = F.turntable_segments(data.physical("gyro"), seg, turn_dps)
     if not turns:
-        raise UserError(f"{paths[0]}: no steady turn at {turn_dps:g} deg/s found (is the rate "
+        raise UserError(f"{paths[0]}: no steady turn at {', '.join(f'{r:g}' for r in turn_dps)} "
+                        f"deg/s found (is the rate "
                         f"or the gyroscope's unit right? units in: {meta['units_in']['gyro']})")
-    data.meta["turntable"] = {"rate_dps": turn_dps,
-                              "segments": F.label_turntable(data.label, turns, rests)}
-    data.meta["rotations"] = [{"name": f"turn{i}", "axis": None, "rows": r,
-                               "rate_dps": turn_dps}
-                              for i, r in enumerate(data.meta["turntable"]["segments"], start=1)]
+    segs = F.label_turntable(data.label, turns, rests)
+    data.meta["turntable"] = {"rates_dps": turn_dps, "segments": segs,
+                              "segment_rates_dps": [r for _, r in turns]}
+    data.meta["rotations"] = [{"name": f"turn{i}", "axis": None, "rows": seg, "rate_dps": r}
+                              for i, (seg, (_, r)) in enumerate(zip(segs, turns), start=1)]
     return _finish(data, None, kind, None, has_labels=True)
 
 

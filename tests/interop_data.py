@@ -130,3 +130,42 @@ def write_float_log(values, path, fmt="{:.6f}") -> Path:
     Path(path).write_text("\n".join(" ".join(fmt.format(v) for v in row) for row in values)
                           + "\n")
     return Path(path)
+
+
+def turntable6(seed: int, rpm=100.0 / 3, rate=100.0, steady_s=10.0, hold_s=3.0):
+    """A 6-DOF board: six faces held still, then turned on the platter lying on
+    its x_p, y_p and z_p faces (spin up 1 s, steady, spin down 1 s); planted
+    accelerometer offsets/scales and gyroscope bias and matrix G
+    (w_cal = G (raw / lsb - b)).  Floats: m/s^2 (2048 LSB/g) and rad/s
+    (0.07 deg/s per LSB), as FreeIMU-cal logs them, six columns a line."""
+    rng = np.random.default_rng(seed)
+    lsb_g = 1 / GYR_STEP_DPS
+    s_acc = rng.uniform(0.97, 1.03, 3)
+    o_acc = rng.uniform(-60, 60, 3)
+    G = np.eye(3) + np.diag(rng.uniform(-0.03, 0.03, 3)) \
+        + (1 - np.eye(3)) * rng.uniform(-0.01, 0.01, (3, 3))
+    b = rng.uniform(-1.5, 1.5, 3)
+    Ginv = np.linalg.inv(G)
+    acc, gyr = [], []
+
+    def add(up, w):
+        n = len(w)
+        acc.append(s_acc * ACC_LSB * np.tile(up, (n, 1)) + o_acc + rng.normal(0, 3, (n, 3)))
+        gyr.append(lsb_g * (w @ Ginv.T + b) + rng.normal(0, 0.6, (n, 3)))
+
+    nh = int(hold_s * rate)
+    for f in FACES:
+        up = np.eye(3)["xyz".index(f[0])] * (1 if f[2] == "p" else -1)
+        add(up, np.zeros((nh, 3)))
+    w0 = rpm * 6.0
+    ramp = np.linspace(0, 1, int(rate))[:, None]
+    for ax in "xyz":
+        up = np.eye(3)["xyz".index(ax)]
+        sign = rng.choice([-1, 1])
+        prof = np.vstack([ramp, np.ones((int(steady_s * rate), 1)), ramp[::-1]])
+        add(up, sign * w0 * prof * up)
+        add(up, np.zeros((nh, 3)))
+    acc, gyr = np.rint(np.vstack(acc)), np.rint(np.vstack(gyr))
+    floats = np.hstack([acc * 9.80665 / ACC_LSB, np.deg2rad(gyr / lsb_g)])
+    return {"floats": floats, "acc": acc, "gyr": gyr, "G": G, "b": b, "rate": rate,
+            "rate_dps": w0, "lsb": lsb_g}

@@ -87,3 +87,28 @@ def test_imucal_example_gyro_against_published(tmp_path):
     assert np.abs(Rm - pub["R_g"]).max() > 0.02        # the tilt is real, not noise
     tilt = [np.degrees(np.arccos(abs(o.axis["xyz".index(o.name[0])]))) for o in rf.observations]
     assert max(tilt) > 1.0
+
+
+def test_turntable_with_accelerometer_gives_matrix(tmp_path):
+    """A 6-DOF turntable log: the platter's axis is the measured vertical, so
+    the three turns give G with misalignment.  Over five seeds: every entry
+    within 1e-3 and 4 standard deviations, at most one seed beyond 3 (the
+    largest of nine entries)."""
+    bad, over3 = [], []
+    for seed in range(5):
+        t = D.turntable6(seed)
+        p = D.write_float_log(t["floats"], tmp_path / f"turn{seed}.txt")
+        d = X.read_float_log(p, columns="accel,gyro", rate_hz=t["rate"], rpm=100 / 3)
+        np.testing.assert_array_equal(d.sensor("gyro"), t["gyr"])
+        assert d.poses() and len(d.meta["turntable"]["segments"]) == 3
+        board = _board(d)
+        rf = R.from_session(d, board.gyro, board.accel)
+        assert rf.model == "matrix"
+        err = np.abs(rf.G - t["G"])
+        z = float((err / rf.std).max())
+        if err.max() > 1e-3 or z > 4:
+            bad.append((seed, float(err.max()), z))
+        if z > 3:
+            over3.append((seed, z))
+    assert not bad, f"seeds with a wrong G: {bad}"
+    assert len(over3) <= 1, f"seeds beyond 3 sd: {over3}"

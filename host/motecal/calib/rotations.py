@@ -49,7 +49,7 @@ class Observation:
     size: float                    # |truth|: angle (deg) or rate (deg/s)
     size_sd: float
     axis: np.ndarray | None        # unit axis in the accelerometer frame (signed)
-    axis_sd: float                 # rad, per component of the axis
+    axis_sd: np.ndarray            # (3,) rad, per component of the axis
     v_sd: np.ndarray               # (3,) white-noise sd of v
     bias_weight: float             # dv/db: -T (angle) or -1 (rate)
     n: int
@@ -118,7 +118,7 @@ def observations(data, gyro_b: np.ndarray, accel=None, *, angle_sd_deg=ANGLE_SD_
             v = (w[rows] - gyro_b).mean(axis=0)
             v_sd = w[rows].std(axis=0) / np.sqrt(n)
             bias_weight, size_sd = -1.0, rate_sd_rel * size
-        axis, axis_sd = None, 0.0
+        axis, axis_sd = None, np.zeros(3)
         if axes == "nominal" and r.get("axis") in ("x", "y", "z"):
             e = np.eye(3)["xyz".index(r["axis"])]
             axis = e * (1.0 if float(v @ e) >= 0 else -1.0)
@@ -129,7 +129,10 @@ def observations(data, gyro_b: np.ndarray, accel=None, *, angle_sd_deg=ANGLE_SD_
                 m = g.mean(axis=0)
                 up = _unit(m)
                 axis = up * (1.0 if float(v @ up) >= 0 else -1.0)
-                axis_sd = float(np.mean(g.std(axis=0)) / np.sqrt(len(ok)) / np.linalg.norm(m))
+                # the vertical's error: accelerometer noise over the rows and the
+                # calibration's own offset error (g; the direction moves by it / |g|)
+                axis_sd = np.sqrt((g.std(axis=0) / np.sqrt(len(ok))) ** 2
+                                  + _offset_sd(accel) ** 2) / np.linalg.norm(m)
         out.append(Observation(r.get("name", f"rotation{len(out) + 1}"), kind, v, size, size_sd,
                                axis, axis_sd, v_sd, bias_weight, n))
     return out
@@ -201,8 +204,8 @@ def fit(obs: list[Observation], b_std=None, model: str | None = None) -> Rotatio
         for i in range(3):
             e = np.eye(3)[i]
             parts["noise"] += moved(with_obs(j, dv=e * o.v_sd[i])) ** 2
-            if o.axis is not None and o.axis_sd > 0:
-                parts["axis"] += moved(with_obs(j, daxis=e * o.axis_sd)) ** 2
+            if o.axis is not None and o.axis_sd[i] > 0:
+                parts["axis"] += moved(with_obs(j, daxis=e * o.axis_sd[i])) ** 2
         parts["size"] += moved(with_obs(j, dsize=o.size_sd)) ** 2
     for i in range(3):                               # the bias is shared by all
         def f(sign, i=i):
@@ -234,6 +237,14 @@ def from_session(data, gyro_cal, accel_cal=None, **kw) -> RotationFit | None:
     if not obs:
         return None
     return fit(obs, b_std)
+
+
+def _offset_sd(accel) -> np.ndarray:
+    """The accelerometer calibration's offset standard deviations (g)."""
+    out = np.zeros(3)
+    for i, a in enumerate("xyz"):
+        out[i] = _param_std(accel, f"o_{a}")
+    return out
 
 
 def _param_std(cal, name):

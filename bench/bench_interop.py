@@ -138,7 +138,7 @@ def writers(board, data, title):
 
 def main():
     board, d = imucal_example()
-    writers(board, d, "imucal's example (accel + gyro; gyro with the rotations' G)")
+    writers(board, d, "imucal's example (accel + gyro, gyro bias only)")
     sess = paper_sized_session(seed=2, n_poses=40)
     b = calibrate_board(sess, model="full", seed=2, kfold=0)
     R.apply(board.gyro, R.from_session(d, board.gyro, board.accel))

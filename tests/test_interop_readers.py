@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 import interop_data as D
-from motecal import floatlog as F
-from motecal import foreign as X
+from motecal.sessions import floatlog as F
+from motecal.sessions import foreign as X
 from motecal.errors import UserError
-from motecal.session import LABEL_ROT
+from motecal.sessions.session import LABEL_ROT
 
 
 # ---------------------------------------------------------------- imucal, the real example

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import interop_data as D
-from motecal import foreign as X
+from motecal.sessions import foreign as X
 from motecal.calib import calibrate_board
 from motecal.calib import rotations as R
 
@@ -112,3 +112,16 @@ def test_turntable_with_accelerometer_gives_matrix(tmp_path):
             over3.append((seed, z))
     assert not bad, f"seeds with a wrong G: {bad}"
     assert len(over3) <= 1, f"seeds beyond 3 sd: {over3}"
+
+
+def test_calibrate_board_uses_the_rotations(tmp_path):
+    """calibrate_board's hook: a session listing known rotations gets its
+    gyroscope matrix from them (the imucal example), and the gate accepts it."""
+    from motecal.calib import decide
+    d = X.read_imucal_annotated(D.imucal_annotated(tmp_path), rate_hz=204.8, scale=SCALE)
+    board = _board(d)
+    assert board.gyro.model == "bias+rotations(matrix)"
+    assert "rotations_fit" in board.gyro.extra and board.gyro.rank == 12
+    assert decide(board).accepted
+    d.meta["rotations"] = []
+    assert _board(d).gyro.model == "bias"

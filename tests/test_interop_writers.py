@@ -158,8 +158,8 @@ def test_imucal_round_trip_with_imucal(board, sess):
 def test_c_header_through_the_firmware_code(board, sess):
     """The header's calset, corrected by the firmware's own C (mote_c), is the
     calibration within the fixed-point worst case fixedpoint states."""
-    from motecal import fixedpoint as FP
-    from motecal import mote_c
+    from motecal.firmware import fixedpoint as FP
+    from motecal.firmware import mote_c
     text = export(board, "c-header").text
     calset = CH.parse(text)
     _, report = CH.build(board)

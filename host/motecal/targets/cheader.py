@@ -11,8 +11,8 @@ import re
 
 import numpy as np
 
-from .. import fixedpoint as FP
-from ..session import NOMINAL_SCALES, SENSOR_SLICES
+from ..firmware import fixedpoint as FP
+from ..sessions.session import NOMINAL_SCALES, SENSOR_SLICES
 from .common import Export
 
 VERSION = 1

@@ -7,7 +7,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..session import LABEL_ROT, UNITS
+from ..sessions.session import LABEL_ROT, UNITS
 
 SPHERE_N = 2000            # directions for the data-free worst case
 

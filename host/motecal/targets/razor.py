@@ -27,7 +27,7 @@ import re
 
 import numpy as np
 
-from ..session import NOMINAL_SCALES
+from ..sessions.session import NOMINAL_SCALES
 from .common import Export, fmt_float
 
 GRAVITY = 256.0                    # the firmware's 1 g

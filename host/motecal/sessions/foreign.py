@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from . import floatlog as F
-from .errors import UserError
+from ..errors import UserError
 from .importer import _fail, _finish, _read_text_lines, _session, add_note
 from .session import LABEL_ROT, SENSOR_SLICES, UNITS
 from .still import segment_recording

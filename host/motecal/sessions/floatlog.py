@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import UserError
+from ..errors import UserError
 from .session import LABEL_ROT, SENSOR_SLICES, UNITS
 
 G0 = 9.80665                 # standard gravity, m/s^2 per g
@@ -169,7 +169,8 @@ class Rounding:
 
     def text(self) -> str:
         u = "counts" if self.unit == "counts" else self.unit
-        s = (f"{self.sensor}: {u} -> counts at {self.lsb_per_unit:.6g} LSB/({UNITS[self.sensor]}) "
+        per = UNITS[self.sensor] if "/" not in UNITS[self.sensor] else f"({UNITS[self.sensor]})"
+        s = (f"{self.sensor}: {u} -> counts at {self.lsb_per_unit:.6g} LSB/{per} "
              f"({self.scale_from}); rounding to integers moved values by at most "
              f"{self.max_counts:.3g} count (rms {self.rms_counts:.2g})")
         if self.step_counts is not None and abs(self.step_counts - 1) > STEP_MISMATCH:

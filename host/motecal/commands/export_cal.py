@@ -10,11 +10,11 @@ import sys
 import tempfile
 from pathlib import Path
 
-from .errors import UserError
+from ..errors import UserError
 
 
 def _formats():
-    from .targets import FORMATS
+    from ..targets import FORMATS
     return FORMATS
 
 
@@ -38,15 +38,15 @@ def write_atomic(path: Path, text: str) -> None:
 
 
 def run(args) -> int:
-    from .calib.result import BoardCalibration
-    from .targets import export
-    from .targets.common import cost_lines, costs
+    from ..calib.result import BoardCalibration
+    from ..targets import export
+    from ..targets.common import cost_lines, costs
     board = BoardCalibration.load(args.cal)
     if not board.sensors():
         raise UserError(f"{args.cal}: no calibrated sensor in it")
     data = None
     if args.db:
-        from .store import open_store
+        from ..sessions.store import open_store
         name = args.session or board.session
         with open_store(args.db) as store:
             data = store.load_session(name, mote=board.mote)

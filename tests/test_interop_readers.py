@@ -270,3 +270,17 @@ def test_read_session_detects_foreign_and_native(tmp_path, measured):
         X.read_session([razor, ann], rate_hz=200)
     with pytest.raises(UserError, match="give one session CSV"):
         X.read_session([lst], rate_hz=200)
+
+
+def test_freeimu_magnetometer_log_in_microtesla(tmp_path):
+    """FreeIMU-cal's magnetometer log (uT): with the chip declared the counts
+    come back exactly; unknown sensors of a float log are refused."""
+    rng = np.random.default_rng(2)
+    u = rng.normal(size=(500, 3))
+    counts = np.rint(550 * u / np.linalg.norm(u, axis=1, keepdims=True) + [40, -120, 75])
+    path = D.write_float_log(counts / 1090 * 100, tmp_path / "Officemag.txt", "{:.5f}")
+    d = X.read_float_log(path, rate_hz=50, chip="mag=hmc5883l")
+    assert d.scales["mag"] == 1090.0 and d.chips["mag"] == "HMC5883L"
+    np.testing.assert_array_equal(d.sensor("mag"), counts)
+    assert "uT -> counts at 1090 LSB/gauss (chip)" in d.meta["rounding"]["mag"]
+    assert d.kind == "rotation"

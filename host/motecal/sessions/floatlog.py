@@ -119,7 +119,7 @@ def parse_scales(scales) -> dict:
 
 def unit_factor(unit: str, gravity: float = G0) -> float:
     """Factor from ``unit`` to motecal's unit of its sensor (g, deg/s, gauss)."""
-    sensor, f = UNIT_FACTORS[unit]
+    sensor, f = UNIT_FACTORS[unit.lower()]
     return 1.0 / gravity if f is None else f
 
 

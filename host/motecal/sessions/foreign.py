@@ -72,6 +72,10 @@ def _convert(path, vals: dict, units: dict, scales: dict, chip_scales: dict, gra
         raw[:, SENSOR_SLICES[s]] = counts
         rounding[s] = rnd.text()
         lsbs[s] = rnd.lsb_per_unit
+        meta.setdefault("scale_from", {})[s] = rnd.scale_from
+        if unit != "counts" and np.all(x == np.rint(x)):
+            add_note(meta, f"every {s} value is a whole number of {unit}: raw counts? "
+                           f"(then give --units {s}=counts and its --scale)")
         if rnd.step_counts is not None and abs(rnd.step_counts - 1) > F.STEP_MISMATCH:
             add_note(meta, rnd.text())
     meta["units_in"] = {s: units.get(s, F.SI_UNITS[s]) for s in vals}
@@ -88,10 +92,12 @@ def _chip_scales(chip) -> dict:
 def _apply_scales(data, lsbs: dict, chip):
     from .importer import parse_chip_overrides
     names = {s: n for s, (n, _) in parse_chip_overrides(chip).items()}
+    source = data.meta.get("scale_from", {})
     for s in SENSOR_SLICES:
         if s in lsbs:
             data.scales[s] = float(lsbs[s])
-            data.chips[s] = names.get(s, "declared scale")
+            data.chips[s] = names.get(s, "the file's step" if source.get(s) == "file step"
+                                      else "declared scale")
         else:
             data.chips[s] = None
 

@@ -108,8 +108,10 @@ def write(board) -> Export:
     lost, notes = {}, []
     if board.accel is not None:
         off = board.accel.A - np.diag(np.diag(board.accel.A))
-        lost["accel"] = [f"offset and scale per axis: cross-axis terms dropped (largest "
-                         f"{np.abs(off).max() * board.accel.lsb_per_unit:.4f} of the nominal scale)"]
+        if np.abs(off).max() > 0:
+            lost["accel"] = [f"offset and scale per axis: cross-axis terms dropped (largest "
+                             f"{np.abs(off).max() * board.accel.lsb_per_unit:.4f} of the "
+                             f"nominal scale)"]
     if board.gyro is not None:
         G = board.gyro.A * board.gyro.lsb_per_unit
         lost["gyro"] = [f"offsets only: no gyroscope scale parameter (largest |G - I| "

@@ -1,6 +1,7 @@
 /*
  * emu/node.c -- one emulated mote on Debian's libsimavr 1.6.
  */
+#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -113,8 +114,20 @@ static int patch_u16(elf_firmware_t *fw, const char *name, uint16_t v)
 #endif
 }
 
+/* simavr's messages: errors and warnings on stderr, nothing on stdout
+ * (the report goes there) */
+static void node_logger(avr_t *avr, const int level, const char *fmt, va_list ap)
+{
+    (void)avr;
+    if (level <= LOG_WARNING) {
+        fputs("simavr: ", stderr);
+        vfprintf(stderr, fmt, ap);
+    }
+}
+
 emu_node_t *node_new(const char *elf, int index, uint16_t am_addr, double freq_hz)
 {
+    avr_global_logger_set(node_logger);
     elf_firmware_t fw;
     memset(&fw, 0, sizeof fw);
     if (elf_read_firmware(elf, &fw) != 0 || !fw.flash) {

@@ -290,8 +290,12 @@ static void twcr_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
             avr_raise_interrupt(avr, &t->vec);
         return;
     }
-    if (t->busy)
-        return;                         /* an operation is on the wire (misuse) */
+    if (t->busy) {
+        /* a START asked while the STOP is still going: it follows the STOP */
+        if (t->ev_kind == EV_STOP && (v & TWSTA))
+            t->ev_cmd |= TWSTA;
+        return;                         /* otherwise: an operation is on the wire */
+    }
     if (v & TWSTO) {
         if (t->owner) {
             schedule(t, EV_STOP, 1, v);

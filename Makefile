@@ -19,7 +19,7 @@ SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 DEMO_DIR ?= demo-out
 
-.PHONY: all venv sysdeps demodeps test demo bench clean
+.PHONY: all venv sysdeps demodeps test demo bench emulate clean
 
 all: test
 
@@ -62,5 +62,11 @@ bench: venv sysdeps
 	$(PY) bench/results.py $(BENCH_RESULTS) bench/RESULTS.md
 	$(PY) bench/goals_table.py
 
+# N sensor motes + BaseStation in the emulator harness (needs a TinyOS tree and
+# nesC >= 1.4.0: make emulate TINYOS_ROOT_DIR=... EMULATE_ARGS="--motes 3"; docs/emulation.md)
+EMULATE_ARGS ?=
+emulate: venv sysdeps
+	TINYOS_ROOT_DIR="$(TINYOS_ROOT_DIR)" $(PY) emu/emulate.py $(EMULATE_ARGS)
+
 clean:
-	rm -rf $(VENV) $(DEMO_DIR) build .pytest_cache
+	rm -rf $(VENV) $(DEMO_DIR) build .pytest_cache emu/build

@@ -325,6 +325,9 @@ int chip_stop(emu_chip_t *c, uint64_t now)
     int done = c->reading && c->read_mask == 0x3F;
     if (done) {
         c->data_reads++;
+        if (c->data_reads > 1 && c->last_sample_ns == c->prev_read_sample_ns)
+            c->stale_reads++;             /* standby, asleep, no new measurement */
+        c->prev_read_sample_ns = c->last_sample_ns;
         uint8_t d = data_reg(c);
         for (int i = 0; i < 3; i++) {
             const uint8_t *b = c->regs + d + 2 * i;

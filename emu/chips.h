@@ -39,6 +39,8 @@ typedef struct emu_chip {
     int off_pending_reset;  /* 1: the power-loss window is over and handled */
     /* counters for the report */
     uint32_t nacked, resets, data_reads;
+    uint32_t stale_reads;   /* data reads that got the same sample as the read before */
+    uint64_t prev_read_sample_ns;
     int16_t last_data[3];   /* counts of the last complete data read */
 } emu_chip_t;
 

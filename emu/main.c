@@ -276,10 +276,10 @@ int main(int argc, char **argv)
         if (json) {
             fprintf(out, "%s\n {\"index\": %d, \"id\": %u, \"role\": \"%s\", \"elf\": \"%s\", "
                     "\"mhz\": %.4f, \"rom\": %u, \"ram\": %u, \"state\": \"%s\", \"cycles\": %llu, "
-                    "\"cpu_load\": %.5f",
+                    "\"cpu_load\": %.5f, \"radio\": %s",
                     i ? "," : "", i, n->am_addr, n->is_base ? "base" : "mote", n->elf,
                     n->freq_hz / 1e6, n->rom_bytes, n->ram_bytes, state_name(state[i]),
-                    (unsigned long long)n->avr->cycle, load);
+                    (unsigned long long)n->avr->cycle, load, n->rf ? "true" : "false");
             if (t) {
                 fprintf(out, ", \"samples\": %llu, \"samples_after_settle\": %llu, "
                         "\"reads_per_s\": %.4f, \"first_sample_s\": %.6f, "
@@ -304,8 +304,8 @@ int main(int argc, char **argv)
                 for (int c = 0; c < CHIP_COUNT; c++) {
                     emu_chip_t *cp = &t->chips[c];
                     fprintf(out, "%s\"%s\": {\"data_reads\": %u, \"nacked\": %u, \"resets\": %u, "
-                            "\"last\": [%d, %d, %d]}", c ? ", " : "", cp->name, cp->data_reads,
-                            cp->nacked, cp->resets, cp->last_data[0], cp->last_data[1],
+                            "\"stale_reads\": %u, \"last\": [%d, %d, %d]}", c ? ", " : "", cp->name,
+                            cp->data_reads, cp->nacked, cp->resets, cp->stale_reads, cp->last_data[0], cp->last_data[1],
                             cp->last_data[2]);
                 }
                 fprintf(out, "}");
@@ -334,9 +334,10 @@ int main(int argc, char **argv)
                         (unsigned long long)t->addr_nacks, (unsigned long long)t->data_nacks,
                         (unsigned long long)t->arb_lost, (unsigned long long)t->hang_waits);
                 for (int c = 0; c < CHIP_COUNT; c++)
-                    fprintf(out, "  %-8s data reads %u, NACKed %u, power-on resets %u\n",
-                            t->chips[c].name, t->chips[c].data_reads, t->chips[c].nacked,
-                            t->chips[c].resets);
+                    fprintf(out, "  %-8s data reads %u (%u stale: no new sample since the read "
+                            "before), NACKed %u, power-on resets %u\n",
+                            t->chips[c].name, t->chips[c].data_reads, t->chips[c].stale_reads,
+                            t->chips[c].nacked, t->chips[c].resets);
             }
             if (n->rf)
                 rf230_stats(n, out);

@@ -89,10 +89,11 @@ def run_harness(exe: Path, args: list[str], echo=None) -> dict:
 
 def measure(out: Path, *, motes: int = 1, seconds: float = 20, settle: float = 5,
             mhz=(8.0,), lean: bool = False, base: bool = True, serial: str = "null",
-            faults=(), boards=(), echo=None) -> dict:
-    """Build both images and the harness into out, run; the report.  mhz:
-    one clock per mote (cycled)."""
-    mote = build_image("tinyos", out / ("mote-lean.elf" if lean else "mote.elf"), lean=lean)
+            faults=(), boards=(), echo=None, mote: Path | None = None) -> dict:
+    """Build both images (the mote's unless given) and the harness into out,
+    run; the report.  mhz: one clock per mote (cycled)."""
+    if mote is None:
+        mote = build_image("tinyos", out / ("mote-lean.elf" if lean else "mote.elf"), lean=lean)
     exe = build_harness(out / "emu-build")
     args = []
     for i in range(motes):

@@ -151,6 +151,10 @@ def main(argv=None) -> int:
                     help="nack:CHIP:T:D, power:CHIP:T:D or hang:T:D [@NODE] (emu/faults.h)")
     ap.add_argument("--board", action="append", default=[],
                     help="board table for mote i (i-th use; emu/board.py writes them)")
+    ap.add_argument("--session", help="boards from the simulator (emu/board.py): every mote "
+                    "without --board follows this session's trajectory (static80, rotation, ...)")
+    ap.add_argument("--seed", type=int, default=1, help="simulator seed for --session")
+    ap.add_argument("--model", help="simulator error model for --session (file or name)")
     ap.add_argument("--out", help="folder for images and the harness (default: a temp folder)")
     ap.add_argument("--json", action="store_true", help="print the harness's JSON report")
     a = ap.parse_args(argv)
@@ -171,12 +175,25 @@ def main(argv=None) -> int:
         print(f"building the images ({'lean TWI master' if a.lean else 'Atm128I2CMasterC'}) "
               "and the harness ...", flush=True)
         try:
+            boards = list(a.board)
+            if a.session:
+                import board as board_tables
+                for i in range(len(boards), a.motes):
+                    path = out / f"board-{i + 1}.txt"
+                    out.mkdir(parents=True, exist_ok=True)
+                    board_tables.write(path, board_tables.counts(
+                        i + 1, seconds=a.seconds, session=a.session, seed=a.seed, model=a.model),
+                        1000.0)
+                    boards.append(str(path))
             rep = measure(out, motes=a.motes, seconds=a.seconds, settle=a.settle, mhz=mhz,
-                          lean=a.lean, serial=a.serial, faults=a.fault, boards=a.board,
+                          lean=a.lean, serial=a.serial, faults=a.fault, boards=boards,
                           echo=lambda s: print(f"BaseStation serial: {s}", flush=True))
         except RuntimeError as e:
             print(f"emulate: {e}", file=sys.stderr)
             return 1
+        except Exception as e:        # the simulator's checks of --session/--model
+            print(f"emulate: {e}", file=sys.stderr)
+            return 2
     if a.json:
         print(json.dumps(rep, indent=1))
     else:

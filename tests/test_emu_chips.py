@@ -5,12 +5,17 @@ reading the ADXL345, ITG-3200 and HMC5883L models through ninedof-emu's bus
 (emu/tests/twi_chips.c).  Values are judged against the planted synthetic
 board (emusim.synthetic), at the data-ready instants the datasheets give,
 timed from the transaction log."""
-from pathlib import Path
+import subprocess
+import sys
 
+import numpy as np
 import pytest
 
 import avrsim
 import emusim
+
+sys.path.insert(0, str(emusim.EMU))
+import board  # noqa: E402  (emu/board.py)
 
 PROGRAM = [emusim.EMU / "tests" / "twi_chips.c", avrsim.TINYOS / "ninedof_twi.c",
            avrsim.TINYOS / "ninedof_board.c"]
@@ -25,10 +30,11 @@ def built(tmp_path_factory):
     return d, exe, elf
 
 
-def run_program(built, name, *args, mhz=8.0):
+def run_program(built, name, *args, mhz=8.0, board=None):
     d, exe, elf = built
     con, log = d / f"{name}.txt", d / f"{name}.log"
-    rep = emusim.run(exe, ["--mote", f"{elf},mhz={mhz}", "--seconds", "3", "--console", str(con),
+    spec = f"{elf},mhz={mhz}" + (f",board={board}" if board else "")
+    rep = emusim.run(exe, ["--mote", spec, "--seconds", "3", "--console", str(con),
                            "--twi-log", str(log), *args])
     text = con.read_text()
     assert text.endswith("END"), text[-200:]
@@ -68,8 +74,10 @@ def test_ids_and_configuration(plain):
     assert lines[1] == "CFG " + "0" * 11          # every register write ACKed
 
 
-def test_burst_reads_follow_the_board_at_the_data_ready_instants(plain):
-    node, lines, log = plain
+def check_reads(run, truth):
+    """Every sample's 20 bytes against truth(t_ns) (9 counts) at the instant
+    the chip's data registers were filled."""
+    node, lines, log = run
     samples = [ln.split() for ln in lines if ln.startswith("S ")]
     assert len(samples) == 20 and all(s[5] == "000" for s in samples)
     tr = transactions(log)
@@ -86,14 +94,36 @@ def test_burst_reads_follow_the_board_at_the_data_ready_instants(plain):
     for i, s in enumerate(samples):
         a, g, m = (bytes.fromhex(x) for x in s[2:5])
         ta = t_on + (adxl_reads[i] - t_on) // 5_000_000 * 5_000_000
-        assert [le(a, 0), le(a, 2), le(a, 4)] == emusim.synthetic(ta)[0:3], i
+        assert [le(a, 0), le(a, 2), le(a, 4)] == truth(ta)[0:3], i
         tg = 50_000_000 + (itg_reads[i] - 50_000_000) // 4_000_000 * 4_000_000
         assert be(g, 0) == -13200 + 280 * (25 - 35)            # 25 C
-        assert [be(g, 2), be(g, 4), be(g, 6)] == emusim.synthetic(tg)[3:6], i
+        assert [be(g, 2), be(g, 4), be(g, 6)] == truth(tg)[3:6], i
         # the read in the same transaction as trigger i gets trigger i - 1
         mx, mz, my = be(m, 0), be(m, 2), be(m, 4)
-        assert [mx, my, mz] == emusim.synthetic(triggers[i])[6:9], i
+        assert [mx, my, mz] == truth(triggers[i])[6:9], i
     assert node["chips"]["adxl345"]["data_reads"] == 20
+
+
+def test_burst_reads_follow_the_board_at_the_data_ready_instants(plain):
+    check_reads(plain, emusim.synthetic)
+
+
+def test_board_table_from_the_simulator(built):
+    # a table written by emu/board.py from motecal.sim (error model general,
+    # static80 trajectory): the chips report its rows
+    d = built[0]
+    table = d / "board.txt"
+    res = subprocess.run([sys.executable, str(emusim.EMU / "board.py"), "--out", str(table),
+                          "--mote", "2", "--seed", "5", "--seconds", "1", "--rate", "2000"],
+                         capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    rate, rows = board.read(table)
+    assert rate == 2000 and rows.shape == (2000, 9) and len(np.unique(rows[:, 0])) > 5
+
+    def truth(t_ns):
+        return [int(v) for v in rows[min(t_ns * 2000 // 1_000_000_000, len(rows) - 1)]]
+
+    check_reads(run_program(built, "table", board=table), truth)
 
 
 def test_hmc5883l_single_measurement_takes_6_ms(plain):

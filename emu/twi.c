@@ -146,13 +146,11 @@ static void want_start(emu_twi_t *t)
          * the slave releasing SDA makes) */
         t->hang_waits++;
         logf_(t, "HANG-WAIT", 0, 0);
-        uint64_t wait_ns = t->hang_until - ns;
+        uint64_t wait = node_ns_to_cycles(t->node, t->hang_until - ns);
         t->busy = 1;
         t->ev_kind = EV_START;
-        t->ev_start_cycle = t->node->avr->cycle;
-        avr_cycle_timer_register(t->node->avr,
-                                 node_ns_to_cycles(t->node, wait_ns) + twi_period_cycles(t),
-                                 twi_event, t);
+        t->ev_start_cycle = t->node->avr->cycle + wait;   /* the wait is not wire time */
+        avr_cycle_timer_register(t->node->avr, wait + twi_period_cycles(t), twi_event, t);
         return;
     }
     schedule(t, EV_START, 1, 0);

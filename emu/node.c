@@ -1,6 +1,7 @@
 /*
  * emu/node.c -- one emulated mote on Debian's libsimavr 1.6.
  */
+#include <errno.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
@@ -128,6 +129,19 @@ static void node_logger(avr_t *avr, const int level, const char *fmt, va_list ap
 emu_node_t *node_new(const char *elf, int index, uint16_t am_addr, double freq_hz)
 {
     avr_global_logger_set(node_logger);
+    /* checked here so a bad file gives one line (simavr's loader adds its own) */
+    FILE *f = fopen(elf, "rb");
+    unsigned char magic[4] = { 0 };
+    if (!f) {
+        fprintf(stderr, "ninedof-emu: cannot open %s: %s\n", elf, strerror(errno));
+        return NULL;
+    }
+    size_t got = fread(magic, 1, 4, f);
+    fclose(f);
+    if (got != 4 || memcmp(magic, "\177ELF", 4)) {
+        fprintf(stderr, "ninedof-emu: %s is not an ELF file\n", elf);
+        return NULL;
+    }
     elf_firmware_t fw;
     memset(&fw, 0, sizeof fw);
     if (elf_read_firmware(elf, &fw) != 0 || !fw.flash) {

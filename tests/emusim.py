@@ -40,14 +40,22 @@ def skip_or_fail(pytest):
     pytest.skip(msg)
 
 
+_BUILT: list[Path] = []
+
+
 def build_harness(build_dir: Path) -> Path:
-    """emu/ built into build_dir (make -C emu BUILD=...): the binary."""
+    """emu/ built into build_dir (make -C emu BUILD=...): the binary.  Built
+    once per test session; later calls get the first build (the test modules
+    each ask, in their own temp folders)."""
+    if _BUILT and _BUILT[0].exists():
+        return _BUILT[0]
     build_dir.mkdir(parents=True, exist_ok=True)
     res = subprocess.run(["make", "-s", "-C", str(EMU), f"BUILD={build_dir}"],
                          capture_output=True, text=True)
     if res.returncode != 0:
         raise RuntimeError(f"building the harness failed:\n{res.stdout}{res.stderr}")
-    return build_dir / "ninedof-emu"
+    _BUILT.append(build_dir / "ninedof-emu")
+    return _BUILT[0]
 
 
 def run(exe: Path, args: list[str], *, timeout: float = 300) -> dict:

@@ -70,6 +70,10 @@ def emulated_i2c(tmp: Path) -> None:
                       + ("" if n["radio"] else " (no RF230 model in this harness: the app "
                          "starts sampling only once its radio has started)"))
                 continue
+            sp = n.get("span")
+            if sp:
+                print(f"  {name} at {mhz:.2f} MHz: read() -> readDone {sp['us_mean']:.1f} us "
+                      f"(min {sp['us_min']:.1f}, max {sp['us_max']:.1f}; goal <= 1200 us)")
             print(f"  {name} at {mhz:.2f} MHz: first START -> last STOP {n['i2c_us_mean']:.1f} us "
                   f"(min {n['i2c_us_min']:.1f}, max {n['i2c_us_max']:.1f}), of which on the wire "
                   f"{n['wire_us_mean']:.1f} us and SCL held for the CPU {n['held_us_mean']:.1f} us; "

@@ -37,6 +37,13 @@ typedef struct emu_node {
     struct emu_board *board;
     FILE    *console;      /* bytes the node sends on UART0 (--console), or NULL */
     uint32_t rom_bytes, ram_bytes;  /* text+data, data+bss of the image */
+    void   **symbols;      /* the image's symbols (avr_symbol_t *), for --span */
+    uint32_t nsymbols;
+    /* --span FROM:TO: entry of function FROM to the next entry of TO */
+    uint32_t span_from, span_to;   /* byte addresses; 0: off */
+    uint64_t span_open;            /* cycle FROM was entered, 0: none */
+    uint64_t span_n, span_settle_cycle;
+    double   span_sum, span_min, span_max;   /* us */
 } emu_node_t;
 
 /* emulated time of a node in nanoseconds: avr->cycle * 1e9 / avr->frequency */

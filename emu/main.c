@@ -38,7 +38,7 @@ static void usage(void)
             "usage: ninedof-emu --mote ELF[,id=N,mhz=F,board=FILE] ... [--base ELF[,id=N,mhz=F]]\n"
             "       [--serial pty|tcp:PORT|null] [--loss P] [--seed N] [--seconds S]\n"
             "       [--fault SPEC] ... [--settle S] [--twi-log FILE] [--console FILE]\n"
-            "       [--report json|text]\n");
+            "       [--span FROM:TO] [--report json|text]\n");
 }
 
 static int bad(const char *what, const char *arg)
@@ -104,6 +104,7 @@ int main(int argc, char **argv)
     node_spec_t specs[MAX_NODES];
     int nspec = 0, base = -1;
     const char *serial = NULL, *report = "text", *twi_log = NULL, *console = NULL;
+    char span_from[128] = "", span_to[128] = "";
     const char *faults[64];
     int nfault = 0;
     double loss = 0, seconds = 10, settle = -1;
@@ -159,6 +160,14 @@ int main(int argc, char **argv)
             if (strcmp(v, "json") && strcmp(v, "text"))
                 return bad("--report (json|text)", v);
             report = v;
+        } else if (!strcmp(a, "--span")) {
+            const char *colon = strchr(v, ':');
+            if (!colon || colon == v || !colon[1] || (size_t)(colon - v) >= sizeof span_from
+                || strlen(colon + 1) >= sizeof span_to)
+                return bad("--span (FROM:TO, two function names)", v);
+            memcpy(span_from, v, (size_t)(colon - v));
+            span_from[colon - v] = 0;
+            strcpy(span_to, colon + 1);
         } else if (!strcmp(a, "--twi-log")) {
             twi_log = v;
         } else if (!strcmp(a, "--console")) {
@@ -200,6 +209,9 @@ int main(int argc, char **argv)
             nodes[i]->board = b;
             twi_attach(nodes[i], b, log);
             nodes[i]->twi->st.settle_ns = (uint64_t)(settle * 1e9);
+            if (span_from[0] && node_span(nodes[i], span_from, span_to,
+                                          (uint64_t)(settle * 1e9)) < 0)
+                return 2;
         }
         if (ch)
             rf230_attach(nodes[i], ch);
@@ -309,6 +321,11 @@ int main(int argc, char **argv)
                             cp->last_data[2]);
                 }
                 fprintf(out, "}");
+                if (n->span_from)
+                    fprintf(out, ", \"span\": {\"from\": \"%s\", \"to\": \"%s\", \"n\": %llu, "
+                            "\"us_mean\": %.2f, \"us_min\": %.2f, \"us_max\": %.2f}",
+                            span_from, span_to, (unsigned long long)n->span_n,
+                            n->span_n ? n->span_sum / n->span_n : 0, n->span_min, n->span_max);
             }
             fprintf(out, "}");
         } else {
@@ -333,6 +350,10 @@ int main(int argc, char **argv)
                         (unsigned long long)t->starts, (unsigned long long)t->bytes,
                         (unsigned long long)t->addr_nacks, (unsigned long long)t->data_nacks,
                         (unsigned long long)t->arb_lost, (unsigned long long)t->hang_waits);
+                if (n->span_from)
+                    fprintf(out, "  %s -> %s: %llu times, mean %.1f us (min %.1f, max %.1f)\n",
+                            span_from, span_to, (unsigned long long)n->span_n,
+                            n->span_n ? n->span_sum / n->span_n : 0, n->span_min, n->span_max);
                 for (int c = 0; c < CHIP_COUNT; c++)
                     fprintf(out, "  %-8s data reads %u (%u stale: no new sample since the read "
                             "before), NACKed %u, power-on resets %u\n",

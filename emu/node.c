@@ -41,12 +41,34 @@ static void node_sleep(avr_t *avr, avr_cycle_count_t how_long)
  * sleep when an interrupt is pending, but its two-instruction SEI delay
  * lets the CLI come first, so the interrupt waits for the next SEI that
  * is not followed by a CLI: with nothing else to wake the mote, forever. */
+static void span_check(emu_node_t *n, avr_flashaddr_t pc)
+{
+    avr_t *avr = n->avr;
+    if (pc == n->span_from && !n->span_open) {
+        n->span_open = avr->cycle;
+    } else if (pc == n->span_to && n->span_open) {
+        if (n->span_open >= n->span_settle_cycle) {
+            double us = (avr->cycle - n->span_open) * 1e6 / n->freq_hz;
+            if (!n->span_n || us < n->span_min) n->span_min = us;
+            if (!n->span_n || us > n->span_max) n->span_max = us;
+            n->span_sum += us;
+            n->span_n++;
+        }
+        n->span_open = 0;
+    }
+}
+
 static void node_run_one(avr_t *avr)
 {
     avr_flashaddr_t new_pc = avr->pc;
     if (avr->state == cpu_Running) {
         uint16_t op = (uint16_t)(avr->flash[avr->pc] | (avr->flash[avr->pc + 1] << 8));
+        emu_node_t *n = avr->custom.data;
+        if (n->span_from)
+            avr->run_cycle_count = 1;     /* one instruction per call: every pc is seen */
         new_pc = avr_run_one(avr);
+        if (n->span_from)
+            span_check(n, new_pc);
         if (op == 0x9588 && avr->state == cpu_Running && avr->sreg[S_I]
             && avr->interrupt_state < 0 && avr_has_pending_interrupts(avr))
             avr->interrupt_state = 1;
@@ -162,6 +184,10 @@ emu_node_t *node_new(const char *elf, int index, uint16_t am_addr, double freq_h
     n->rom_bytes = fw.flashsize;
     n->ram_bytes = fw.datasize + fw.bsssize;
 
+#if ELF_SYMBOLS
+    n->symbols = (void **)fw.symbol;
+    n->nsymbols = fw.symbolcount;
+#endif
     patch_u16(&fw, "TOS_NODE_ID", am_addr);
     patch_u16(&fw, "ActiveMessageAddressC__addr", am_addr);
     patch_u16(&fw, "ActiveMessageAddressC$addr", am_addr);
@@ -183,6 +209,29 @@ emu_node_t *node_new(const char *elf, int index, uint16_t am_addr, double freq_h
     flags &= ~AVR_UART_FLAG_STDIO;
     avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
     return n;
+}
+
+uint32_t node_symbol(const emu_node_t *n, const char *name)
+{
+    for (uint32_t i = 0; i < n->nsymbols; i++) {
+        const avr_symbol_t *s = n->symbols[i];
+        if (!strcmp(s->symbol, name))
+            return s->addr;
+    }
+    return 0;
+}
+
+int node_span(emu_node_t *n, const char *from, const char *to, uint64_t settle_ns)
+{
+    uint32_t a = node_symbol(n, from), b = node_symbol(n, to);
+    if (!a || !b || a >= 0x800000 || b >= 0x800000) {
+        fprintf(stderr, "ninedof-emu: %s has no function %s\n", n->elf, a ? to : from);
+        return -1;
+    }
+    n->span_from = a;
+    n->span_to = b;
+    n->span_settle_cycle = node_ns_to_cycles(n, settle_ns);
+    return 0;
 }
 
 static avr_cycle_count_t quantum_end(avr_t *avr, avr_cycle_count_t when, void *param)

@@ -17,6 +17,14 @@ void node_console(emu_node_t *n, FILE *f);
  * core state (cpu_Done / cpu_Crashed when the program ended). */
 int node_run_until(emu_node_t *n, uint64_t end_ns);
 
+/* byte address of a symbol of the image, 0 if it has none */
+uint32_t node_symbol(const emu_node_t *n, const char *name);
+
+/* Time every run from the entry of function `from` to the next entry of
+ * `to` (entries that start after settle_ns count).  0, or -1 with a
+ * message when the image lacks one of them. */
+int node_span(emu_node_t *n, const char *from, const char *to, uint64_t settle_ns);
+
 /* cycles at the node's clock for a time in ns, and back */
 uint64_t node_ns_to_cycles(const emu_node_t *n, uint64_t ns);
 

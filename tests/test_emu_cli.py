@@ -61,3 +61,14 @@ def test_nodes_in_lockstep(built):
     # first; the loop ran until the slower one ended
     assert abs(a["cycles"] - b["cycles"]) < 0.001 * a["cycles"]
     assert rep["seconds"] == pytest.approx(a["cycles"] / 7.84e6, abs=1e-5)
+
+
+def test_interrupt_pending_before_sei_sleep_is_taken(built, tmp_path):
+    # simavr 1.6 alone lets the CLI after `sei; sleep` come first, so the
+    # handler would not run here (emu/node.c, node_run_one)
+    _, exe, _ = built
+    elf = avrsim.build([emusim.EMU / "tests" / "sei_sleep.c"], tmp_path / "s.elf",
+                       include=[avrsim.CSRC])
+    con = tmp_path / "s.txt"
+    emusim.run(exe, ["--mote", str(elf), "--seconds", "1", "--console", str(con)])
+    assert con.read_text() == "I1;END"

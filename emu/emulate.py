@@ -183,6 +183,7 @@ def main(argv=None) -> int:
     except (ValueError, Unavailable) as e:
         print(f"emulate: {e}", file=sys.stderr)
         return 2
+    watch = None
     with tempfile.TemporaryDirectory(prefix="motecal-emu-") as tmp:
         out = Path(a.out) if a.out else Path(tmp)
         print(f"building the images ({'lean TWI master' if a.lean else 'Atm128I2CMasterC'}) "
@@ -198,9 +199,23 @@ def main(argv=None) -> int:
                         i + 1, seconds=a.seconds, session=a.session, seed=a.seed, model=a.model),
                         1000.0)
                     boards.append(str(path))
+            watch = None
+
+            def echo(line):
+                nonlocal watch
+                print(f"BaseStation serial: {line}", flush=True)
+                if a.serial == "pty" and line.startswith("/dev/") and watch is None:
+                    try:         # count what arrives, as the host would see it
+                        import serial_watch
+                        watch = serial_watch.SerialWatch()
+                        watch.open(line.strip())
+                    except (ImportError, OSError) as e:
+                        print(f"  (not read here: {e})", flush=True)
+                        watch = None
+
             rep = measure(out, motes=a.motes, seconds=a.seconds, settle=a.settle, mhz=mhz,
                           lean=a.lean, serial=a.serial, faults=a.fault, boards=boards,
-                          echo=lambda s: print(f"BaseStation serial: {s}", flush=True))
+                          echo=echo)
         except RuntimeError as e:
             print(f"emulate: {e}", file=sys.stderr)
             return 1
@@ -211,6 +226,9 @@ def main(argv=None) -> int:
         print(json.dumps(rep, indent=1))
     else:
         print_report(rep, "NineDofTwiMasterC" if a.lean else "Atm128I2CMasterC")
+    if watch is not None:
+        watch.close()
+        print("\n".join(watch.summary()))
     return 0
 
 

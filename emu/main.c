@@ -1,7 +1,7 @@
 /*
  * emu/main.c -- ninedof-emu: N sensor motes (+ a BaseStation) in lockstep.
  *
- *   ninedof-emu --mote ELF[,id=N,mhz=F,board=FILE] ... [--base ELF[,id=N,mhz=F]]
+ *   ninedof-emu --mote ELF[,id=N,mhz=F,xtal_ppm=P,board=FILE] ... [--base ELF[,...]]
  *               [--serial pty|tcp:PORT|null] [--loss P] [--seed N] [--seconds S]
  *               [--fault SPEC] ... [--settle S] [--twi-log FILE] [--console FILE]
  *               [--report json|text]
@@ -35,7 +35,8 @@ uint64_t emu_global_now_ns(void)
 static void usage(void)
 {
     fprintf(stderr,
-            "usage: ninedof-emu --mote ELF[,id=N,mhz=F,board=FILE] ... [--base ELF[,id=N,mhz=F]]\n"
+            "usage: ninedof-emu --mote ELF[,id=N,mhz=F,xtal_ppm=P,board=FILE] ...\n"
+            "       [--base ELF[,id=N,mhz=F,xtal_ppm=P]]\n"
             "       [--serial pty|tcp:PORT|null] [--loss P] [--seed N] [--seconds S]\n"
             "       [--fault SPEC] ... [--settle S] [--twi-log FILE] [--console FILE]\n"
             "       [--span FROM:TO] [--report json|text]\n");
@@ -51,6 +52,7 @@ typedef struct {
     char elf[1024];
     int id;
     double mhz;
+    double xtal_ppm;
     char board[1024];
 } node_spec_t;
 
@@ -62,6 +64,7 @@ static int parse_node(const char *arg, node_spec_t *s, int default_id)
     strcpy(buf, arg);
     s->id = default_id;
     s->mhz = 8.0;
+    s->xtal_ppm = 0;
     s->board[0] = 0;
     char *save = NULL;
     char *tok = strtok_r(buf, ",", &save);
@@ -80,6 +83,11 @@ static int parse_node(const char *arg, node_spec_t *s, int default_id)
             if (*end || !(v >= 1.0 && v <= 20.0))
                 return -1;
             s->mhz = v;
+        } else if (!strncmp(tok, "xtal_ppm=", 9)) {
+            double v = strtod(tok + 9, &end);
+            if (*end || !(v >= -1000 && v <= 1000))
+                return -1;
+            s->xtal_ppm = v;
         } else if (!strncmp(tok, "board=", 6) && strlen(tok + 6) < sizeof s->board) {
             strcpy(s->board, tok + 6);
         } else {
@@ -202,6 +210,10 @@ int main(int argc, char **argv)
         if (!nodes[i])
             return 2;
         nodes[i]->is_base = i == base;
+        if (specs[i].xtal_ppm != 0 && node_crystal_ppm(nodes[i], specs[i].xtal_ppm) < 0) {
+            fprintf(stderr, "ninedof-emu: simavr refused the crystal at %g ppm\n", specs[i].xtal_ppm);
+            return 2;
+        }
         if (i != base) {
             emu_board_t *b = specs[i].board[0] ? board_load(specs[i].board) : board_synthetic();
             if (!b)

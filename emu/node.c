@@ -211,6 +211,12 @@ emu_node_t *node_new(const char *elf, int index, uint16_t am_addr, double freq_h
     return n;
 }
 
+int node_crystal_ppm(emu_node_t *n, double ppm)
+{
+    float f = (float)(32768.0 * (1.0 + ppm * 1e-6));
+    return avr_ioctl(n->avr, AVR_IOCTL_TIMER_SET_FREQCLK('2'), &f) == 0 ? 0 : -1;
+}
+
 uint32_t node_symbol(const emu_node_t *n, const char *name)
 {
     for (uint32_t i = 0; i < n->nsymbols; i++) {

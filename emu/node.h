@@ -17,6 +17,10 @@ void node_console(emu_node_t *n, FILE *f);
  * core state (cpu_Done / cpu_Crashed when the program ended). */
 int node_run_until(emu_node_t *n, uint64_t end_ns);
 
+/* The 32768 Hz crystal on timer 2 off by ppm (simavr's virtual AS2 clock,
+ * a float: about 0.1 ppm resolution).  0, or -1 if simavr refuses. */
+int node_crystal_ppm(emu_node_t *n, double ppm);
+
 /* byte address of a symbol of the image, 0 if it has none */
 uint32_t node_symbol(const emu_node_t *n, const char *name);
 

@@ -34,3 +34,15 @@ def test_cpu_cycles_per_crystal_time(built, mhz):
     assert ovf == pytest.approx(f * 16 * 256 / 32768, abs=20)
     # TCNT2 from 0 to 128: 128 ticks, to within one tick (the polling loop)
     assert half == pytest.approx(f * 128 / 32768, abs=f / 32768)
+
+
+@pytest.mark.parametrize("ppm", [100, -250])
+def test_crystal_off_by_ppm(built, ppm):
+    # xtal_ppm=: simavr's virtual 32768 Hz clock set to 32768 (1 + ppm 1e-6)
+    d, exe, elf = built
+    con = d / f"xtal{ppm}.txt"
+    emusim.run(exe, ["--mote", f"{elf},xtal_ppm={ppm}", "--seconds", "2", "--console", str(con)])
+    text = con.read_text()
+    ovf = int(text[2:].split()[0].split(":")[0]) * 65536 + int(text[2:].split()[0].split(":")[1])
+    assert ovf == pytest.approx(8e6 * 0.125 / (1 + ppm * 1e-6), abs=20)
+    assert abs(ovf - 1_000_000) > 90          # the offset is seen (100 ppm = 100 cycles)

@@ -93,7 +93,7 @@ def run_harness(exe: Path, args: list[str], echo=None) -> dict:
 
 def measure(out: Path, *, motes: int = 1, seconds: float = 20, settle: float = 5,
             mhz=(8.0,), lean: bool = False, base: bool = True, serial: str = "null",
-            faults=(), boards=(), echo=None, mote: Path | None = None) -> dict:
+            faults=(), boards=(), echo=None, mote: Path | None = None, xtal_ppm=(0.0,)) -> dict:
     """Build both images (the mote's unless given) and the harness into out,
     run; the report.  mhz: one clock per mote (cycled)."""
     if mote is None:
@@ -102,6 +102,8 @@ def measure(out: Path, *, motes: int = 1, seconds: float = 20, settle: float = 5
     args = []
     for i in range(motes):
         spec = f"{mote},id={i + 1},mhz={mhz[i % len(mhz)]}"
+        if xtal_ppm[i % len(xtal_ppm)]:
+            spec += f",xtal_ppm={xtal_ppm[i % len(xtal_ppm)]}"
         if i < len(boards):
             spec += f",board={boards[i]}"
         args += ["--mote", spec]
@@ -157,6 +159,8 @@ def main(argv=None) -> int:
                     help="rates and loads count from here (default 5 s: boot + clock loop)")
     ap.add_argument("--mhz", default=MHZ_DEFAULT,
                     help="RC clock of each mote in MHz, comma-separated, cycled (default 8.0)")
+    ap.add_argument("--xtal-ppm", default="0",
+                    help="32768 Hz crystal error of each mote in ppm, comma-separated, cycled")
     ap.add_argument("--lean", action="store_true", help="build with NINEDOF_LEAN_I2C=1")
     ap.add_argument("--serial", default="pty",
                     help="BaseStation UART0: pty (default), tcp:PORT (127.0.0.1) or null")
@@ -179,6 +183,9 @@ def main(argv=None) -> int:
         mhz = [float(x) for x in a.mhz.split(",")]
         if not all(1 <= m <= 20 for m in mhz):
             raise ValueError(f"--mhz must be 1..20 MHz, not {a.mhz}")
+        xtal = [float(x) for x in a.xtal_ppm.split(",")]
+        if not all(-1000 <= x <= 1000 for x in xtal):
+            raise ValueError(f"--xtal-ppm must be -1000..1000, not {a.xtal_ppm}")
         toolchain()
     except (ValueError, Unavailable) as e:
         print(f"emulate: {e}", file=sys.stderr)
@@ -215,7 +222,7 @@ def main(argv=None) -> int:
 
             rep = measure(out, motes=a.motes, seconds=a.seconds, settle=a.settle, mhz=mhz,
                           lean=a.lean, serial=a.serial, faults=a.fault, boards=boards,
-                          echo=echo)
+                          echo=echo, xtal_ppm=xtal)
         except RuntimeError as e:
             print(f"emulate: {e}", file=sys.stderr)
             return 1

@@ -1,7 +1,7 @@
 """Read the emulated BaseStation's serial line while `make emulate` runs and
 count what the host would get: sample records per mote, gaps in their
 sequence numbers, the last status counters of each mote and of the
-BaseStation.  Decoding is the host's own (motecal.protocol)."""
+BaseStation.  Decoding is the host's own (motecal.line.protocol)."""
 from __future__ import annotations
 
 import os
@@ -13,7 +13,7 @@ class SerialWatch:
     """Reads a pty in a thread from open() until close(); summary() after."""
 
     def __init__(self):
-        from motecal import protocol as P     # the host's decoder
+        from motecal.line import protocol as P     # the host's decoder
         self.P = P
         self.dec = P.FrameDecoder()
         self.motes: dict[int, dict] = {}
@@ -42,8 +42,9 @@ class SerialWatch:
 
     def _feed(self, data: bytes) -> None:
         P = self.P
-        for am in P.iter_am(self.dec.feed(data)):
-            msg = P.decode_message(am)
+        for fr in self.dec.feed(data):
+            am = fr.am()
+            msg = P.decode_message(am) if am is not None else None
             if msg is None:
                 continue
             if am.am_type == P.AM_NINEDOF_BS_STATUS_MSG:

@@ -135,6 +135,10 @@ def print_report(rep: dict, master: str) -> None:
         print(f"  reads/s {n['reads_per_s']:.3f} ({n['samples_after_settle']} samples), "
               f"periods without a read {n['missing_periods']} in {n['gaps']} gaps, "
               f"first read at {n['first_sample_s']:.3f} s")
+        ps = n.get("per_second", [])
+        if ps:
+            print(f"  reads in each emulated second: {' '.join(str(x) for x in ps[:12])}"
+                  + (" ..." if len(ps) > 12 else ""))
         if n.get("span"):
             sp = n["span"]
             print(f"  read() -> readDone ({sp['n']} reads): mean {sp['us_mean']:.1f} us "

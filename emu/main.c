@@ -313,7 +313,7 @@ int main(int argc, char **argv)
                         "\"gaps\": %llu, \"missing_periods\": %llu, \"other_bursts\": %llu, "
                         "\"twbr\": %u, \"scl_hz\": %.0f, "
                         "\"starts\": %llu, \"bytes\": %llu, \"addr_nacks\": %llu, "
-                        "\"data_nacks\": %llu, \"arb_lost\": %llu, \"hang_waits\": %llu, \"chips\": {",
+                        "\"data_nacks\": %llu, \"arb_lost\": %llu, \"hang_waits\": %llu, ",
                         (unsigned long long)s->n, (unsigned long long)s->n_rate, rate,
                         s->first_ns / 1e9,
                         s->n ? s->span_sum / s->n : 0, s->span_min, s->span_max,
@@ -325,6 +325,10 @@ int main(int argc, char **argv)
                         (unsigned long long)t->starts, (unsigned long long)t->bytes,
                         (unsigned long long)t->addr_nacks, (unsigned long long)t->data_nacks,
                         (unsigned long long)t->arb_lost, (unsigned long long)t->hang_waits);
+                fprintf(out, "\"per_second\": [");
+                for (uint64_t k = 0; k < EMU_MAX_SECONDS && k < (g_now_ns + 999999999u) / 1000000000u; k++)
+                    fprintf(out, "%s%u", k ? ", " : "", s->per_second[k]);
+                fprintf(out, "], \"chips\": {");
                 for (int c = 0; c < CHIP_COUNT; c++) {
                     emu_chip_t *cp = &t->chips[c];
                     fprintf(out, "%s\"%s\": {\"data_reads\": %u, \"nacked\": %u, \"resets\": %u, "

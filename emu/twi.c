@@ -62,6 +62,8 @@ static void burst_close(emu_twi_t *t)
         s->span_min = s->span_max = span;
     }
     s->n++;
+    if (start_ns / 1000000000u < EMU_MAX_SECONDS)
+        s->per_second[start_ns / 1000000000u]++;
     s->span_sum += span;
     if (span < s->span_min) s->span_min = span;
     if (span > s->span_max) s->span_max = span;

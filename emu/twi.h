@@ -14,6 +14,9 @@
 #include "emu.h"
 #include "chips.h"
 
+/* per-second sample counts are kept for this many seconds */
+#define EMU_MAX_SECONDS 3600
+
 /* A sample = a burst of transfers with less than this idle between them */
 #define EMU_BURST_GAP_NS 1000000u
 
@@ -30,6 +33,7 @@ typedef struct emu_sample_stats {
     uint64_t settle_ns;         /* samples before this do not count for rate/gaps */
     uint64_t n_rate;            /* samples at or after settle_ns */
     uint64_t rate_first_ns;
+    uint32_t per_second[EMU_MAX_SECONDS];  /* samples starting in each emulated second */
 } emu_sample_stats_t;
 
 typedef struct emu_twi {

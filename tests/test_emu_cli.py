@@ -1,7 +1,9 @@
 """ninedof-emu's command line and lockstep loop (emu/main.c): bad input gives
 one line on stderr and exit 2; several nodes at different clocks run side by
 side, each to its own end."""
+import os
 import subprocess
+import sys
 
 import pytest
 
@@ -73,3 +75,30 @@ def test_interrupt_pending_before_sei_sleep_is_taken(built, tmp_path):
     con = tmp_path / "s.txt"
     emusim.run(exe, ["--mote", str(elf), "--seconds", "1", "--console", str(con)])
     assert con.read_text() == "I1;END"
+
+
+def test_emulate_without_tinyos_says_so(tmp_path):
+    # `make emulate` without a TinyOS tree: one line, exit 2, nothing built
+    env = {k: v for k, v in os.environ.items() if k != "TINYOS_ROOT_DIR"}
+    res = subprocess.run([sys.executable, str(emusim.EMU / "emulate.py"), "--out",
+                          str(tmp_path / "out")], capture_output=True, text=True, env=env)
+    assert res.returncode == 2 and res.stderr.startswith("emulate: TINYOS_ROOT_DIR")
+    assert len(res.stderr.strip().splitlines()) == 1 and not (tmp_path / "out").exists()
+    res = subprocess.run([sys.executable, str(emusim.EMU / "emulate.py"), "--motes", "0"],
+                         capture_output=True, text=True, env=env)
+    assert res.returncode == 2 and "--motes" in res.stderr
+
+
+def test_board_table_bad_arguments(tmp_path):
+    res = subprocess.run([sys.executable, str(emusim.EMU / "board.py"), "--out",
+                          str(tmp_path / "b.txt"), "--session", "nosuch", "--seconds", "1"],
+                         capture_output=True, text=True)
+    assert res.returncode == 2 and res.stderr.startswith("board: ")
+    assert "Traceback" not in res.stderr and not (tmp_path / "b.txt").exists()
+
+
+def test_samples_per_second(built):
+    _, exe, elf = built
+    rep = emusim.run(exe, ["--mote", str(elf), "--seconds", "3"])
+    n = rep["nodes"][0]
+    assert sum(n["per_second"]) == n["samples"] == 20

@@ -13,7 +13,7 @@ STAMP := $(VENV)/.installed-$(shell cat host/requirements.txt host/pyproject.tom
 # firmware's C code); the tests also need avr-gcc + simavr and a PostgreSQL
 # server (the store's server test).  Installed with apt-get when missing.
 DEMO_PACKAGES := gcc libc6-dev
-TEST_PACKAGES := $(DEMO_PACKAGES) gcc-avr avr-libc simavr postgresql
+TEST_PACKAGES := $(DEMO_PACKAGES) gcc-avr avr-libc simavr libsimavr-dev libelf-dev pkg-config postgresql
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 DEMO_DIR ?= demo-out

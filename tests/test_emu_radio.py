@@ -1,0 +1,199 @@
+"""The emulator's radio and serial models (emu/rf230.c, emu/channel.c,
+emu/uart.c) against small AVR programs (emu/tests/rf230_node.c) built with
+avr-gcc and run on Debian's libsimavr in the radio's own lockstep harness
+(emu/tests/rf230_test_main.c).  What is planted (frames, sequence numbers,
+loss rate, timing) is the truth; the programs report what the chip did.
+"""
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+EMU = REPO / "emu"
+NODE_C = EMU / "tests" / "rf230_node.c"
+SIMAVR_H = Path("/usr/include/simavr/sim_avr.h")
+LIBELF_H = Path("/usr/include/libelf.h")
+BYTE_US = 32
+
+
+def _missing() -> list[str]:
+    miss = [t for t in ("gcc", "avr-gcc") if shutil.which(t) is None]
+    if not SIMAVR_H.exists():
+        miss.append("libsimavr-dev")
+    if not LIBELF_H.exists():
+        miss.append("libelf-dev")
+    return miss
+
+
+@pytest.fixture(scope="module")
+def build(tmp_path_factory):
+    """Build the harness and return a function building AVR programs."""
+    miss = _missing()
+    if miss:
+        msg = f"missing {' '.join(miss)}: run `make sysdeps`"
+        if os.environ.get("CI") == "true":
+            pytest.fail(msg)
+        pytest.skip(msg)
+    d = tmp_path_factory.mktemp("emu-radio")
+    exe = d / "rf230-test"
+    cmd = ["gcc", "-std=gnu99", "-O2", "-Wall", "-Wextra", "-Werror",
+           f"-I{EMU}", f"-I{EMU / 'tests' / 'rf230_contract'}", f"-I{SIMAVR_H.parent}",
+           str(EMU / "tests" / "rf230_test_main.c"), str(EMU / "rf230.c"),
+           str(EMU / "channel.c"), str(EMU / "uart.c"), "-lsimavr", "-lelf", "-o", str(exe)]
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+
+    def elf(name: str, **defines) -> Path:
+        out = d / f"{name}.elf"
+        if not out.exists():
+            cmd = ["avr-gcc", "-mmcu=atmega1281", "-DF_CPU=8000000UL", "-Os", "-std=gnu99",
+                   "-Wall", "-Werror"] + [f"-D{k}={v}" for k, v in defines.items()] + [
+                   str(NODE_C), "-o", str(out)]
+            r = subprocess.run(cmd, capture_output=True, text=True)
+            assert r.returncode == 0, r.stderr
+        return out
+
+    elf.exe = exe
+    elf.dir = d
+    return elf
+
+
+def run(build, nodes, *, loss=0.0, seed=1, ms=300.0, extra=()):
+    """Run nodes [(elf, id)]; return (console text per node, stats text)."""
+    d = build.dir
+    args = [str(build.exe), "--loss", str(loss), "--seed", str(seed), "--ms", str(ms), *extra]
+    cons = []
+    for i, (elf, nid) in enumerate(nodes):
+        c = d / f"console-{os.getpid()}-{seed}-{i}-{len(nodes)}.txt"
+        cons.append(c)
+        args += ["--node", f"{elf},id={nid},console={c}"]
+    res = subprocess.run(args, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    return [c.read_text() for c in cons], res.stderr
+
+
+def fields(line: str) -> dict:
+    return dict(kv.split("=", 1) for kv in line.split()[1:])
+
+
+def lines(text: str, tag: str) -> list[dict]:
+    return [fields(ln) for ln in text.splitlines() if ln.split()[:1] == [tag]]
+
+
+def stat(stats: str, node: int) -> dict:
+    ln = next(ln for ln in stats.splitlines() if ln.startswith(f"rf230 node {node}:"))
+    return {k: int(v, 0) for k, v in (kv.split("=") for kv in ln.split(":", 1)[1].split())}
+
+
+def test_bring_up_states_and_pll_lock_irq(build):
+    """Reset, sleep/wake, TRX_OFF -> RX_ON with the PLL_LOCK interrupt through
+    timer 1's input capture (ICR1 holds the time of the edge)."""
+    (con,), _ = run(build, [(build("tx1", ROLE=1, NFRAMES=0), 1)], ms=20)
+    init = lines(con, "init")[0]
+    assert init == {"part": "02", "man": "1f", "status": "8", "sleep": "0", "awake": "8"}
+    rx_on = lines(con, "rx_on")[0]
+    assert rx_on["during"] == "1f"                   # STATE_TRANSITION_IN_PROGRESS
+    assert rx_on["irq"] == "1" and rx_on["irq_status"] == "01"   # PLL_LOCK
+    assert 180 <= int(rx_on["lock_us"]) <= 200       # 180 us + one quantum + SPI
+    assert int(rx_on["icr_lag"]) < 20                # ICR1 = the edge, not the ISR
+    assert rx_on["status"] == "6"                    # RX_ON
+
+
+@pytest.mark.parametrize("length", [5, 20, 127])
+def test_frames_from_a_to_b(build, length):
+    """Every frame arrives once, in order, with a good FCS (computed by the
+    chip: TX_AUTO_CRC_ON), after exactly its air time; the sender goes
+    PLL_ON -> BUSY_TX -> (RX_ON queued) -> RX_ON with TRX_END."""
+    n = 12
+    tx = build(f"tx_{length}", ROLE=1, NFRAMES=n, LEN=length, PERIOD_US=10000)
+    rx = build("rx_200", ROLE=2, RUN_MS=200)
+    (ctx, crx), stats = run(build, [(tx, 1), (rx, 2)], ms=260)
+    txs = lines(ctx, "tx")
+    assert len(txs) == n
+    air = (6 + length) * BYTE_US
+    for t in txs:
+        assert (t["pll"], t["busy"], t["queued"], t["irq"], t["irq_status"], t["after"]) == \
+            ("09", "02", "02", "1", "08", "06"), t
+        assert air - 5 <= int(t["air_us"]) <= air + 10, t
+    rxs = lines(crx, "rx")
+    assert [int(r["seq"]) for r in rxs] == list(range(n))
+    for r in rxs:
+        assert (r["from"], r["len"], r["crc_ok"], r["lqi"]) == ("1", str(length), "1", "ff"), r
+        # RX_START (after SHR + PHR) to TRX_END: the PSDU's air time, or 0
+        # when both were pending at one edge (the program was still printing)
+        assert int(r["start_to_end_us"]) in (0, *range(length * BYTE_US - 5, length * BYTE_US + 10)), r
+    assert lines(crx, "rx_summary")[0] == {"ok": str(n), "bad": "0"}
+    st = stat(stats, 0)
+    assert st["tx"] == n and st["underrun"] == 0
+    assert stat(stats, 1)["rx_ok"] == n
+
+
+def test_overlapping_frames_collide(build):
+    """Two senders 300 us apart (both deaf in PLL_ON): every frame overlaps
+    the other's, the receiver gets each pair's first frame with a bad FCS."""
+    n = 10
+    a = build("txp_a", ROLE=1, TX_IDLE_PLL=1, NFRAMES=n, PERIOD_US=8000)
+    b = build("txp_b", ROLE=1, TX_IDLE_PLL=1, NFRAMES=n, PERIOD_US=8000, START_US=3300)
+    rx = build("rx_200", ROLE=2, RUN_MS=200)
+    (_, _, crx), stats = run(build, [(a, 1), (b, 3), (rx, 2)], ms=260)
+    assert lines(crx, "rx_summary")[0] == {"ok": "0", "bad": str(n)}
+    assert all(r["crc_ok"] == "0" for r in lines(crx, "rx"))
+    assert "collided=%d" % (2 * n) in stats
+
+
+def test_clear_channel_assessment(build):
+    """CCA reports busy while a frame is on the air: with frames of 832 us
+    every 8 ms and a 128 us measurement the busy fraction is about 12%;
+    PHY_RSSI shows energy too.  (loss 1: the CCA node never syncs, so it
+    stays in RX_ON and keeps measuring.)"""
+    tx = build("tx_cca", ROLE=1, NFRAMES=25, PERIOD_US=8000)
+    cca = build("cca", ROLE=3, RUN_MS=190)
+    (_, ccon), stats = run(build, [(tx, 1), (cca, 3)], loss=1.0, ms=260)
+    c = lines(ccon, "cca")[0]
+    busy, idle = int(c["busy"]), int(c["idle"])
+    frac = busy / (busy + idle)
+    assert 0.09 < frac < 0.16, c
+    assert int(c["rssi_busy"]) > 0
+    assert "cca_done_early" not in ccon
+    assert stat(stats, 1)["lost"] == 25
+
+
+def test_loss_rate_over_seeds_and_determinism(build):
+    """--loss 0.1 drops about 10% of frames per receiver; a seed gives the
+    same run twice, another seed another one."""
+    n = 60
+    tx = build("tx_loss", ROLE=1, NFRAMES=n, PERIOD_US=6000)
+    rx = build("rx_loss", ROLE=2, RUN_MS=400)
+    got = {}
+    with ThreadPoolExecutor(2) as ex:
+        futs = {s: ex.submit(run, build, [(tx, 1), (rx, 2)], loss=0.1, seed=s, ms=420)
+                for s in range(1, 9)}
+        got = {s: f.result() for s, f in futs.items()}
+    lost_total = 0
+    for s, ((_, crx), stats) in got.items():
+        seqs = [int(r["seq"]) for r in lines(crx, "rx")]
+        st = stat(stats, 1)
+        assert st["rx_ok"] == len(seqs) and st["rx_ok"] + st["lost"] == n, f"seed {s}"
+        assert seqs == sorted(set(seqs)), f"seed {s}"
+        lost_total += st["lost"]
+    rate = lost_total / (n * len(got))
+    assert 0.05 < rate < 0.16, f"loss rate {rate:.3f} over seeds 1..8"
+    again = run(build, [(tx, 1), (rx, 2)], loss=0.1, seed=1, ms=420)
+    assert again[0] == got[1][0]
+    assert got[1][0] != got[2][0] or got[1][0] != got[3][0]
+
+
+def test_bad_arguments_one_line_exit_2(build):
+    res = subprocess.run([str(build.exe), "--loss", "2", "--node", "x.elf"],
+                         capture_output=True, text=True)
+    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1
+    res = subprocess.run([str(build.exe), "--node", str(build.dir / "nope.elf")],
+                         capture_output=True, text=True)
+    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1

@@ -26,6 +26,8 @@
 
 /* ATmega1281 USART0 (data-space addresses) */
 #define A_UCSR0A 0xC0
+#define A_UCSR0B 0xC1
+#define A_UCSR0C 0xC2
 #define A_UBRR0L 0xC4
 #define A_UBRR0H 0xC5
 #define U2X0_BIT 1
@@ -50,17 +52,61 @@ typedef struct uart_ep {
     int xoff;
     avr_irq_t *in_irq;
     uint64_t last_io_ns;
+    avr_uart_t *sim;               /* simavr's USART0 */
+    struct { avr_io_write_t c; void *param; } orig[4];
     uint64_t unread_from, unread_until;
     /* counters */
     uint64_t out_bytes, in_bytes, drop_unread, drop_full, drop_noclient, clients;
 } uart_ep_t;
 
+/* CPU cycles per character as the USART's registers say: start bit, 5-9
+ * data bits, parity bit if enabled, 1 or 2 stop bits */
+static uint32_t cycles_per_char(avr_t *avr)
+{
+    uint32_t ubrr = avr->data[A_UBRR0L] | ((avr->data[A_UBRR0H] & 0x0F) << 8);
+    uint32_t per_bit = (ubrr + 1) * ((avr->data[A_UCSR0A] & (1 << U2X0_BIT)) ? 8 : 16);
+    uint8_t c = avr->data[A_UCSR0C];
+    int sz = ((c >> 1) & 3) | ((avr->data[A_UCSR0B] & 0x04) ? 4 : 0);
+    static const int data_bits[8] = { 5, 6, 7, 8, 8, 8, 8, 9 };
+    int bits = 1 + data_bits[sz] + ((c & 0x20) ? 1 : 0) + ((c & 0x08) ? 2 : 1);
+    return per_bit * (uint32_t)bits;
+}
+
 static uint64_t byte_ns(uart_ep_t *u)
 {
     avr_t *avr = u->node->avr;
-    uint32_t ubrr = avr->data[A_UBRR0L] | ((avr->data[A_UBRR0H] & 0x0F) << 8);
-    uint32_t per_bit = (ubrr + 1) * ((avr->data[A_UCSR0A] & (1 << U2X0_BIT)) ? 8 : 16);
-    return (uint64_t)((double)per_bit * 10.0 * 1e9 / (double)avr->frequency + 0.5);
+    return (uint64_t)((double)cycles_per_char(avr) * 1e9 / (double)avr->frequency + 0.5);
+}
+
+/* simavr 1.6 recomputes its USART's character time only when UBRRnL is
+ * written, ignores U2X written after it and always counts a parity bit
+ * (11 bits for 8N1); keep its pump at the rate the registers give. */
+static void rate_reg_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+    uart_ep_t *u = param;
+    int i = addr == A_UCSR0A ? 0 : addr == A_UCSR0C ? 1 : addr == A_UBRR0L ? 2 : 3;
+    if (u->orig[i].c)
+        u->orig[i].c(avr, addr, v, u->orig[i].param);
+    else
+        avr_core_watch_write(avr, addr, v);
+    if (u->sim)
+        u->sim->cycles_per_byte = cycles_per_char(avr);
+}
+
+static void hook_rate(uart_ep_t *u)
+{
+    avr_t *avr = u->node->avr;
+    for (avr_io_t *io = avr->io_port; io; io = io->next)
+        if (io->kind && !strcmp(io->kind, "uart") && ((avr_uart_t *)io)->name == '0')
+            u->sim = (avr_uart_t *)io;
+    static const avr_io_addr_t regs[4] = { A_UCSR0A, A_UCSR0C, A_UBRR0L, A_UBRR0H };
+    for (int i = 0; i < 4; i++) {
+        avr_io_addr_t a = AVR_DATA_TO_IO(regs[i]);
+        u->orig[i].c = avr->io[a].w.c;
+        u->orig[i].param = avr->io[a].w.param;
+        avr->io[a].w.c = rate_reg_write;
+        avr->io[a].w.param = u;
+    }
 }
 
 static void on_output(avr_irq_t *irq, uint32_t v, void *param)
@@ -190,6 +236,7 @@ int uart_attach(emu_node_t *node, const char *spec)
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XON), on_xon, u);
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XOFF), on_xoff, u);
     u->in_irq = avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
+    hook_rate(u);
     node->uart = u;
     if (u->kind != K_NULL) {
         printf("%s\n", u->url);
@@ -303,8 +350,10 @@ void uart_poll(emu_node_t *node, uint64_t now)
         uint64_t due = u->ot[u->oh & (OUTQ - 1)];
         uint8_t b = u->ob[u->oh & (OUTQ - 1)];
         u->oh++;
-        if (u->kind == K_NULL)
+        if (u->kind == K_NULL) {
+            u->out_bytes++;
             continue;
+        }
         if (due >= u->unread_from && due < u->unread_until) {
             u->drop_unread++;
             continue;

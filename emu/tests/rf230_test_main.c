@@ -249,6 +249,8 @@ int main(int argc, char **argv)
             }
         }
     }
+    for (int i = 0; i < nn; i++)            /* what is still on the line */
+        uart_poll(nodes[i], g_now + 1000000000ull);
     for (int i = 0; i < nn; i++) {
         rf230_stats(nodes[i], stderr);
         uart_stats(nodes[i], stderr);

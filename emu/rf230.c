@@ -14,6 +14,7 @@
 #include "sim_cycle_timers.h"
 #include "avr_ioport.h"
 #include "avr_spi.h"
+#include "avr_timer.h"
 
 #include "rf230.h"
 
@@ -72,6 +73,16 @@ typedef struct rf230 {
 } rf230_t;
 
 static uint64_t now_ns(rf230_t *rf) { return emu_node_now_ns(rf->node); }
+
+/* EMU_RF230_TRACE=1: every register access, command and frame on stderr */
+static int trace = -1;
+#define TRACE(rf, ...) do { \
+    if (trace < 0) trace = getenv("EMU_RF230_TRACE") != NULL; \
+    if (trace) { \
+        fprintf(stderr, "%12.6f rf230[%d] ", now_ns(rf) / 1e9, (rf)->node->index); \
+        fprintf(stderr, __VA_ARGS__); \
+        fputc('\n', stderr); \
+    } } while (0)
 static int chan_no(rf230_t *rf) { return rf->reg[R_PHY_CC_CCA] & 0x1F; }
 
 /* 802.15.4 FCS: CRC-16 (x^16 + x^12 + x^5 + 1) LSB first, init 0, as
@@ -139,6 +150,7 @@ static void abort_activity(rf230_t *rf)
 /* ------------------------------------------------------------ transmit */
 static void start_tx(rf230_t *rf)
 {
+    TRACE(rf, "tx start");
     rf->state = S_BUSY_TX;
     rf->pending = 0;
     rf->tx = channel_tx_begin(rf->ch, rf->port, chan_no(rf), now_ns(rf));
@@ -191,6 +203,7 @@ static void op_tx_end(void *ctx, ch_frame_t *f)
     if (f != rf->tx)
         return;
     rf->tx = NULL;
+    TRACE(rf, "tx end len %d%s%s", f->len, f->collided ? " collided" : "", f->corrupt ? " corrupt" : "");
     rf->state = S_PLL_ON;                   /* BUSY_TX ends in PLL_ON */
     uint8_t p = rf->pending;
     rf->pending = 0;
@@ -207,6 +220,7 @@ static int op_rx_start(void *ctx, ch_frame_t *f)
         return 0;
     rf->state = S_BUSY_RX;
     rf->rx = f;
+    TRACE(rf, "rx start");
     irq_raise(rf, IRQ_RX_START);
     return 1;
 }
@@ -218,6 +232,7 @@ static void op_rx_end(void *ctx, ch_frame_t *f, int ok)
         return;
     rf->rx = NULL;
     uint64_t t = now_ns(rf);
+    TRACE(rf, "rx end len %d ok %d", f->len, ok);
     rf->fb[0] = f->len;
     memcpy(rf->fb + 1, f->psdu, f->len);
     if (!ok) {
@@ -319,9 +334,11 @@ static uint8_t reg_read(rf230_t *rf, uint8_t a)
 {
     switch (a) {
     case R_TRX_STATUS:
+        TRACE(rf, "read TRX_STATUS %02x", (rf->cca_done ? 0x80 : 0) | (rf->cca_idle ? 0x40 : 0) | rf->state);
         return (uint8_t)((rf->cca_done ? 0x80 : 0) | (rf->cca_idle ? 0x40 : 0) | rf->state);
     case R_IRQ_STATUS: {
         uint8_t v = rf->irq_status;
+        TRACE(rf, "read IRQ_STATUS %02x", v);
         rf->irq_status = 0;
         irq_line_update(rf);
         return v;
@@ -345,6 +362,7 @@ static uint8_t reg_read(rf230_t *rf, uint8_t a)
 
 static void reg_write(rf230_t *rf, uint8_t a, uint8_t v)
 {
+    TRACE(rf, "write reg %02x = %02x (state %02x)", a, v, rf->state);
     switch (a) {
     case R_TRX_STATE:
         rf->reg[a] = v & 0x1F;
@@ -381,6 +399,8 @@ static uint8_t spi_byte(rf230_t *rf, uint8_t mosi)
     int pos = rf->pos++;
     if (pos == 0) {
         rf->cmd = mosi;
+        if ((mosi & 0xA0) == 0x20)
+            TRACE(rf, "frame %s begins", (mosi & 0x40) ? "write" : "read");
         return 0x00;                        /* RF230: no PHY_STATUS byte */
     }
     uint8_t c = rf->cmd;
@@ -454,6 +474,40 @@ static uint8_t spdr_read(avr_t *avr, avr_io_addr_t addr, void *param)
     return rf->spi_in;
 }
 
+/* ------------------------------------------------ timer 1 flags (TIFR1) */
+/* simavr 1.6 clears every raised flag of a timer on any write to its TIFR
+ * (fixed in later simavr: write-1-to-clear per bit).  TinyOS clears OCF1A
+ * when it arms its radio alarm; that also wiped a pending ICF1, i.e. the
+ * radio interrupt: the IRQ line stayed high and the stack never heard from
+ * the radio again.  Timer 1's TIFR1 gets the datasheet behaviour here. */
+static int flag_written(avr_int_vector_t *v, avr_io_addr_t addr, uint8_t val)
+{
+    return v->raised.reg == addr && (val & (v->raised.mask << v->raised.bit));
+}
+
+static void tifr1_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+    avr_timer_t *p = param;
+    if (flag_written(&p->overflow, addr, v))
+        avr_clear_interrupt(avr, &p->overflow);
+    if (flag_written(&p->icr, addr, v))
+        avr_clear_interrupt(avr, &p->icr);
+    for (int i = 0; i < AVR_TIMER_COMP_COUNT; i++)
+        if (flag_written(&p->comp[i].interrupt, addr, v))
+            avr_clear_interrupt(avr, &p->comp[i].interrupt);
+}
+
+static void fix_tifr1(avr_t *avr)
+{
+    for (avr_io_t *io = avr->io_port; io; io = io->next)
+        if (io->kind && !strcmp(io->kind, "timer") && ((avr_timer_t *)io)->name == '1') {
+            avr_timer_t *p = (avr_timer_t *)io;
+            avr_io_addr_t a = AVR_DATA_TO_IO(p->icr.raised.reg);
+            avr->io[a].w.c = tifr1_write;
+            avr->io[a].w.param = p;
+        }
+}
+
 /* ---------------------------------------------------------------- pins */
 static void pin_seln(avr_irq_t *irq, uint32_t v, void *param)
 {
@@ -465,6 +519,8 @@ static void pin_seln(avr_irq_t *irq, uint32_t v, void *param)
     rf->seln = (int)v;
     if (!v)
         rf->pos = 0;                        /* a new SPI access begins */
+    else if (rf->pos > 2 && (rf->cmd & 0xA0) == 0x20)
+        TRACE(rf, "frame %s done, %d bytes", (rf->cmd & 0x40) ? "write" : "read", rf->pos - 1);
 }
 
 static void pin_slp_tr(avr_irq_t *irq, uint32_t v, void *param)
@@ -543,6 +599,7 @@ int rf230_attach(emu_node_t *node, emu_channel_t *ch)
     avr->io[a].r.c = spdr_read;
     avr->io[a].r.param = rf;
 
+    fix_tifr1(avr);
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('B'), 0), pin_seln, rf);
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('B'), 7), pin_slp_tr, rf);
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('A'), 6), pin_rstn, rf);

@@ -106,6 +106,11 @@ def test_bring_up_states_and_pll_lock_irq(build):
     assert rx_on["status"] == "6"                    # RX_ON
 
 
+def test_pending_radio_irq_survives_clearing_another_timer1_flag(build):
+    (con,), _ = run(build, [(build("tifr", ROLE=4), 1)], ms=20)
+    assert lines(con, "tifr")[0] == {"pending": "1", "kept": "1", "isr": "1", "cleared": "1"}
+
+
 @pytest.mark.parametrize("length", [5, 20, 127])
 def test_frames_from_a_to_b(build, length):
     """Every frame arrives once, in order, with a good FCS (computed by the

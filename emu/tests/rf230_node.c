@@ -10,6 +10,7 @@
  *   ROLE_RX   listens and checks every frame's FCS in software, as TinyOS
  *             does (_crc_ccitt_update over PSDU incl. FCS must be 0)
  *   ROLE_CCA  runs clear channel assessments back to back and counts them
+ *   ROLE_TIFR a pending radio interrupt survives clearing OCF1A in TIFR1
  * Lines go out on UART0 at 250000 baud; the Python test reads them.
  */
 #include <avr/io.h>
@@ -21,6 +22,7 @@
 #define ROLE_TX 1
 #define ROLE_RX 2
 #define ROLE_CCA 3
+#define ROLE_TIFR 4
 #ifndef ROLE
 #define ROLE ROLE_TX
 #endif
@@ -292,6 +294,32 @@ static void role(void)
     puts_("rx_summary");
     kv("ok", ok);
     kv("bad", bad);
+    putch('\n');
+}
+#elif ROLE == ROLE_TIFR
+/* the radio interrupt pending while interrupts are off must survive
+ * clearing another timer 1 flag (TinyOS clears OCF1A when it arms its
+ * radio alarm): simavr 1.6 cleared all of them */
+static void role(void)
+{
+    reg_write(TRX_STATE, ST_TRX_OFF);
+    reg_read(IRQ_STATUS);
+    uint8_t seen = irq_count;
+    cli();
+    reg_write(TRX_STATE, ST_RX_ON);                 /* PLL_LOCK in 180 us */
+    uint16_t t0 = TCNT1;
+    while ((uint16_t)(TCNT1 - t0) < 400);
+    uint8_t pending = (TIFR1 & _BV(ICF1)) != 0;
+    TIFR1 = _BV(OCF1A);
+    uint8_t kept = (TIFR1 & _BV(ICF1)) != 0;
+    sei();
+    wait_us(10);
+    puts_("tifr");
+    kv("pending", pending);
+    kv("kept", kept);
+    kv("isr", irq_count != seen);
+    TIFR1 = _BV(ICF1);
+    kv("cleared", !(TIFR1 & _BV(ICF1)));
     putch('\n');
 }
 #elif ROLE == ROLE_CCA

@@ -24,6 +24,8 @@
 #include "sim_elf.h"
 #include "sim_irq.h"
 #include "sim_cycle_timers.h"
+#include "sim_core.h"
+#include "sim_interrupts.h"
 #include "avr_uart.h"
 
 #include "emu.h"
@@ -48,6 +50,35 @@ uint64_t emu_global_now_ns(void)
 static void no_sleep(avr_t *avr, avr_cycle_count_t how_long)
 {
     (void)avr; (void)how_long;   /* run as fast as possible */
+}
+
+/* simavr 1.6's run loop with one change (the same as the full harness's
+ * node.c): an interrupt that became pending while interrupts were off is
+ * taken when SLEEP follows SEI, as on the AVR (SEI lets one more
+ * instruction run); TinyOS's McuSleep (sei; sleep; cli) needs it. */
+static void run_one(avr_t *avr)
+{
+    avr_flashaddr_t new_pc = avr->pc;
+    if (avr->state == cpu_Running) {
+        uint16_t op = (uint16_t)(avr->flash[avr->pc] | (avr->flash[avr->pc + 1] << 8));
+        new_pc = avr_run_one(avr);
+        if (op == 0x9588 && avr->state == cpu_Running && avr->sreg[S_I]
+            && avr->interrupt_state < 0 && avr_has_pending_interrupts(avr))
+            avr->interrupt_state = 1;
+    }
+    avr_cycle_count_t sleep = avr_cycle_timer_process(avr);
+    avr->pc = new_pc;
+    if (avr->state == cpu_Sleeping) {
+        if (!avr->sreg[S_I]) {
+            avr->state = cpu_Done;
+            return;
+        }
+        avr->cycle += 1 + sleep;
+    }
+    if (avr->state == cpu_Running || avr->state == cpu_Sleeping) {
+        if (avr->interrupt_state)
+            avr_service_interrupts(avr);
+    }
 }
 
 static void console_out(avr_irq_t *irq, uint32_t v, void *param)
@@ -184,6 +215,7 @@ int main(int argc, char **argv)
         close(devnull);
         avr->frequency = fw.frequency;
         avr->sleep = no_sleep;
+        avr->run = run_one;
         uint32_t flags = 0;
         avr_ioctl(avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
         flags &= ~(uint32_t)(AVR_UART_FLAG_STDIO | AVR_UART_FLAG_POLL_SLEEP);
@@ -252,6 +284,13 @@ int main(int argc, char **argv)
     for (int i = 0; i < nn; i++)            /* what is still on the line */
         uart_poll(nodes[i], g_now + 1000000000ull);
     for (int i = 0; i < nn; i++) {
+        fprintf(stderr, "node %d: cpu_state=%d cycles=%llu pc=0x%x\n", i, nodes[i]->avr->state,
+                (unsigned long long)nodes[i]->avr->cycle, nodes[i]->avr->pc);
+        if (getenv("RF230_TEST_DEBUG")) {
+            uint8_t *d = nodes[i]->avr->data;
+            fprintf(stderr, "  UCSR0A=%02x B=%02x C=%02x UBRR0=%02x%02x ASSR=%02x TCCR2A=%02x TCCR2B=%02x TCNT2=%02x OCR2A=%02x TIMSK2=%02x TIFR2=%02x TIMSK1=%02x TCCR1B=%02x SREG=%02x\n",
+                    d[0xC0], d[0xC1], d[0xC2], d[0xC5], d[0xC4], d[0xB6], d[0xB0], d[0xB1], d[0xB2], d[0xB3], d[0x70], d[0x37], d[0x6F], d[0x81], d[0x5F]);
+        }
         rf230_stats(nodes[i], stderr);
         uart_stats(nodes[i], stderr);
     }

@@ -10,6 +10,7 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -17,10 +18,13 @@ import pytest
 
 REPO = Path(__file__).resolve().parent.parent
 EMU = REPO / "emu"
-NODE_C = EMU / "tests" / "rf230_node.c"
-SIMAVR_H = Path("/usr/include/simavr/sim_avr.h")
+sys.path.insert(0, str(EMU / "tests"))
+import rf230_figures as F  # noqa: E402  (the build/run helpers, one definition)
+
+SIMAVR_H = F.SIMAVR_INC / "sim_avr.h"
 LIBELF_H = Path("/usr/include/libelf.h")
-BYTE_US = 32
+BYTE_US = F.BYTE_US
+fields, lines = F.fields, F.lines
 
 
 def _missing() -> list[str]:
@@ -42,54 +46,22 @@ def build(tmp_path_factory):
             pytest.fail(msg)
         pytest.skip(msg)
     d = tmp_path_factory.mktemp("emu-radio")
-    exe = d / "rf230-test"
-    cmd = ["gcc", "-std=gnu99", "-O2", "-Wall", "-Wextra", "-Werror",
-           f"-I{EMU}", f"-I{EMU / 'tests' / 'rf230_contract'}", f"-I{SIMAVR_H.parent}",
-           str(EMU / "tests" / "rf230_test_main.c"), str(EMU / "rf230.c"),
-           str(EMU / "channel.c"), str(EMU / "uart.c"), "-lsimavr", "-lelf", "-o", str(exe)]
-    res = subprocess.run(cmd, capture_output=True, text=True)
-    assert res.returncode == 0, res.stderr
 
     def elf(name: str, **defines) -> Path:
-        out = d / f"{name}.elf"
-        if not out.exists():
-            cmd = ["avr-gcc", "-mmcu=atmega1281", "-DF_CPU=8000000UL", "-Os", "-std=gnu99",
-                   "-Wall", "-Werror"] + [f"-D{k}={v}" for k, v in defines.items()] + [
-                   str(NODE_C), "-o", str(out)]
-            r = subprocess.run(cmd, capture_output=True, text=True)
-            assert r.returncode == 0, r.stderr
-        return out
+        return F.build_avr(d, name, **defines)
 
-    elf.exe = exe
+    elf.exe = F.build_harness(d)
     elf.dir = d
     return elf
 
 
 def run(build, nodes, *, loss=0.0, seed=1, ms=300.0, extra=()):
     """Run nodes [(elf, id)]; return (console text per node, stats text)."""
-    d = build.dir
-    args = [str(build.exe), "--loss", str(loss), "--seed", str(seed), "--ms", str(ms), *extra]
-    cons = []
-    for i, (elf, nid) in enumerate(nodes):
-        c = d / f"console-{os.getpid()}-{seed}-{i}-{len(nodes)}.txt"
-        cons.append(c)
-        args += ["--node", f"{elf},id={nid},console={c}"]
-    res = subprocess.run(args, capture_output=True, text=True, timeout=120)
-    assert res.returncode == 0, res.stderr
-    return [c.read_text() for c in cons], res.stderr
-
-
-def fields(line: str) -> dict:
-    return dict(kv.split("=", 1) for kv in line.split()[1:])
-
-
-def lines(text: str, tag: str) -> list[dict]:
-    return [fields(ln) for ln in text.splitlines() if ln.split()[:1] == [tag]]
+    return F.run(build.exe, nodes, loss=loss, seed=seed, ms=ms, extra=extra)
 
 
 def stat(stats: str, node: int) -> dict:
-    ln = next(ln for ln in stats.splitlines() if ln.startswith(f"rf230 node {node}:"))
-    return {k: int(v, 0) for k, v in (kv.split("=") for kv in ln.split(":", 1)[1].split())}
+    return F.stat(stats, f"rf230 node {node}:")
 
 
 def test_bring_up_states_and_pll_lock_irq(build):
@@ -205,18 +177,8 @@ def test_bad_arguments_one_line_exit_2(build):
 
 
 # ------------------------------------------------------------------ UART0
-UART_C = EMU / "tests" / "rf230_uart.c"
-
-
 def uart_elf(build, name: str, **defines) -> Path:
-    out = build.dir / f"{name}.elf"
-    if not out.exists():
-        cmd = ["avr-gcc", "-mmcu=atmega1281", "-DF_CPU=8000000UL", "-Os", "-std=gnu99",
-               "-Wall", "-Werror"] + [f"-D{k}={v}" for k, v in defines.items()] + [
-               str(UART_C), "-o", str(out)]
-        r = subprocess.run(cmd, capture_output=True, text=True)
-        assert r.returncode == 0, r.stderr
-    return out
+    return F.build_avr(build.dir, name, "rf230_uart.c", **defines)
 
 
 def start(build, elf, serial: str, ms: float, *extra: str):

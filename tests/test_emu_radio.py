@@ -107,6 +107,8 @@ def test_frames_from_a_to_b(build, length):
         # when both were pending at one edge (the program was still printing)
         assert int(r["start_to_end_us"]) in (0, *range(length * BYTE_US - 5, length * BYTE_US + 10)), r
     assert lines(crx, "rx_summary")[0] == {"ok": str(n), "bad": "0"}
+    starts = lines(crx, "rx_start")         # RX_START alone: BUSY_RX, energy on the air
+    assert starts and all(x == {"status": "01", "rssi": "11"} for x in starts)
     st = stat(stats, 0)
     assert st["tx"] == n and st["underrun"] == 0
     assert stat(stats, 1)["rx_ok"] == n

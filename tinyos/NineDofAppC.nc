@@ -36,6 +36,7 @@ implementation
   App.Leds -> LedsC;
   App.BoardControl -> Board;
   App.Board -> Board;
+  App.Health -> Board;
   App.Alarm -> Alarm;
   App.Crystal -> Crystal;
   App.Atm128Calibrate -> PlatformC;

@@ -33,6 +33,12 @@
  * BaseStation forwards it twice (the logger drops the duplicate).  The sample, status and reply buffers take
  * turns on the radio (AMSenderC's round robin).
  *
+ * The board's watchdog (NineDofHealth.tick, ninedof_fault.h) runs on the
+ * 125 Hz alarm: a read still under way two periods after it began is
+ * aborted and the bus recovered, so sampling never stops for good; a chip
+ * that was reset is found by a read-back and configured again.  NACKs,
+ * watchdog aborts and re-initialisations are counted.
+ *
  * LEDs: red    on   = sensor board not answering (retried every second);
  *              flash = a failed sensor read (on for FLASH_TICKS, then off;
  *                      a run of failures keeps it on)
@@ -53,6 +59,7 @@ module NineDofAppP @safe()
     interface Leds;
     interface SplitControl as BoardControl;
     interface ReadNow<ninedof_raw_t> as Board;
+    interface NineDofHealth as Health;
     interface Alarm<T32khz, uint32_t> as Alarm;
     interface LocalTime<TMilli> as Crystal;
     interface Atm128Calibrate;
@@ -143,6 +150,7 @@ implementation
 
     call RadioControl.start();
     call BoardControl.start();
+    call RetryTimer.startPeriodic(RETRY_TICKS);
   }
 
   /* Arm the alarm for alarmTarget relative to now, never for a time in the
@@ -183,10 +191,10 @@ implementation
 
   event void BoardControl.startDone(error_t err) {
     if (err != SUCCESS) {
-      call Leds.led0On();                     /* board not answering */
-      call RetryTimer.startOneShot(RETRY_TICKS);
+      call Leds.led0On();                     /* board not answering: RetryTimer */
       return;
     }
+    call RetryTimer.stop();
     call Leds.led0Off();
     boardOn = TRUE;
     startSampling();
@@ -194,9 +202,12 @@ implementation
 
   event void BoardControl.stopDone(error_t err) { }
 
+  /* Every second until the board has started: the board's watchdog tick
+   * (a start that hangs on the bus is aborted within two), and the start
+   * again (SUCCESS without a second start while one is under way). */
   event void RetryTimer.fired() {
-    if (call BoardControl.start() != SUCCESS)
-      call RetryTimer.startOneShot(RETRY_TICKS);
+    call Health.tick();
+    call BoardControl.start();
   }
 
   /* ------------------------------------------------------ 125 Hz period */
@@ -207,6 +218,7 @@ implementation
     /* next period from this one's expiry, as long as the crystal says */
     alarmTarget += ninedof_clock_next(&clock, call Crystal.get());
     armAlarm();
+    call Health.tick();                       /* a read that hangs is aborted */
     atomic {
       seq = counters.seq++;
       busy = reading;

@@ -65,6 +65,8 @@ uint8_t ninedof_fault_check_done(ninedof_fault_t *f, uint8_t chip, uint8_t outco
                                  uint8_t value)
 {
   const ninedof_chip_t *c = &NINEDOF_CHIP[chip];
+  if (outcome == NINEDOF_OP_NACK)
+    f->n.nacks++;
   if (outcome != NINEDOF_OP_OK) {
     f->check_mask |= (uint8_t)(1u << chip);
     return 0;
@@ -74,6 +76,8 @@ uint8_t ninedof_fault_check_done(ninedof_fault_t *f, uint8_t chip, uint8_t outco
 
 void ninedof_fault_reinit_done(ninedof_fault_t *f, uint8_t chip, uint8_t outcome)
 {
+  if (outcome == NINEDOF_OP_NACK)
+    f->n.nacks++;
   if (outcome == NINEDOF_OP_OK)
     f->n.chip_reinits++;
   else

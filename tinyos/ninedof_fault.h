@@ -105,12 +105,13 @@ uint8_t ninedof_fault_check_pick(ninedof_fault_t *f);
 
 /* The witness read of `chip` ended with `outcome` and `value`.  Returns 1
  * when the chip must be configured again (its witness is not the
- * configured value); a failed read puts the chip back in the chips due. */
+ * configured value); a failed read puts the chip back in the chips due
+ * (a NACK is counted).  The sample read before it stands either way. */
 uint8_t ninedof_fault_check_done(ninedof_fault_t *f, uint8_t chip, uint8_t outcome,
                                  uint8_t value);
 
 /* The register table of `chip` was written again: counted if it
- * succeeded, else the chip is due for another check. */
+ * succeeded, else the chip is due for another check (a NACK is counted). */
 void ninedof_fault_reinit_done(ninedof_fault_t *f, uint8_t chip, uint8_t outcome);
 
 /* ---------------------------------------------------------------------- */

@@ -254,11 +254,14 @@ static void test_decisions(void)
     CHECK(f.n.chip_reinits == 1 && ninedof_fault_check_pick(&f) == NINEDOF_CHECK_NONE);
     /* a failed check or re-init: the chip is checked again with the next read */
     CHECK(!ninedof_fault_check_done(&f, NINEDOF_CHIP_MAG, NINEDOF_OP_NACK, 0));
-    CHECK(ninedof_fault_check_pick(&f) == NINEDOF_CHIP_MAG);
+    CHECK(ninedof_fault_check_pick(&f) == NINEDOF_CHIP_MAG && f.n.nacks == 1);
     ninedof_fault_reinit_done(&f, NINEDOF_CHIP_ACCEL, NINEDOF_OP_FAIL);
     CHECK(f.n.chip_reinits == 1 && ninedof_fault_check_pick(&f) == NINEDOF_CHIP_ACCEL);
+    ninedof_fault_reinit_done(&f, NINEDOF_CHIP_ACCEL, NINEDOF_OP_NACK);
+    CHECK(f.n.nacks == 2 && ninedof_fault_check_pick(&f) == NINEDOF_CHIP_ACCEL);
   }
   /* counters wrap */
+  ninedof_fault_init(&f);
   f.n.nacks = 0xFFFF;
   ninedof_fault_begin(&f);
   ninedof_fault_end(&f, NINEDOF_OP_NACK);

@@ -26,7 +26,7 @@
  *
  * @author motecal
  */
-#include "NineDofBoard.h"
+#include "NineDofChip.h"
 
 generic module NineDofChipP(uint8_t chip) @safe()
 {

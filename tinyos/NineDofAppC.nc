@@ -19,17 +19,11 @@ implementation
   components ActiveMessageC as Radio;
   components new AMSenderC(AM_NINEDOF_SAMPLES_MSG) as SampleSend;
   components new AMSenderC(AM_NINEDOF_MOTE_STATUS_MSG) as StatusSend;
-  components new AMSenderC(AM_NINEDOF_CAL_FRAG_ACK_MSG) as FragAckSend;
-  components new AMSenderC(AM_NINEDOF_CAL_COMMIT_ACK_MSG) as CommitAckSend;
-  components new AMSenderC(AM_NINEDOF_CAL_REPORT_MSG) as ReportSend;
-  components new AMReceiverC(AM_NINEDOF_CAL_FRAG_MSG) as FragReceive;
-  components new AMReceiverC(AM_NINEDOF_CAL_COMMIT_MSG) as CommitReceive;
-  components new AMReceiverC(AM_NINEDOF_CAL_QUERY_MSG) as QueryReceive;
+  components NineDofCalibrationC as Calibration;
   components new PoolC(message_t, NINEDOF_SEND_QUEUE) as SamplePool;
   components new QueueC(message_t*, NINEDOF_SEND_QUEUE) as SendQueue;
   components new TimerMilliC() as StatusTimer;
   components new TimerMilliC() as RetryTimer;
-  components new TimerMilliC() as EepromTimer;
   components new TimerMilliC() as FlashTimer;
 
   App.Boot -> MainC;
@@ -43,19 +37,12 @@ implementation
   App.RadioControl -> Radio;
   App.SampleSend -> SampleSend;
   App.StatusSend -> StatusSend;
-  App.FragAckSend -> FragAckSend;
-  App.CommitAckSend -> CommitAckSend;
-  App.ReportSend -> ReportSend;
-  App.FragReceive -> FragReceive;
-  App.CommitReceive -> CommitReceive;
-  App.QueryReceive -> QueryReceive;
-  App.AMPacket -> Radio;
+  App.Calibration -> Calibration;
   App.Acks -> SampleSend;
   App.PacketLink -> Radio;
   App.SamplePool -> SamplePool;
   App.SendQueue -> SendQueue;
   App.StatusTimer -> StatusTimer;
   App.RetryTimer -> RetryTimer;
-  App.EepromTimer -> EepromTimer;
   App.FlashTimer -> FlashTimer;
 }

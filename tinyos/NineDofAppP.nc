@@ -34,7 +34,7 @@
  * turns on the radio (AMSenderC's round robin).
  *
  * The board's watchdog (NineDofHealth.tick, ninedof_fault.h) runs on the
- * 125 Hz alarm: a read still under way two periods after it began is
+ * 125 Hz alarm: a read still under way 16 ms (two periods) after it began is
  * aborted and the bus recovered, so sampling never stops for good; a chip
  * that was reset is found by a read-back and configured again.  NACKs,
  * watchdog aborts and re-initialisations are counted.
@@ -182,8 +182,9 @@ implementation
   event void BoardControl.stopDone(error_t err) { }
 
   /* Every second until the board has started: the board's watchdog tick
-   * (a start that hangs on the bus is aborted within two), and the start
-   * again (SUCCESS without a second start while one is under way). */
+   * (a start that hangs on the bus is aborted at the first tick 16 ms or
+   * more after it began), and the start again (SUCCESS without a second
+   * start while one is under way, TEP 115). */
   event void RetryTimer.fired() {
     call Health.tick();
     call BoardControl.start();

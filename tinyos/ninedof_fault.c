@@ -13,9 +13,10 @@ void ninedof_fault_init(ninedof_fault_t *f)
   f->check_wait = NINEDOF_CHECK_TICKS;
 }
 
-void ninedof_fault_begin(ninedof_fault_t *f)
+void ninedof_fault_begin(ninedof_fault_t *f, uint16_t now_ms)
 {
   f->busy = 1;
+  f->since = now_ms;
   f->aborted = 0;
 }
 
@@ -32,18 +33,16 @@ uint8_t ninedof_fault_end(ninedof_fault_t *f, uint8_t outcome)
   return outcome;
 }
 
-uint8_t ninedof_fault_tick(ninedof_fault_t *f)
+uint8_t ninedof_fault_tick(ninedof_fault_t *f, uint16_t now_ms)
 {
   if (--f->check_wait == 0) {
     f->check_wait = NINEDOF_CHECK_TICKS;
     f->check_mask |= (uint8_t)(1u << f->check_next);
     f->check_next = (uint8_t)((f->check_next + 1) % NINEDOF_CHIPS);
   }
-  if (!f->busy)
+  if (!f->busy || (uint16_t)(now_ms - f->since) < NINEDOF_I2C_TIMEOUT_MS)
     return NINEDOF_FAULT_NONE;
-  if (++f->busy <= NINEDOF_I2C_TIMEOUT_TICKS)
-    return NINEDOF_FAULT_NONE;
-  f->busy = 1;                      /* the bound starts again */
+  f->since = now_ms;                /* the bound starts again */
   f->aborted = 1;
   f->n.bus_resets++;
   return NINEDOF_FAULT_ABORT;

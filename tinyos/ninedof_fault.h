@@ -9,14 +9,17 @@
  * mote's status message):
  *
  *  1. Watchdog.  The board calls ninedof_fault_tick() once per sampling
- *     period (8 ms).  An operation (a sample read, a start or a stop) that
- *     is still under way at its NINEDOF_I2C_TIMEOUT_TICKS-th tick (8 to 16
- *     ms after it began; a sample read takes 1.5 ms) is aborted: the board
- *     clears the bus (below), re-initialises the TWI and makes the master
- *     end the operation with an error.  If that too does not end it, the
- *     next NINEDOF_I2C_TIMEOUT_TICKS ticks abort it again, and so on: the
- *     board never stays stuck, it keeps recovering until the bus works.
- *     Counted in bus_resets.
+ *     period (8 ms) with the time (binary ms of the crystal).  An operation
+ *     (a sample read, a start or a stop) that has run NINEDOF_I2C_TIMEOUT_MS
+ *     or longer at a tick (16 ms: 16 to 24 ms after it began, with ticks
+ *     8 ms apart; a sample read takes 1.5 ms) is aborted: the board clears
+ *     the bus (below), re-initialises the TWI and makes the master end the
+ *     operation with an error.  If that too does not end it, it is aborted
+ *     again NINEDOF_I2C_TIMEOUT_MS later, and so on: the board never stays
+ *     stuck, it keeps recovering until the bus works.  Counted in
+ *     bus_resets.  The bound is time, not a count of ticks, so ticks that
+ *     come in a burst (a late timer catching up) never abort an operation
+ *     that has not had its time.
  *
  *  2. Bus clear (UM10204, I2C-bus specification, 3.1.16).  With the TWI
  *     off, SCL is clocked by hand until the slave that holds SDA low (it
@@ -44,8 +47,8 @@
 
 #include <stdint.h>
 
-#ifndef NINEDOF_I2C_TIMEOUT_TICKS
-#define NINEDOF_I2C_TIMEOUT_TICKS 2     /* ticks an operation may see before it is aborted */
+#ifndef NINEDOF_I2C_TIMEOUT_MS
+#define NINEDOF_I2C_TIMEOUT_MS 16       /* binary ms an operation may run before it is aborted */
 #endif
 #ifndef NINEDOF_CHECK_TICKS
 #define NINEDOF_CHECK_TICKS 125         /* one witness read per second (each chip every 3 s) */
@@ -76,7 +79,8 @@ enum { NINEDOF_CHECK_NONE = 0xFF };
 
 typedef struct {
   ninedof_fault_counters_t n;
-  uint8_t busy;            /* 0: no operation; else 1 + ticks it has seen */
+  uint8_t busy;            /* an operation is under way */
+  uint16_t since;          /* ... since this time (ms), or its last abort */
   uint8_t aborted;         /* the operation under way has been aborted */
   uint8_t check_wait;      /* ticks until the next scheduled check */
   uint8_t check_next;      /* chip of the next scheduled check */
@@ -85,19 +89,21 @@ typedef struct {
 
 void ninedof_fault_init(ninedof_fault_t *f);
 
-/* An operation began (the board has asked for the bus). */
-void ninedof_fault_begin(ninedof_fault_t *f);
+/* An operation began (the board has asked for the bus) at now_ms. */
+void ninedof_fault_begin(ninedof_fault_t *f, uint16_t now_ms);
 
 /* The operation ended with `outcome` (NINEDOF_OP_*); if it had been
  * aborted, it counts as NINEDOF_OP_ABORTED whatever error the master gave.
  * Returns the outcome counted. */
 uint8_t ninedof_fault_end(ninedof_fault_t *f, uint8_t outcome);
 
-/* Once per sampling period, from any context: NINEDOF_FAULT_ABORT when the
- * operation under way has reached its bound (counted in bus_resets; the
- * bound starts again, so a master that still does not end it is aborted
- * again NINEDOF_I2C_TIMEOUT_TICKS later); else NINEDOF_FAULT_NONE. */
-uint8_t ninedof_fault_tick(ninedof_fault_t *f);
+/* Once per sampling period, from any context, at now_ms:
+ * NINEDOF_FAULT_ABORT when the operation under way has run
+ * NINEDOF_I2C_TIMEOUT_MS (counted in bus_resets; the bound starts again, so
+ * a master that still does not end it is aborted again
+ * NINEDOF_I2C_TIMEOUT_MS later); else NINEDOF_FAULT_NONE.  Also moves the
+ * check schedule on by one tick. */
+uint8_t ninedof_fault_tick(ninedof_fault_t *f, uint16_t now_ms);
 
 /* A sample read has its nine axes: the chip whose witness to read back now
  * (and removes it from the chips due), or NINEDOF_CHECK_NONE. */

@@ -190,30 +190,49 @@ static void test_chip_table(void)
 static void test_decisions(void)
 {
   ninedof_fault_t f;
-  uint16_t t;
+  uint16_t t, now;
   uint8_t picks[3], n;
 
   ninedof_fault_init(&f);
-  /* an operation that ends within its period is never aborted */
-  for (t = 0; t < 500; t++) {
-    ninedof_fault_begin(&f);
+  /* an operation that ends within its period is never aborted (the clock
+   * wraps on the way) */
+  for (t = 0, now = 0xFF00; t < 500; t++, now += 8) {
+    ninedof_fault_begin(&f, (uint16_t)(now + 1));
     CHECK(ninedof_fault_end(&f, NINEDOF_OP_OK) == NINEDOF_OP_OK);
-    CHECK(ninedof_fault_tick(&f) == NINEDOF_FAULT_NONE);
+    CHECK(ninedof_fault_tick(&f, now) == NINEDOF_FAULT_NONE);
   }
   CHECK(f.n.bus_resets == 0 && f.n.nacks == 0);
 
-  /* a hung one: aborted at its NINEDOF_I2C_TIMEOUT_TICKS-th tick, and
-   * again every NINEDOF_I2C_TIMEOUT_TICKS ticks until it ends */
+  /* a hung one, begun at a tick (as the mote's reads are), ticks 8 ms
+   * apart: aborted at the first tick NINEDOF_I2C_TIMEOUT_MS after it
+   * began, and again every NINEDOF_I2C_TIMEOUT_MS until it ends */
   ninedof_fault_init(&f);
-  ninedof_fault_begin(&f);
-  for (t = 1; t <= 5 * NINEDOF_I2C_TIMEOUT_TICKS; t++)
-    CHECK(ninedof_fault_tick(&f) == (t % NINEDOF_I2C_TIMEOUT_TICKS == 0
-                                     ? NINEDOF_FAULT_ABORT : NINEDOF_FAULT_NONE));
+  ninedof_fault_begin(&f, 0xFFF8);
+  for (t = 1, now = 0xFFF8; t <= 10; t++) {
+    now += 8;
+    CHECK(ninedof_fault_tick(&f, now) == (t % 2 == 0 ? NINEDOF_FAULT_ABORT : NINEDOF_FAULT_NONE));
+  }
   CHECK(f.n.bus_resets == 5);
   /* it ends with whatever the master says: counted as aborted, not a NACK */
   CHECK(ninedof_fault_end(&f, NINEDOF_OP_NACK) == NINEDOF_OP_ABORTED && f.n.nacks == 0);
   for (t = 0; t < 10; t++)
-    CHECK(ninedof_fault_tick(&f) == NINEDOF_FAULT_NONE);
+    CHECK(ninedof_fault_tick(&f, (uint16_t)(now + 100 * t)) == NINEDOF_FAULT_NONE);
+  /* begun 1 ms after a tick: aborted at the third tick (23 ms) */
+  ninedof_fault_begin(&f, 1);
+  CHECK(ninedof_fault_tick(&f, 8) == NINEDOF_FAULT_NONE && ninedof_fault_tick(&f, 16) == NINEDOF_FAULT_NONE);
+  CHECK(ninedof_fault_tick(&f, 24) == NINEDOF_FAULT_ABORT);
+  ninedof_fault_end(&f, NINEDOF_OP_FAIL);
+  while (ninedof_fault_check_pick(&f) != NINEDOF_CHECK_NONE)
+    ;
+  /* ticks in a burst (a late timer catching up) abort nothing that has
+   * not run NINEDOF_I2C_TIMEOUT_MS */
+  ninedof_fault_begin(&f, 1000);
+  for (t = 0; t < 20; t++)
+    CHECK(ninedof_fault_tick(&f, 1000 + NINEDOF_I2C_TIMEOUT_MS - 1) == NINEDOF_FAULT_NONE);
+  CHECK(ninedof_fault_tick(&f, 1000 + NINEDOF_I2C_TIMEOUT_MS) == NINEDOF_FAULT_ABORT);
+  CHECK(ninedof_fault_tick(&f, 1000 + NINEDOF_I2C_TIMEOUT_MS) == NINEDOF_FAULT_NONE);
+  ninedof_fault_end(&f, NINEDOF_OP_FAIL);
+  CHECK(f.n.bus_resets == 7);
   /* ... and every chip gets checked with the next three reads */
   for (n = 0; n < 3; n++)
     picks[n] = ninedof_fault_check_pick(&f);
@@ -221,11 +240,11 @@ static void test_decisions(void)
   CHECK(ninedof_fault_check_pick(&f) == NINEDOF_CHECK_NONE);
 
   /* NACKs are counted, other failures not */
-  ninedof_fault_begin(&f);
+  ninedof_fault_begin(&f, 0);
   ninedof_fault_end(&f, NINEDOF_OP_NACK);
-  ninedof_fault_begin(&f);
+  ninedof_fault_begin(&f, 0);
   ninedof_fault_end(&f, NINEDOF_OP_FAIL);
-  CHECK(f.n.nacks == 1 && f.n.bus_resets == 5);
+  CHECK(f.n.nacks == 1 && f.n.bus_resets == 7);
   while (ninedof_fault_check_pick(&f) != NINEDOF_CHECK_NONE)
     ;
 
@@ -233,7 +252,7 @@ static void test_decisions(void)
   ninedof_fault_init(&f);
   for (t = 1, n = 0; t <= 6 * NINEDOF_CHECK_TICKS; t++) {
     uint8_t c;
-    ninedof_fault_tick(&f);
+    ninedof_fault_tick(&f, (uint16_t)(8 * t));
     c = ninedof_fault_check_pick(&f);
     if (t % NINEDOF_CHECK_TICKS == 0) {
       CHECK(c == n % 3);
@@ -263,7 +282,7 @@ static void test_decisions(void)
   /* counters wrap */
   ninedof_fault_init(&f);
   f.n.nacks = 0xFFFF;
-  ninedof_fault_begin(&f);
+  ninedof_fault_begin(&f, 0);
   ninedof_fault_end(&f, NINEDOF_OP_NACK);
   CHECK(f.n.nacks == 0);
 }
@@ -309,7 +328,7 @@ static void test_scenario(void)
       first_wrong[NINEDOF_CHIP_MAG] = t;
     }
     /* the period: the watchdog first, then a read if none is under way */
-    if (ninedof_fault_tick(&f) == NINEDOF_FAULT_ABORT) {
+    if (ninedof_fault_tick(&f, (uint16_t)(8 * t)) == NINEDOF_FAULT_ABORT) {
       if (t >= HANG_END) {                     /* the bus clear worked */
         ninedof_fault_end(&f, NINEDOF_OP_FAIL);
         reading = 0;
@@ -320,7 +339,7 @@ static void test_scenario(void)
       late++;
       continue;
     }
-    ninedof_fault_begin(&f);
+    ninedof_fault_begin(&f, (uint16_t)(8 * t));
     if (t == HANG) {                           /* the bus hangs: no end */
       reading = hung = 1;
       continue;
@@ -347,7 +366,7 @@ static void test_scenario(void)
   }
   CHECK(hung && !reading);
   CHECK(f.n.nacks == MAG_ON - MAG_OFF);
-  CHECK(f.n.bus_resets == (HANG_END - HANG + NINEDOF_I2C_TIMEOUT_TICKS - 1) / NINEDOF_I2C_TIMEOUT_TICKS);
+  CHECK(f.n.bus_resets == 4);          /* at HANG + 2, + 4, + 6, + 8 */
   CHECK(f.n.chip_reinits == 3);
   /* detection delays: a silent reset within one round of the schedule;
    * a chip that came back after NACKs within the three reads after */

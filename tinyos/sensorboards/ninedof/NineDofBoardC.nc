@@ -23,7 +23,7 @@ configuration NineDofBoardC
 }
 implementation
 {
-  components MainC, NineDofBoardP, NineDofBusP, new HplNineDofI2CC() as I2C;
+  components MainC, LocalTimeMilliC, NineDofBoardP, NineDofBusP, new HplNineDofI2CC() as I2C;
   components new NineDofChipP(NINEDOF_CHIP_ACCEL) as Accel;
   components new NineDofChipP(NINEDOF_CHIP_GYRO) as Gyro;
   components new NineDofChipP(NINEDOF_CHIP_MAG) as Mag;
@@ -37,6 +37,7 @@ implementation
   NineDofBusP.BusPacket -> I2C;
   NineDofBoardP.Bus -> NineDofBusP.Hold;
   NineDofBoardP.Recover -> I2C;
+  NineDofBoardP.Clock -> LocalTimeMilliC;
 
   Accel.Resource -> NineDofBusP.Share[NINEDOF_CHIP_ACCEL];
   Accel.I2CPacket -> NineDofBusP.I2CPacket[NINEDOF_CHIP_ACCEL];

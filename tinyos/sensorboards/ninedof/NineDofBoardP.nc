@@ -11,9 +11,9 @@
  * start -- releases the bus before it reports.
  *
  * Faults (decisions in ninedof_fault.c, see ninedof_fault.h):
- *  - Health.tick, once per sampling period, is the watchdog's clock: an
- *    operation that has not ended by its NINEDOF_I2C_TIMEOUT_TICKS-th tick
- *    is aborted through Recover (bus clear, TWI re-initialised, the master
+ *  - Health.tick, once per sampling period, runs the watchdog: an
+ *    operation that has run NINEDOF_I2C_TIMEOUT_MS (16 binary ms of the
+ *    crystal, LocalTime<TMilli>) at a tick is aborted through Recover (bus clear, TWI re-initialised, the master
  *    ends the transfer with an error) and ends with that error.
  *  - After the nine axes of a sample, one chip's witness register may be
  *    read back (on a schedule, and for every chip after a failure); a chip
@@ -39,6 +39,7 @@ module NineDofBoardP @safe()
   uses {
     interface Resource as Bus;
     interface NineDofI2CRecover as Recover;
+    interface LocalTime<TMilli> as Clock;
     interface SplitControl as ChipControl[uint8_t chip];
     interface ReadNow<ninedof_xyz_t> as Chip[uint8_t chip];
     interface NineDofRegisters as Registers[uint8_t chip];
@@ -67,10 +68,16 @@ implementation
     return (err == ENOACK || err == EOFF) ? NINEDOF_OP_NACK : NINEDOF_OP_FAIL;
   }
 
+  /* binary ms of the crystal, for the watchdog */
+  uint16_t now() {
+    return (uint16_t)call Clock.get();
+  }
+
   /* ---- the watchdog ---- */
   async command void Health.tick() {
     uint8_t act;
-    atomic act = ninedof_fault_tick(&fault);
+    uint16_t t = now();
+    atomic act = ninedof_fault_tick(&fault, t);
     if (act == NINEDOF_FAULT_ABORT)
       call Recover.recover();             /* the operation's done event follows */
   }
@@ -138,6 +145,7 @@ implementation
 
   error_t configure(uint8_t from, uint8_t to, uint8_t done) {
     error_t err;
+    uint16_t t = now();
     atomic {
       if (power == to)
         return SUCCESS;          /* the done event under way */
@@ -146,7 +154,7 @@ implementation
       if (power != from || reading)
         return EBUSY;
       power = to;
-      ninedof_fault_begin(&fault);
+      ninedof_fault_begin(&fault, t);
     }
     err = call Bus.request();
     if (err != SUCCESS) {
@@ -184,13 +192,14 @@ implementation
 
   async command error_t ReadNow.read() {
     error_t err;
+    uint16_t t = now();
     atomic {
       if (power != B_ON)
         return power == B_OFF ? EOFF : EBUSY;
       if (reading)
         return EBUSY;
       reading = TRUE;
-      ninedof_fault_begin(&fault);
+      ninedof_fault_begin(&fault, t);
     }
     if (call Bus.immediateRequest() == SUCCESS) {
       err = call Chip.read[0]();

@@ -1,7 +1,8 @@
 /*
  * ReadAdxl345AppC -- the smallest use of one chip driver: an ADXL345
- * (Adxl345C) read with TinyOS's Read<> once a second, printed as text on
- * the serial line.
+ * (Adxl345C) read with TinyOS's ReadStream<> once after start (two buffers
+ * of 4 values, 10 ms apart) and then with Read<> once a second, printed as
+ * text on the serial line.
  *
  * @author motecal
  */
@@ -19,6 +20,7 @@ implementation
   App.Leds -> LedsC;
   App.AccelControl -> Accel;
   App.Accel -> Accel;
+  App.Stream -> Accel;
   App.Timer -> Timer;
   App.Serial -> SerialPrintfC;
 }

@@ -16,6 +16,7 @@ module ReadAdxl345P
     interface Leds;
     interface SplitControl as AccelControl;
     interface Read<ninedof_xyz_t> as Accel;
+    interface ReadStream<ninedof_xyz_t> as Stream;
     interface Timer<TMilli>;
     interface StdControl as Serial;
   }
@@ -23,7 +24,8 @@ module ReadAdxl345P
 implementation
 {
   uint16_t n;
-  bool on = FALSE;
+  bool on = FALSE, streaming = FALSE;
+  ninedof_xyz_t buf[2][4];
 
   event void Boot.booted() {
     call Serial.start();
@@ -34,6 +36,21 @@ implementation
   event void AccelControl.startDone(error_t err) {
     on = err == SUCCESS;
     printf("adxl345 start %d\r\n", err);
+    if (on && call Stream.postBuffer(buf[0], 4) == SUCCESS &&
+        call Stream.postBuffer(buf[1], 4) == SUCCESS &&
+        call Stream.read(10000) == SUCCESS)
+      streaming = TRUE;
+  }
+
+  event void Stream.bufferDone(error_t err, ninedof_xyz_t *b, uint16_t count) {
+    uint16_t i;
+    for (i = 0; i < count; i++)
+      printf("adxl345 stream %d %d %d %d\r\n", err, b[i].xyz[0], b[i].xyz[1], b[i].xyz[2]);
+  }
+
+  event void Stream.readDone(error_t err, uint32_t usPeriod) {
+    streaming = FALSE;
+    printf("adxl345 stream done %d %lu\r\n", err, usPeriod);
   }
 
   event void AccelControl.stopDone(error_t err) { }
@@ -43,6 +60,8 @@ implementation
       call AccelControl.start();          /* not answering yet: again */
       return;
     }
+    if (streaming)
+      return;
     if (call Accel.read() != SUCCESS)
       call Leds.led0Toggle();
   }

@@ -6,7 +6,8 @@
  * Each read triggers the next single measurement and returns the one the
  * read before triggered (reads must be 6 ms or more apart; the first read
  * after start returns the measurement the start triggered).
- * ReadNow<> is the same read from any context (async).
+ * ReadStream<ninedof_xyz_t> (TEP 114) fills buffers at a period (rounded
+ * to binary ms); ReadNow<> is one read from any context (async).
  *
  * Each instance is its own client of the arbitrated I2C bus, like
  * tos/chips/sht21's generic configurations; the register-table driver is
@@ -21,6 +22,7 @@ generic configuration Hmc5883lC()
 {
   provides interface SplitControl;
   provides interface Read<ninedof_xyz_t>;
+  provides interface ReadStream<ninedof_xyz_t>;
   provides interface ReadNow<ninedof_xyz_t>;
 }
 implementation
@@ -29,5 +31,6 @@ implementation
 
   SplitControl = Chip;
   Read = Chip;
+  ReadStream = Chip;
   ReadNow = Chip;
 }

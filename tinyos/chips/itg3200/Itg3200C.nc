@@ -4,7 +4,8 @@
  * (ninedof_board.c), or puts it to sleep; Read<ninedof_xyz_t> (TEP 114)
  * returns x, y, z in counts:
  * 14.375 LSB/(deg/s) (+-2000 deg/s, 42 Hz low-pass, 250 Hz output).
- * ReadNow<> is the same read from any context (async).
+ * ReadStream<ninedof_xyz_t> (TEP 114) fills buffers at a period (rounded
+ * to binary ms); ReadNow<> is one read from any context (async).
  *
  * Each instance is its own client of the arbitrated I2C bus, like
  * tos/chips/sht21's generic configurations; the register-table driver is
@@ -19,6 +20,7 @@ generic configuration Itg3200C()
 {
   provides interface SplitControl;
   provides interface Read<ninedof_xyz_t>;
+  provides interface ReadStream<ninedof_xyz_t>;
   provides interface ReadNow<ninedof_xyz_t>;
 }
 implementation
@@ -27,5 +29,6 @@ implementation
 
   SplitControl = Chip;
   Read = Chip;
+  ReadStream = Chip;
   ReadNow = Chip;
 }

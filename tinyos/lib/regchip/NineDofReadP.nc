@@ -44,6 +44,8 @@ implementation
 
   async event void ReadNow.readDone(error_t err, ninedof_xyz_t v) {
     atomic {
+      if (!busy)
+        return;                     /* another user's read (ReadStream<>) */
       result = err;
       value = v;
     }

@@ -357,6 +357,7 @@ implementation
   event void StatusTimer.fired() {
     ninedof_mote_status_msg_t *p;
     ninedof_counters_t c;
+    ninedof_fault_counters_t faults;
     if (statusBusy)
       return;
     p = (ninedof_mote_status_msg_t *)call StatusSend.getPayload(
@@ -364,7 +365,8 @@ implementation
     if (p == NULL)
       return;
     atomic c = counters;
-    ninedof_status_pack(&c, call Calibration.inForce(), p);
+    faults = call Health.counters();
+    ninedof_status_pack(&c, &faults, call Calibration.inForce(), p);
     call PacketLink.setRetries(&statusMsg, 0);          /* no ack: the next one follows */
     if (call StatusSend.send(BASESTATION, &statusMsg, sizeof(ninedof_mote_status_msg_t))
         == SUCCESS)

@@ -31,25 +31,25 @@ implementation
   };
 
   async command uint8_t NineDofI2CRecover.recover() {
-    uint8_t r;
-    bool waiting;
+    uint8_t r, was;
     atomic {
       /* the stock master enables the TWI interrupt with each command and
        * disables it when an operation ends: set = an operation waits */
-      waiting = (TWCR & (1 << TWIE)) != 0;
+      was = TWCR;
       TWCR = 0;                               /* TWI off: the pins are ours */
     }
     r = call NineDofBusClear.clear();
     atomic {
       TWSR &= ~((1 << TWPS1) | (1 << TWPS0));
       TWBR = TWBR_FAST;
-      if (waiting)
+      if (was & (1 << TWIE))
         /* a START with its interrupt: the stock master's handler runs and
          * ends (or continues) the operation it was stuck in */
         TWCR = (1 << TWINT) | (1 << TWSTA) | (1 << TWEN) | (1 << TWIE);
       else
-        TWCR = 1 << TWEN;                     /* idle (an interrupt nobody
-                                                 handles would repeat for ever) */
+        /* no operation in the master: on or off as it was, no command (an
+         * interrupt nobody handles would repeat for ever) */
+        TWCR = was & (1 << TWEN);
     }
     return r;
   }

@@ -3,6 +3,7 @@ bus_resets, chip_reinits, appended; tinyos/ninedof_fault.h counts them) on
 the host: the new message decodes with them, a mote built before them sends
 the shorter message and is still understood, and the simulated mote sends the
 firmware's layout."""
+from motecal.capture.link import MoteLink
 from motecal.line import protocol as P
 
 from test_sim_network import make_net, run_all
@@ -42,3 +43,16 @@ def test_simulated_mote_sends_the_firmware_layout():
         assert len(am.payload) == P.MOTE_STATUS.size == 20
         msg = P.decode_message(am)
         assert [msg[k] for k in P.MOTE_STATUS_FAULTS] == [0, 0, 0]   # no bus faults simulated
+
+
+def test_the_link_keeps_the_fault_counters_of_new_and_old_motes():
+    link = MoteLink(7)
+    new = P.decode_message(_am(P.MOTE_STATUS.pack(late=1, i2c_nacks=4, bus_resets=5,
+                                                  chip_reinits=6)))
+    link.status(new)
+    assert [link.c[k] for k in ("mote_late", "mote_i2c_nacks", "mote_bus_resets",
+                                "mote_chip_reinits")] == [1, 4, 5, 6]
+    old = P.decode_message(_am(P.MOTE_STATUS.pack(late=2)[:14]))
+    link.status(old)                               # an older mote: the rest stays as it was
+    assert link.c["mote_late"] == 2 and link.c["status_msgs"] == 2
+    assert link.c["mote_bus_resets"] == 5

@@ -154,7 +154,6 @@ implementation
       alarmTarget = call Alarm.getNow() + ninedof_clock_first(&clock);
       armAlarm();
     }
-    call StatusTimer.startPeriodic(STATUS_TICKS);
   }
 
   event void RadioControl.startDone(error_t err) {
@@ -163,6 +162,10 @@ implementation
       return;
     }
     radioOn = TRUE;
+    /* status from now on, board or not: the host tells a dead board
+     * (status messages, no samples, i2c_nacks growing) from a mote that
+     * is off (nothing) */
+    call StatusTimer.startPeriodic(STATUS_TICKS);
     startSampling();
   }
 

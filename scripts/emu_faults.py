@@ -27,7 +27,8 @@ sys.path.insert(0, str(REPO / "host"))
 
 BOARD_FAULTS = ["", "nack:itg3200:2:0.5", "power:hmc5883l:2:0.3", "power:adxl345:2:0.3",
                 "power:itg3200:2:0.3", "hang:2:0.05", "hang:2:0.2", "hang:2.003:1"]
-IMAGE_FAULTS = [("nack:itg3200:2:0.5", "power:hmc5883l:4:0.3"), ("hang:2:0.3",), ("hang:4:1",)]
+IMAGE_FAULTS = [(), ("nack:itg3200:2:0.5", "power:hmc5883l:4:0.3"), ("hang:2:0.3",),
+                ("hang:4:1",), ("nack:adxl345:0:10",)]
 
 
 def build(app: Path, lean: int, out: Path) -> Path:
@@ -121,7 +122,8 @@ def main() -> int:
             for lean, name in ((0, "stock"), (1, "lean")):
                 mote = build(REPO / "tinyos", lean, tmp / f"mote-{name}.elf")
                 for faults in IMAGE_FAULTS:
-                    image_run(a.emu, mote, base, 5 if faults == ("hang:2:0.3",) else 7, faults)
+                    image_run(a.emu, mote, base, {(): 6, ("hang:2:0.3",): 5, ("nack:adxl345:0:10",): 6}.get(faults, 7),
+                              faults)
     return 0
 
 

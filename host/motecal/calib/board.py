@@ -38,6 +38,7 @@ from . import fit as _fit
 from .content import poses_from_stillness
 from . import gate as _gate
 from . import gyro as _gyro
+from . import rotations as _rotations
 from .ga import GAOptions
 from .models import MagnitudeModel, mag_groups, make_model
 from .result import BoardCalibration, Param, SensorCalibration
@@ -111,6 +112,7 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
     else:
         board.gyro = _gyro_sensor(data, gyr_rows, board.accel, chips["gyro"], s_gyr, seed,
                                   ga_options, kfold, gyro_matrix, still)
+        _rotations.refine_board(board, data)     # known turns / turntable runs, if listed
 
     # magnetometer ----------------------------------------------------------------
     all_sets = mag_data_sets(data)

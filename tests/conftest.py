@@ -70,3 +70,28 @@ def pytest_configure(config):
 def measured():
     """The measured data folder (../shared/data/measured); see need_measured."""
     return need_measured()
+
+
+# Real database servers (Debian's packages, make sysdeps), one per test run,
+# each in its own temporary folder (dbservers.py).  Not installed or not
+# starting: the tests that need them fail (they are part of the set-up).
+@pytest.fixture(scope="session")
+def pg_url():
+    import dbservers
+    try:
+        with dbservers.postgres_server() as srv:
+            yield srv.url
+    except dbservers.ServerError as e:
+        pytest.fail(str(e))
+
+
+@pytest.fixture(scope="session")
+def mariadb():
+    """A MariaDB server: .url (unix socket), .tcp_url (127.0.0.1), .root."""
+    import dbservers
+    try:
+        with dbservers.mariadb_server() as srv:
+            yield srv
+    except dbservers.ServerError as e:
+        pytest.fail(str(e))
+

@@ -23,13 +23,16 @@ What differs from the other two, all of it here:
 - Sample rows go in as multi-row ``INSERT``s of up to ~1 MB each.
 - Transactions are READ COMMITTED (as PostgreSQL's), so loggers writing
   their own sessions into one server do not lock each other's key ranges.
-- MySQL commits every ``CREATE``/``ALTER`` at once: a migration runs under a
-  named lock (``GET_LOCK``), one process at a time, but one cut off half-way
-  is not rolled back (the database then needs the missing tables by hand).
+- MySQL commits every ``CREATE``/``ALTER`` at once, and shows the table to
+  everyone: a migration runs under a named lock (``GET_LOCK``), one process
+  at a time, and the schema is read under that lock, so nobody sees half of
+  it; but a migration cut off half-way is not rolled back (the database then
+  needs the missing tables made by hand, or to be emptied).
 """
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 import re
 import urllib.parse
@@ -42,6 +45,15 @@ DEFAULT_PORT = 3306
 MIGRATION_LOCK = "motecal_schema"
 MIGRATION_LOCK_WAIT_S = 60
 MAX_STATEMENT = 1 << 20          # bytes of one multi-row INSERT (servers allow >= 4 MB)
+
+# A chunk of sample rows as repr() gives it: texts of word characters only
+# ('7', 'rot', ''), ints, finite floats, None, nan.  Anything else (another
+# quote, a backslash, inf, any other object) goes the slow, escaped way.
+_CHUNK_ROWS = 4096
+_WORD_TEXT = re.compile(r"'\w*'")
+_NAMES = re.compile(r"None|nan|True|False")
+_NOT_NUMBER = re.compile(r"[^-+., ()\deE]")
+_NULLS = re.compile(r"(?<=[( ])(?:None|nan)(?=[,)])")
 
 # Binary, no-pad collations, best first (MariaDB >= 10.2, MySQL 8, older MySQL).
 _COLLATIONS = ("utf8mb4_nopad_bin", "utf8mb4_0900_bin", "utf8mb4_bin")
@@ -203,6 +215,7 @@ class MysqlBackend:
         except pymysql.Error as e:
             raise UserError(f"cannot connect to {self.display}: {_first_line(e)}") from None
         self._locked = False
+        self.lock_name = f"{MIGRATION_LOCK}.{args['database']}"[:64]
         try:
             with self.conn.cursor() as cur:
                 cur.execute("SET SESSION sql_mode = 'STRICT_ALL_TABLES,NO_ENGINE_SUBSTITUTION,"
@@ -223,29 +236,45 @@ class MysqlBackend:
         return text                      # the cursor translates (it must see RETURNING)
 
     def tables(self) -> set[str]:
-        with self.conn.cursor() as cur:
-            cur.execute("SELECT table_name FROM information_schema.tables "
-                        "WHERE table_schema = DATABASE()")
-            return {r[0] for r in cur.fetchall()}
+        """The database's tables, read under the migration lock: MySQL shows
+        each table of a migration as soon as it is made, so this waits for one
+        under way and never sees half a schema."""
+        hold = not self._locked
+        if hold:
+            self._get_lock()
+        try:
+            with self.conn.cursor() as cur:
+                cur.execute("SELECT table_name FROM information_schema.tables "
+                            "WHERE table_schema = DATABASE()")
+                return {r[0] for r in cur.fetchall()}
+        finally:
+            if hold:
+                self._release_lock()
+
+    def _get_lock(self):
+        with self.conn.cursor() as c:
+            c.execute("SELECT GET_LOCK(%s, %s)", (self.lock_name, MIGRATION_LOCK_WAIT_S))
+            if c.fetchone()[0] != 1:
+                raise UserError(f"{self.display}: another process is migrating the schema "
+                                f"(waited {MIGRATION_LOCK_WAIT_S} s)")
+
+    def _release_lock(self):
+        with self.conn.cursor() as c:
+            c.execute("SELECT RELEASE_LOCK(%s)", (self.lock_name,))
 
     def begin(self):
         self.conn.begin()
 
     def lock_schema(self, cur):
-        """One migrator at a time (a named lock: MySQL commits DDL at once, so a
-        transaction cannot hold it)."""
-        with self.conn.cursor() as c:
-            c.execute("SELECT GET_LOCK(%s, %s)", (MIGRATION_LOCK, MIGRATION_LOCK_WAIT_S))
-            if c.fetchone()[0] != 1:
-                raise UserError(f"{self.display}: another process is migrating the schema "
-                                f"(waited {MIGRATION_LOCK_WAIT_S} s)")
+        """One migrator at a time (a named lock, held until the commit: MySQL
+        commits DDL at once, so a transaction cannot hold it)."""
+        self._get_lock()
         self._locked = True
 
     def _unlock(self):
         if self._locked:
             self._locked = False
-            with self.conn.cursor() as c:
-                c.execute("SELECT RELEASE_LOCK(%s)", (MIGRATION_LOCK,))
+            self._release_lock()
 
     def commit(self):
         self.conn.commit()
@@ -267,36 +296,45 @@ class MysqlBackend:
 
     def insert_rows(self, raw_cursor, q: str, rows):
         """Many rows of one ``INSERT ... VALUES (%s, ...) [ON DUPLICATE ...]`` as
-        multi-row statements of at most ``max_statement`` bytes.  Values are
-        ints, floats, None and short texts, written as SQL literals here (a
-        few times faster than the driver's generic escaping)."""
-        head, sep, rest = q.partition(" VALUES ")
+        multi-row statements of at most ``max_statement`` bytes.
+
+        The rows (ints, floats, None, texts) are written as SQL literals here:
+        a chunk of plain rows (numbers, None, NaN and texts of word characters
+        only: sample rows) through Python's own tuple ``repr``, which is
+        already SQL once None/NaN read NULL; any other chunk value by value
+        with the driver's escaping."""
+        head, _, rest = q.partition(" VALUES ")
         tail = rest[rest.index(")") + 1:]
-        escape = self.conn.escape           # quotes and escapes a str as the server wants
-
-        def lit(v):
-            t = type(v)
-            if t is int:
-                return str(v)
-            if t is float:
-                return repr(v) if math.isfinite(v) else "NULL"
-            if v is None:
-                return "NULL"
-            return escape(v)
-
         prefix = head + " VALUES "
         limit = self.max_statement - len(prefix) - len(tail)
-        parts: list[str] = []
-        size = 0
-        for row in rows:
-            text = "(" + ",".join([lit(v) for v in row]) + ")"
-            if parts and size + len(text) + 1 > limit:
-                raw_cursor.execute(prefix + ",".join(parts) + tail)
-                parts, size = [], 0
-            parts.append(text)
-            size += len(text) + 1
-        if parts:
-            raw_cursor.execute(prefix + ",".join(parts) + tail)
+        rows = iter(rows)
+        while True:
+            chunk = list(itertools.islice(rows, _CHUNK_ROWS))
+            if not chunk:
+                break
+            for body in self._bodies(chunk, limit):
+                raw_cursor.execute(prefix + body + tail)
+
+    def _bodies(self, chunk: list, limit: int):
+        body = ",".join(map(repr, chunk))
+        if not _NOT_NUMBER.search(body) or not _NOT_NUMBER.search(
+                _NAMES.sub("", _WORD_TEXT.sub("", body))):
+            if "None" in body or "nan" in body:
+                body = _NULLS.sub("NULL", body)
+        else:
+            body = ",".join(["(" + ",".join([self._literal(v) for v in row]) + ")"
+                             for row in chunk])
+        if len(body) <= limit or len(chunk) == 1:
+            yield body
+        else:
+            half = len(chunk) // 2
+            yield from self._bodies(chunk[:half], limit)
+            yield from self._bodies(chunk[half:], limit)
+
+    def _literal(self, v) -> str:
+        if type(v) is float and not math.isfinite(v):
+            return "NULL"            # NaN: NULL, as sqlite stores it
+        return self.conn.escape(v)
 
     def close(self):
         self.conn.close()

@@ -252,14 +252,14 @@ def test_simulated_session_same_csv_from_mariadb_and_sqlite(mariadb, tmp_path):
 
 
 def test_two_loggers_into_one_server_at_once(mariadb, fresh_db):
-    """Two base stations (simulated, served over TCP at 10x real time), each
+    """Two base stations (simulated, served over TCP at 5x real time), each
     logged by its own `motecal log` process into one MariaDB database at the
     same time: every sample each simulator sent is stored, in its session."""
     worlds, servers = {}, []
     try:
         for k, seed in enumerate((4, 5)):
             worlds[k] = World(motes=3, session="static80", seed=seed)
-            server, port = serve_in_thread(worlds[k], speed=10.0)
+            server, port = serve_in_thread(worlds[k], speed=5.0)
             servers.append((server, port))
         procs = [subprocess.Popen(
             [sys.executable, "-m", "motecal", "log", "--port", f"socket://127.0.0.1:{port}",

@@ -337,4 +337,7 @@ class MysqlBackend:
         return self.conn.escape(v)
 
     def close(self):
-        self.conn.close()
+        try:
+            self.conn.close()
+        except self.pymysql.Error:
+            pass                         # the server went away: nothing left to close

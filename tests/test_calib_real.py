@@ -12,12 +12,11 @@ from motecal.sessions import importer
 
 
 @pytest.fixture(scope="module")
-def sweep_board(request):
-    from conftest import MEASURED
-    d = importer.read_razor_float(MEASURED / "sensorstick-mag-sweep" / "magnetom.float")
+def sweep_board(measured):
+    d = importer.read_razor_float(measured / "sensorstick-mag-sweep" / "magnetom.float")
     b = calibrate_board(d, seed=0)
     gate.decide(b)
-    return b, json.loads((MEASURED / "sensorstick-mag-sweep" /
+    return b, json.loads((measured / "sensorstick-mag-sweep" /
                           "published_calibration.json").read_text())["magnetom.float"]
 
 

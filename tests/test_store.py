@@ -278,9 +278,9 @@ def test_export_csv_format_and_atomic(tmp_path, monkeypatch):
     class Boom(Exception):
         pass
 
-    def half_then_fail(d, path):           # dies after writing part of the file
-        with open(path, "w") as f:
-            f.write("mote,seq\n1,2\n")
+    def half_then_fail(d, f):              # dies after writing part of the file
+        f.write("mote,seq\n1,2\n")
+        f.flush()
         raise Boom()
 
     monkeypatch.setattr(motecal.sessions.importer, "write_csv", half_then_fail)

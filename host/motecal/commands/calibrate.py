@@ -29,6 +29,7 @@ from ..calib.gate import decide
 from ..calib.models import MODEL_FAMILIES, parse_groups
 from ..calib.result import BoardCalibration
 from ..errors import QualityError, UserError
+from ..outputs import check_output, write_text
 from .args import description, int_range, mote_id, positive, seed
 
 
@@ -86,8 +87,10 @@ def calibrate(data, args) -> BoardCalibration:
 
 
 def deliver(board: BoardCalibration, args, store, path: Path) -> int:
-    """Write cal.json and store the calibration in the database; returns its id."""
-    board.save(path)
+    """Write cal.json (``outputs.write_text``: never over the database, a
+    device or half-written) and store the calibration in the database;
+    returns its id."""
+    write_text(path, board.dumps(), inputs=[args.db], what="--out")
     return store.save_calibration(board.session, board.mote, board.to_json())
 
 
@@ -141,6 +144,8 @@ def run(args) -> int:
         if not motes or len(data) == 0:
             raise UserError(f"session {args.session!r} has no samples")
         several = len(motes) > 1
+        for m in motes:                  # every output checked before any work
+            check_output(out_path(args.out, m, several), inputs=[args.db], what="--out")
         refused = []
         for m in motes:
             board = calibrate(data.for_mote(m), args)

@@ -2,12 +2,14 @@
 (``motecal.report``)."""
 from __future__ import annotations
 
+from ..outputs import check_output_dir
 from ..report import write_report
 from ..sessions.store import open_store
 from .args import mote_id, seed
 
 
 def run(args) -> int:
+    check_output_dir(args.out, inputs=[args.db, args.cal], what="--out")
     store = open_store(args.db)
     try:
         def log(msg):

@@ -2,11 +2,13 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 
 from ..errors import UserError
 from ..line import protocol as P
+from ..outputs import check_output, open_output, write_text
 from .args import baud_rate, positive
 
 
@@ -92,24 +94,24 @@ def run(args) -> int:
     n_out = sum(x is not None and x is not False for x in (args.out, args.serve, args.pty or None))
     if n_out != 1:
         raise UserError("choose one output: --out FILE, --serve HOST:PORT or --pty")
+    inputs = [args.model, args.eeprom]
+    if args.out is not None:
+        check_output(args.out, inputs=inputs, what="--out")
+    if args.truth:
+        check_output(args.truth, inputs=inputs + [args.out], what="--truth")
     speed = args.speed if args.speed is not None else (1.0 if args.realtime else None)
     world = World(motes=args.motes, session=args.session, seed=args.seed, baud=args.baud,
                   loss=args.loss, model=args.model, batch=args.batch,
                   duration=args.duration, eeprom=args.eeprom)
     if args.truth:
-        world.write_truth(args.truth)
+        write_text(args.truth, json.dumps(world.truth(), indent=1) + "\n",
+                   inputs=inputs + [args.out], what="--truth")
     t0 = time.monotonic()
     if args.out is not None:
-        if args.out == "-":
-            write_file(world, sys.stdout.buffer, speed)
-            sys.stdout.buffer.flush()
-        else:
-            try:
-                fh = open(args.out, "wb")
-            except OSError as e:
-                raise UserError(f"cannot write {args.out}: {e.strerror or e}") from None
-            with fh:
-                write_file(world, fh, speed)
+        # '-' is stdout; a file is complete or not there (outputs.open_output)
+        with open_output(args.out, inputs=inputs + [args.truth], binary=True,
+                         what="--out") as fh:
+            write_file(world, fh, speed)
         if not args.quiet:
             print(_summary(world, time.monotonic() - t0), file=sys.stderr)
         return 0

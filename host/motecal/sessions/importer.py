@@ -18,6 +18,7 @@ store in one go, so a bad file leaves the database unchanged.
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import re
 from dataclasses import asdict
@@ -437,14 +438,19 @@ def read_csv(path, chip=None, kind="auto") -> SessionData:
 
 
 def write_csv(data: SessionData, path) -> None:
-    """Write ``data`` in the project CSV format (the inverse of :func:`read_csv`).
+    """Write ``data`` in the project CSV format (the inverse of :func:`read_csv`)
+    to a file path or an open text file.
 
     ``t`` is when each sample was taken: ``SessionData.sample_times`` when the
     stored ``t`` is batch receive times (a logged session: rows of a batch
     share the time the host got it, compressed when the line is read faster
     than real time), else ``t`` as stored, empty where unknown."""
     times = data.sample_times() if batch_times(data.t) else data.t
-    with open(path, "w", newline="") as f:
+    if hasattr(path, "write"):          # an open text file (motecal.outputs.open_output)
+        f = contextlib.nullcontext(path)
+    else:
+        f = open(path, "w", newline="")
+    with f as f:
         w = csv.writer(f, lineterminator="\n")
         w.writerow(CSV_HEADER)
         for i in range(len(data)):

@@ -143,10 +143,19 @@ def _temp_beside(real: str) -> tuple[str, int]:
     raise FileExistsError(errno.EEXIST, "no free temporary name", folder)
 
 
+# the disk failed or filled up (exit 1), rather than a path the user got wrong (2)
+_DISK_FAULTS = (errno.ENOSPC, errno.EFBIG, errno.EIO, errno.EDQUOT)
+
+
 def _why(e: OSError) -> str:
     if e.errno == errno.ENOSPC:
         return "no space left on device"
     return e.strerror or str(e)
+
+
+def _fault(label: str, e: OSError) -> UserError:
+    return UserError(f"cannot write {label}: {_why(e)} (nothing written)",
+                     exit_code=1 if e.errno in _DISK_FAULTS else 2)
 
 
 @contextlib.contextmanager
@@ -167,7 +176,7 @@ def open_output(path, *, inputs=(), force: bool = False, binary: bool = False,
     try:
         tmp, fd = _temp_beside(real)
     except OSError as e:
-        raise UserError(f"cannot write {label}: {_why(e)}") from None
+        raise _fault(label, e) from None
     try:
         with contextlib.suppress(FileNotFoundError):
             old = os.stat(real)
@@ -189,7 +198,7 @@ def open_output(path, *, inputs=(), force: bool = False, binary: bool = False,
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         if isinstance(e, OSError):
-            raise UserError(f"cannot write {label}: {_why(e)} (nothing written)") from None
+            raise _fault(label, e) from None
         raise
 
 

@@ -20,7 +20,7 @@ from ..capture.logger import Logger
 from ..errors import UserError
 from ..line import protocol as P
 from ..line import sources as S
-from ..sessions.store import open_store
+from ..sessions.store import LOCK_TIMEOUT_S, open_store
 from .args import baud_rate, mote_id, positive, session_name
 from .log_screen import KeyReader, PlainDisplay, RichDisplay, no_echo
 
@@ -63,6 +63,9 @@ def register(sub) -> None:
     g.add_argument("--rot-samples", type=positive(int), default=DEFAULT_ROT_SAMPLES)
     g.add_argument("--coverage", type=positive(float), default=DEFAULT_COVERAGE,
                    help="rotation stops at this fraction of sphere cells hit")
+    p.add_argument("--lock-timeout", type=positive(float), default=LOCK_TIMEOUT_S,
+                   metavar="S", help="while another process holds the database's write lock, "
+                   f"buffer samples and retry for up to S seconds ({LOCK_TIMEOUT_S:g})")
     p.add_argument("--commit-every", type=positive(float), default=0.25,
                    help=argparse.SUPPRESS)
     p.set_defaults(func=run)
@@ -111,7 +114,11 @@ def run(args) -> int:
             last = store.last_seqs(args.session)
         writer = store.open_session(args.session, kind=args.guided or args.kind or "free",
                                     meta=meta, append=args.append,
-                                    commit_every=args.commit_every)
+                                    commit_every=args.commit_every,
+                                    lock_timeout=args.lock_timeout)
+        # a commit attempt waits briefly for a held lock, then the loop reads
+        # on with the samples queued (SessionWriter.commit) and tries again
+        store.set_busy_timeout(0.05)
         tracker = LinkTracker(link, line, last)
         display = RichDisplay() if sys.stdout.isatty() else PlainDisplay()
         logger = Logger(spec, writer, tracker, guide=guide, display=display,

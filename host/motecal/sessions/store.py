@@ -78,6 +78,37 @@ LINE_COUNTERS = {
 
 INT16_MIN, INT16_MAX = -32768, 32767
 
+# A live session waits this long for a write lock another process holds,
+# buffering samples meanwhile, before it gives up (SessionWriter.commit).
+LOCK_TIMEOUT_S = 60.0
+LOCK_BUFFER_SAMPLES = 2_000_000     # ~0.3 GB of queued samples at most
+
+
+class StoreError(UserError):
+    """The database failed under a command: disk full, I/O error, a lock held
+    too long.  One line on stderr; exit status 1 (the user's input was fine)."""
+
+    exit_code = 1
+
+
+class StoreBusy(StoreError):
+    """Another process holds the database's write lock."""
+
+
+def store_fault(target: str, e: Exception) -> StoreError:
+    """A database driver's error as one line (StoreBusy for a held lock)."""
+    text = " ".join(str(e).split()) or type(e).__name__
+    low = text.lower()
+    if "locked" in low or "busy" in low or "lock timeout" in low:
+        return StoreBusy(f"{target}: the database is locked by another process")
+    if "full" in low or "no space" in low or "diskfull" in low:
+        return StoreError(f"{target}: the database or its disk is full")
+    if "i/o" in low or "ioerr" in low:
+        return StoreError(f"{target}: disk I/O error")
+    if "readonly" in low or "read-only" in low or "read only" in low:
+        return StoreError(f"{target}: the database is read-only")
+    return StoreError(f"{target}: database error: {text[:200]}")
+
 
 def check_session_name(name) -> str:
     """A session name is text with something besides white space (an empty
@@ -216,6 +247,9 @@ class _SqliteBackend:
     def begin(self):
         self.conn.execute("BEGIN IMMEDIATE")        # writers queue here (busy_timeout)
 
+    def set_busy_timeout(self, seconds: float):
+        self.conn.execute(f"PRAGMA busy_timeout = {max(0, int(seconds * 1000))}")
+
     def lock_schema(self, cur):
         pass                                         # BEGIN IMMEDIATE already serialises
 
@@ -273,6 +307,9 @@ class _PostgresBackend:
 
     def begin(self):
         self.conn.execute("BEGIN")
+
+    def set_busy_timeout(self, seconds: float):
+        self.conn.execute(f"SET lock_timeout = {max(1, int(seconds * 1000))}")
 
     def lock_schema(self, cur):
         cur.execute("SELECT pg_advisory_xact_lock(7260001)")   # one migrator at a time
@@ -454,17 +491,28 @@ class Store:
     # -- low level -----------------------------------------------------------
     @contextlib.contextmanager
     def _tx(self):
-        """One transaction: everything inside is committed together or not at all."""
+        """One transaction: everything inside is committed together or not at
+        all.  A driver error (disk full, lock, I/O) rolls back and becomes a
+        ``StoreError`` (``StoreBusy`` for a lock another process holds)."""
         b = self._b
-        b.begin()
+        try:
+            b.begin()
+        except b.errors as e:
+            raise store_fault(self.target, e) from None
         cur = b.cursor()
         try:
             yield cur
             b.commit()
-        except BaseException:
+        except BaseException as e:
             with contextlib.suppress(Exception):
                 b.rollback()
+            if isinstance(e, b.errors):
+                raise store_fault(self.target, e) from None
             raise
+
+    def set_busy_timeout(self, seconds: float) -> None:
+        """How long one attempt waits for another process's write lock (sqlite)."""
+        self._b.set_busy_timeout(seconds)
 
     def _query(self, sql: str, params=()) -> list[tuple]:
         cur = self._b.cursor()
@@ -669,7 +717,8 @@ class Store:
     # -- live sessions ---------------------------------------------------------------
     def open_session(self, name: str, *, kind: str, meta: dict | None = None,
                      scales: dict | None = None, chips: dict | None = None,
-                     append: bool = False, commit_every: float = 0.25) -> "SessionWriter":
+                     append: bool = False, commit_every: float = 0.25,
+                     lock_timeout: float = LOCK_TIMEOUT_S) -> "SessionWriter":
         """Start (or, with ``append``, continue) a live session; returns its writer."""
         check_session_name(name)
         info = self._info(name)
@@ -689,7 +738,7 @@ class Store:
                 cur.execute(self._b.sql("UPDATE sessions SET ended = NULL WHERE id = ?"),
                             (info.id,))
             sid = info.id
-        return SessionWriter(self, sid, name, info.started, commit_every)
+        return SessionWriter(self, sid, name, info.started, commit_every, lock_timeout)
 
     def last_seqs(self, session: str) -> dict[int, int]:
         """Highest stored sequence number per mote (to continue an appended session)."""
@@ -710,8 +759,12 @@ class SessionWriter:
                "mx, my, mz) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) "
                "ON CONFLICT DO NOTHING")
 
-    def __init__(self, store: Store, sid: int, name: str, started: float, commit_every: float):
+    def __init__(self, store: Store, sid: int, name: str, started: float, commit_every: float,
+                 lock_timeout: float = LOCK_TIMEOUT_S):
         self.store = store
+        self.lock_timeout = lock_timeout
+        self.locked_since: float | None = None   # monotonic time the lock wait began
+        self.lock_waits = 0                       # times a commit found the lock held
         self.id = sid
         self.name = name
         self.started = started          # unix seconds; t is relative to it
@@ -764,7 +817,38 @@ class SessionWriter:
         """``commit_every`` seconds have passed since the last commit."""
         return time.monotonic() - self._last_commit >= self.commit_every
 
-    def commit(self) -> None:
+    def commit(self) -> bool:
+        """Write everything queued in one transaction; True when done.
+
+        When another process holds the write lock nothing is lost: the queue
+        is kept and False returned (the caller goes on reading and tries again);
+        after ``lock_timeout`` seconds of that, or ``LOCK_BUFFER_SAMPLES``
+        queued, ``StoreBusy`` is raised.  Other failures (disk full, I/O) raise
+        ``StoreError``; the queue is then kept too (``pending``)."""
+        try:
+            self._commit()
+        except StoreBusy:
+            now = time.monotonic()
+            if self.locked_since is None:
+                self.locked_since = now
+                self.lock_waits += 1
+            waited = now - self.locked_since
+            if waited >= self.lock_timeout or self.pending > LOCK_BUFFER_SAMPLES:
+                raise StoreBusy(f"{self.store.target}: the database stayed locked by another "
+                                f"process for {waited:.0f} s ({self.pending} samples held in "
+                                "memory could not be stored)") from None
+            return False
+        self.locked_since = None
+        return True
+
+    def discard(self) -> int:
+        """Drop what is queued (it cannot be stored); returns the samples dropped."""
+        n = self.pending
+        self._rows, self._labels, self._events = [], [], []
+        self._link, self._line = {}, None
+        return n
+
+    def _commit(self) -> None:
         st = self.store
         b = st._b
         rows, labels, events = self._rows, self._labels, self._events
@@ -808,8 +892,14 @@ class SessionWriter:
             tuple(values.values()))
 
     def end(self) -> None:
-        """Commit what is queued and mark the session ended."""
-        self.commit()
+        """Commit what is queued and mark the session ended (waiting for a
+        held lock up to ``lock_timeout``)."""
+        while not self.commit():
+            time.sleep(0.05)
+        self.mark_ended()
+
+    def mark_ended(self) -> None:
+        """Mark the session ended, with what was committed."""
         st = self.store
         with st._tx() as cur:
             cur.execute(st._b.sql("UPDATE sessions SET ended = ? WHERE id = ?"),

@@ -260,6 +260,10 @@ class Logger:
             elif cap is not None:
                 line += f", rotation {cap.count} samples, coverage {cap.coverage.fraction:.0%}"
             out.append(line)
+        if w.duplicates or w.conflicts:
+            out.append(f"  other writers of this session: {w.duplicates} samples they had "
+                       f"stored already (duplicates), {w.conflicts} stored with other values "
+                       "(conflicts, kept in sample_conflicts)")
         ln = tr.line
         out.append(f"  line: {ln['frames']} frames, {ln['crc_errors']} CRC errors, "
                    f"{ln['cut_off']} cut off, "

@@ -13,6 +13,7 @@ def list_sessions(args) -> int:
         if args.json:
             for r in rows:
                 r["link"] = store.link_stats(r["name"])
+                r["writers"] = store.writers(r["name"])
             json.dump(rows, sys.stdout, indent=1)
             print()
             return 0

@@ -22,6 +22,7 @@ import datetime as _dt
 import itertools
 import json
 import os
+import socket
 import sqlite3
 import time
 from dataclasses import dataclass
@@ -32,7 +33,7 @@ from ..errors import UserError
 from .session import (COLUMNS, NOMINAL_CHIPS, NOMINAL_SCALES, SessionData, label_from_text,
                       label_to_text)
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 
 SAMPLE_COLUMNS = ("session", "mote", "seq", "t", "label", "flags") + COLUMNS
 
@@ -77,6 +78,7 @@ LINE_COUNTERS = {
 }
 
 INT16_MIN, INT16_MAX = -32768, 32767
+_NULL = 1 << 40                    # a stored NULL, when samples are compared
 
 # A live session waits this long for a write lock another process holds,
 # buffering samples meanwhile, before it gives up (SessionWriter.commit).
@@ -185,6 +187,34 @@ MIGRATIONS = {
         "CREATE INDEX events_session ON events (session, t)",
     ],
     3: [f"ALTER TABLE line_stats ADD COLUMN {_counter_cols([k])}" for k in _LINE_COUNTERS_V3],
+    # 4: several writers to one session (docs/guarantees.md, "several writers"):
+    # each live writer's own row of counts, and every sample a writer received
+    # under a key already stored with other values, kept whole
+    4: [
+        """CREATE TABLE writers (
+             session BIGINT NOT NULL,
+             writer TEXT NOT NULL,
+             source TEXT,
+             started {real} NOT NULL,
+             updated {real},
+             ended {real},
+             stored BIGINT NOT NULL DEFAULT 0,
+             duplicates BIGINT NOT NULL DEFAULT 0,
+             conflicts BIGINT NOT NULL DEFAULT 0,
+             PRIMARY KEY (session, writer))""",
+        """CREATE TABLE sample_conflicts (
+             session BIGINT NOT NULL,
+             mote INTEGER NOT NULL,
+             seq BIGINT NOT NULL,
+             t {real},
+             flags SMALLINT NOT NULL DEFAULT 0,
+             ax {int16}, ay {int16}, az {int16},
+             gx {int16}, gy {int16}, gz {int16},
+             mx {int16}, my {int16}, mz {int16},
+             writer TEXT NOT NULL,
+             found {real} NOT NULL)""",
+        "CREATE INDEX sample_conflicts_key ON sample_conflicts (session, mote, seq)",
+    ],
 }
 
 
@@ -576,7 +606,8 @@ class Store:
         return int(cur.fetchone()[0])
 
     def _delete_session(self, cur, sid: int):
-        for table in ("samples", "calibrations", "link_stats", "line_stats", "events"):
+        for table in ("samples", "calibrations", "link_stats", "line_stats", "events",
+                      "writers", "sample_conflicts"):
             cur.execute(self._b.sql(f"DELETE FROM {table} WHERE session = ?"), (sid,))
         cur.execute(self._b.sql("DELETE FROM sessions WHERE id = ?"), (sid,))
 
@@ -738,7 +769,35 @@ class Store:
                 cur.execute(self._b.sql("UPDATE sessions SET ended = NULL WHERE id = ?"),
                             (info.id,))
             sid = info.id
-        return SessionWriter(self, sid, name, info.started, commit_every, lock_timeout)
+        w = SessionWriter(self, sid, name, info.started, commit_every, lock_timeout)
+        w.source = (meta or {}).get("source")
+        return w
+
+    def writers(self, session: str) -> list[dict]:
+        """The live writers that logged into a session, each with its own counts:
+        samples it stored, duplicates (already stored the same by another
+        writer) and conflicts (stored with other values; kept in
+        ``sample_conflicts``)."""
+        info = self._require(session)
+        if "writers" not in self._b.tables():
+            return []                            # an older schema, opened read-only
+        return [dict(writer=w, source=src, started=_iso(a), ended=_iso(e), stored=int(n),
+                     duplicates=int(d), conflicts=int(c)) for w, src, a, e, n, d, c in self._query(
+            "SELECT writer, source, started, ended, stored, duplicates, conflicts FROM writers "
+            "WHERE session = ? ORDER BY started, writer", (info.id,))]
+
+    def conflicts(self, session: str) -> SessionData:
+        """The samples writers received under a stored key with other values."""
+        info = self._require(session)
+        rows = self._query("SELECT mote, seq, t, flags, ax, ay, az, gx, gy, gz, mx, my, mz "
+                           "FROM sample_conflicts WHERE session = ? ORDER BY mote, seq",
+                           (info.id,)) if "sample_conflicts" in self._b.tables() else []
+        num = np.array([[np.nan if v is None else v for v in r] for r in rows],
+                       dtype=float).reshape(-1, 13)
+        return SessionData(name=session, raw=num[:, 4:13], mote=num[:, 0].astype(np.int32),
+                           seq=num[:, 1].astype(np.int64), t=num[:, 2],
+                           label=np.zeros(len(num), np.int32),
+                           flags=num[:, 3].astype(np.uint8), kind="conflicts")
 
     def last_seqs(self, session: str) -> dict[int, int]:
         """Highest stored sequence number per mote (to continue an appended session)."""
@@ -753,6 +812,14 @@ class SessionWriter:
     ``add_samples`` and ``set_label`` only queue; ``commit`` writes everything
     queued in one transaction (samples first, then labels, counters, events),
     and ``due`` says when ``commit_every`` seconds have passed.
+
+    Several writers may log into one session at once (two BaseStations that
+    hear the same motes, or other motes): a sample whose (mote, seq) is not
+    stored yet is stored, and belongs to the writer that committed it first;
+    one stored already with the same flags and values is a duplicate
+    (counted); one stored with other values is a conflict: kept whole in
+    ``sample_conflicts`` with this writer's id and counted, never dropped.
+    Each writer keeps its counts in its own ``writers`` row (``writer_id``).
     """
 
     _INSERT = ("INSERT INTO samples (session, mote, seq, t, flags, ax, ay, az, gx, gy, gz, "
@@ -777,6 +844,10 @@ class SessionWriter:
         self._last_commit = time.monotonic()
         self.committed_samples = 0
         self.commits = 0
+        self.duplicates = 0              # samples another writer had stored the same
+        self.conflicts = 0               # ... had stored with other values (kept aside)
+        self.writer_id = f"{socket.gethostname()}:{os.getpid()}:{id(self):x}"
+        self.source: str | None = None
 
     def now(self) -> float:
         """Seconds since the session started (the ``t`` column's clock)."""
@@ -861,10 +932,10 @@ class SessionWriter:
                 t = np.concatenate([r[2] for r in rows])
                 flags = np.concatenate([r[3] for r in rows])
                 raw = np.concatenate([r[4] for r in rows]).astype(np.int64)
-                n = len(seq)
-                data = zip(itertools.repeat(self.id), mote.tolist(), seq.tolist(), t.tolist(),
-                           flags.tolist(), *raw.T.tolist())
-                cur.executemany(b.sql(self._INSERT), data)
+                n, dups, clash = self._insert(cur, mote, seq, t, flags, raw)
+                self._writer_row(cur, n, dups, clash)
+            elif self.commits == 0:
+                self._writer_row(cur, 0, 0, 0)
             if labels:
                 cur.executemany(b.sql("UPDATE samples SET label = ? WHERE session = ? AND "
                                       "mote = ? AND seq BETWEEN ? AND ?"), labels)
@@ -880,6 +951,82 @@ class SessionWriter:
         self.committed_samples += n
         self.commits += 1
         self._last_commit = time.monotonic()
+
+    # -- several writers ----------------------------------------------------------
+    _KEY_COLS = "seq, flags, ax, ay, az, gx, gy, gz, mx, my, mz"
+
+    def _stored(self, cur, m: int, seqs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Stored (seq, [flags + 9 values]) of mote ``m`` within the span of ``seqs``
+        (NULL read as a value no sample has)."""
+        cur.execute(self.store._b.sql(
+            f"SELECT {self._KEY_COLS} FROM samples WHERE session = ? AND mote = ? "
+            "AND seq BETWEEN ? AND ? ORDER BY seq"), (self.id, m, int(seqs.min()), int(seqs.max())))
+        got = cur.fetchall()
+        if not got:
+            return np.zeros(0, np.int64), np.zeros((0, 10), np.int64)
+        arr = np.array([[_NULL if v is None else v for v in r] for r in got], dtype=np.int64)
+        return arr[:, 0], arr[:, 1:]
+
+    def _classify(self, cur, mote, seq, flags, raw):
+        """Per row: 0 new, 1 duplicate of a stored sample, 2 conflict with one."""
+        kind = np.zeros(len(seq), np.int8)
+        vals = np.column_stack([flags.astype(np.int64), raw])
+        for m in np.unique(mote):
+            rows = np.flatnonzero(mote == m)
+            sseq, svals = self._stored(cur, int(m), seq[rows])
+            if not len(sseq):
+                continue
+            pos = np.searchsorted(sseq, seq[rows])
+            hit = pos < len(sseq)
+            hit[hit] = sseq[pos[hit]] == seq[rows][hit]
+            same = np.zeros(len(rows), bool)
+            same[hit] = (svals[pos[hit]] == vals[rows[hit]]).all(axis=1)
+            kind[rows[hit & same]] = 1
+            kind[rows[hit & ~same]] = 2
+        return kind
+
+    def _insert(self, cur, mote, seq, t, flags, raw) -> tuple[int, int, int]:
+        """Store the new samples, count duplicates, keep conflicts aside;
+        returns (stored, duplicates, conflicts)."""
+        b = self.store._b
+        kind = self._classify(cur, mote, seq, flags, raw)
+        new = kind == 0
+        rows = lambda sel: zip(itertools.repeat(self.id), mote[sel].tolist(),  # noqa: E731
+                               seq[sel].tolist(), t[sel].tolist(), flags[sel].tolist(),
+                               *raw[sel].T.tolist())
+        cur.executemany(b.sql(self._INSERT), rows(new))
+        stored = cur.rowcount if cur.rowcount is not None and cur.rowcount >= 0 \
+            else int(new.sum())
+        if stored < new.sum():
+            # another writer committed some of these keys meanwhile (PostgreSQL
+            # runs writers side by side): what differs from ours is a conflict
+            again = self._classify(cur, mote[new], seq[new], flags[new], raw[new])
+            idx = np.flatnonzero(new)
+            kind[idx[again == 2]] = 2
+            twins = int(new.sum()) - stored - int((again == 2).sum())
+        else:
+            twins = 0
+        clash = kind == 2
+        if clash.any():
+            cur.executemany(b.sql(
+                "INSERT INTO sample_conflicts (session, mote, seq, t, flags, ax, ay, az, gx, "
+                "gy, gz, mx, my, mz, writer, found) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
+                "?, ?, ?, ?, ?)"),
+                [r + (self.writer_id, time.time()) for r in rows(clash)])
+        return stored, int((kind == 1).sum()) + twins, int(clash.sum())
+
+    def _writer_row(self, cur, stored: int, dups: int, clash: int) -> None:
+        """This writer's own row of counts (added to in the same transaction)."""
+        now = time.time()
+        cur.execute(self.store._b.sql(
+            "INSERT INTO writers (session, writer, source, started, updated, stored, duplicates, "
+            "conflicts) VALUES (?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT (session, writer) DO UPDATE "
+            "SET updated = excluded.updated, stored = writers.stored + excluded.stored, "
+            "duplicates = writers.duplicates + excluded.duplicates, "
+            "conflicts = writers.conflicts + excluded.conflicts"),
+            (self.id, self.writer_id, self.source, now, now, stored, dups, clash))
+        self.duplicates += dups
+        self.conflicts += clash
 
     def _upsert(self, cur, table: str, key: dict, counters: dict) -> None:
         """Set a row of counters (link_stats / line_stats) to these values."""
@@ -901,9 +1048,11 @@ class SessionWriter:
     def mark_ended(self) -> None:
         """Mark the session ended, with what was committed."""
         st = self.store
+        now = time.time()
         with st._tx() as cur:
-            cur.execute(st._b.sql("UPDATE sessions SET ended = ? WHERE id = ?"),
-                        (time.time(), self.id))
+            cur.execute(st._b.sql("UPDATE sessions SET ended = ? WHERE id = ?"), (now, self.id))
+            cur.execute(st._b.sql("UPDATE writers SET ended = ? WHERE session = ? AND writer = ?"),
+                        (now, self.id, self.writer_id))
 
 
 def open_store(target: str, *, create: bool = False) -> Store:

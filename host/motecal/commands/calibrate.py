@@ -30,6 +30,7 @@ from ..calib.models import MODEL_FAMILIES, parse_groups
 from ..calib.result import BoardCalibration
 from ..errors import QualityError, UserError
 from ..outputs import check_output, write_text
+from ..sessions.store import StoreError, open_store
 from .args import description, int_range, mote_id, positive, seed
 
 
@@ -86,12 +87,19 @@ def calibrate(data, args) -> BoardCalibration:
                            kfold=args.kfold)
 
 
-def deliver(board: BoardCalibration, args, store, path: Path) -> int:
+def deliver(board: BoardCalibration, args, store, path: Path) -> int | None:
     """Write cal.json (``outputs.write_text``: never over the database, a
-    device or half-written) and store the calibration in the database;
-    returns its id."""
+    device or half-written) and record the calibration in the database;
+    returns its id, or None when the database cannot take it (read-only
+    media, full disk: cal.json is written all the same, and a note says so)."""
     write_text(path, board.dumps(), inputs=[args.db], what="--out")
-    return store.save_calibration(board.session, board.mote, board.to_json())
+    if store.readonly:
+        return None
+    try:
+        return store.save_calibration(board.session, board.mote, board.to_json())
+    except StoreError as e:
+        print(f"  note: not recorded in the database: {e}", file=sys.stderr)
+        return None
 
 
 def _fmt(x, spec=".3e"):
@@ -135,7 +143,6 @@ def summary(board: BoardCalibration) -> str:
 
 
 def run(args) -> int:
-    from ..sessions.store import open_store
     from .upload import calibrate_step
     step = calibrate_step(args)          # None without --upload; checks the port first
     with open_store(args.db) as store:
@@ -157,7 +164,10 @@ def run(args) -> int:
                 continue
             path = out_path(args.out, m, several)
             cid = deliver(board, args, store, path)
-            print(f"  wrote {path} (database calibration {cid})")
+            print(f"  wrote {path} " + (f"(database calibration {cid})" if cid is not None
+                                        else "(not recorded in the database: it is read-only)"
+                                        if store.readonly else
+                                        "(not recorded in the database)"))
             if step is not None:
                 step(board, path)
     sys.stdout.flush()

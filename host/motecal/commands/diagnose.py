@@ -59,7 +59,7 @@ def run(args) -> int:
             inputs.append(v)             # --json and --model-out must differ too
     if args.report:
         check_output_dir(args.report, inputs=[args.db], what="--report")
-    with open_store(args.db) as store:
+    with open_store(args.db, readonly=True) as store:
         data = store.load_session(args.session, args.mote)
     if len(data) == 0:
         raise UserError(f"session {args.session!r} has no samples"

@@ -24,7 +24,7 @@ def export_csv(data, path: str, *, inputs=()) -> int:
 
 def export(args) -> int:
     check_output(args.csv, inputs=[args.db], what="--csv")     # before reading anything
-    with open_store(args.db) as store:
+    with open_store(args.db, readonly=True) as store:
         data = store.load_session(args.session, args.mote)
     n = export_csv(data, args.csv, inputs=[args.db])
     print(f"wrote {n} samples of session {args.session} "

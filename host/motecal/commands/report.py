@@ -10,7 +10,7 @@ from .args import mote_id, seed
 
 def run(args) -> int:
     check_output_dir(args.out, inputs=[args.db, args.cal], what="--out")
-    store = open_store(args.db)
+    store = open_store(args.db, readonly=True)
     try:
         def log(msg):
             if not args.quiet:

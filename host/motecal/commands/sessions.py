@@ -8,7 +8,7 @@ from ..sessions.store import open_store
 
 
 def list_sessions(args) -> int:
-    with open_store(args.db) as store:
+    with open_store(args.db, readonly=True) as store:
         rows = store.sessions()
         if args.json:
             for r in rows:

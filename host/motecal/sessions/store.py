@@ -24,7 +24,9 @@ import json
 import os
 import socket
 import sqlite3
+import stat
 import time
+import urllib.parse
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,6 +80,19 @@ LINE_COUNTERS = {
 }
 
 INT16_MIN, INT16_MAX = -32768, 32767
+
+# sqlite's PRAGMA application_id of a motecal database ("MCAL"): set on
+# create, and on the first write to an older motecal database recognised by
+# SIGNATURE (its tables and their columns).
+APPLICATION_ID = 0x4D43414C
+SIGNATURE = {
+    "schema_version": {"version"},
+    "sessions": {"id", "name", "kind", "started", "ended", "scales", "chips", "meta"},
+    "samples": {"session", "mote", "seq", "t", "label", "flags", "ax", "ay", "az", "gx", "gy",
+                "gz", "mx", "my", "mz"},
+    "calibrations": {"id", "session", "mote", "created", "cal"},
+}
+SIGNATURE_SINCE = {2: ("link_stats", "line_stats", "events"), 4: ("writers", "sample_conflicts")}
 _NULL = 1 << 40                    # a stored NULL, when samples are compared
 
 # A live session waits this long for a write lock another process holds,
@@ -230,7 +245,7 @@ class _SqliteBackend:
              "wr": " WITHOUT ROWID"}
     errors = (sqlite3.Error,)
 
-    def __init__(self, path: str, create: bool):
+    def __init__(self, path: str, create: bool, readonly: bool = False):
         self.path = path
         self.display = path
         if os.path.isdir(path):
@@ -238,34 +253,67 @@ class _SqliteBackend:
         exists = os.path.exists(path)
         if not exists and not create:
             raise UserError(f"no database {path}")
+        folder = os.path.dirname(os.path.abspath(path))
         if not exists:
-            parent = os.path.dirname(os.path.abspath(path))
-            if not os.path.isdir(parent):
-                raise UserError(f"cannot create database {path}: folder {parent} does not exist")
-            if not os.access(parent, os.W_OK):
-                raise UserError(f"cannot create database {path}: folder {parent} is not writable")
-        elif create and not os.access(path, os.W_OK):
-            raise UserError(f"database {path} is not writable")
-        self.readonly = exists and not os.access(path, os.W_OK)
+            if not os.path.isdir(folder):
+                raise UserError(f"cannot create database {path}: folder {folder} does not exist")
+            if not os.access(folder, os.W_OK):
+                raise UserError(f"cannot create database {path}: folder {folder} is not writable")
+        else:
+            mode = os.stat(path).st_mode
+            if not stat.S_ISREG(mode):
+                raise UserError(f"{path} is not a database file (it is a device, FIFO or "
+                                "socket)")
+            if create and not os.access(path, os.W_OK):
+                raise UserError(f"database {path} is not writable")
+            if create and not os.access(folder, os.W_OK):
+                raise UserError(f"database {path} cannot be written: its folder {folder} is "
+                                "read-only")
+        # read-only: asked for (commands that only read), or the file or its
+        # folder (where the WAL lives) cannot be written -- read-only media
+        self.readonly = exists and (readonly or not os.access(path, os.W_OK)
+                                    or not os.access(folder, os.W_OK))
         try:
             if self.readonly:
-                uri = "file:" + os.path.abspath(path) + "?mode=ro"
-                self.conn = sqlite3.connect(uri, uri=True, isolation_level=None,
+                self.conn = sqlite3.connect(self._ro_uri(path), uri=True, isolation_level=None,
                                             check_same_thread=False)
             else:
                 self.conn = sqlite3.connect(path, isolation_level=None, timeout=10.0,
                                             check_same_thread=False)
             self.conn.execute("PRAGMA busy_timeout = 10000")
             self.tables()                         # fails on a non-sqlite file
-            if not self.readonly:
-                self.conn.execute("PRAGMA journal_mode = WAL")
-                self.conn.execute("PRAGMA synchronous = NORMAL")
         except sqlite3.DatabaseError as e:
             with contextlib.suppress(Exception):
                 self.conn.close()
             if "not a database" in str(e) or "malformed" in str(e):
                 raise UserError(f"{path} is not a motecal database ({e})") from None
             raise UserError(f"cannot open database {path}: {e}") from None
+
+    @staticmethod
+    def _ro_uri(path: str) -> str:
+        """Read-only URI: ``immutable`` (no lock, no -shm/-wal made: works on
+        read-only media and leaves the folder as it was) unless a write-ahead
+        log with data is there -- a logger may be writing, or crashed before
+        checkpointing -- which only a normal read-only open sees."""
+        wal = path + "-wal"
+        live = os.path.exists(wal) and os.path.getsize(wal) > 0
+        return ("file:" + urllib.parse.quote(os.path.abspath(path)) + "?mode=ro"
+                + ("" if live else "&immutable=1"))
+
+    def prepare_writes(self):
+        """Write-ahead log, synchronous=NORMAL: only once the file is known to
+        be a motecal database (or a new one), never on a foreign file."""
+        self.conn.execute("PRAGMA journal_mode = WAL")
+        self.conn.execute("PRAGMA synchronous = NORMAL")
+
+    def app_id(self) -> int:
+        return int(self.conn.execute("PRAGMA application_id").fetchone()[0])
+
+    def set_app_id(self, cur):
+        cur.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+
+    def columns(self, table: str) -> set[str]:
+        return {r[1] for r in self.conn.execute(f"PRAGMA table_info({table})")}
 
     def sql(self, text: str) -> str:
         return text
@@ -310,9 +358,9 @@ class _PostgresBackend:
     name = "postgresql"
     types = {"int16": "SMALLINT", "real": "DOUBLE PRECISION",
              "id_pk": "BIGINT GENERATED BY DEFAULT AS IDENTITY PRIMARY KEY", "wr": ""}
-    readonly = False
 
-    def __init__(self, url: str, create: bool):
+    def __init__(self, url: str, create: bool, readonly: bool = False):
+        self.readonly = readonly
         try:
             import psycopg
         except ImportError:
@@ -323,12 +371,28 @@ class _PostgresBackend:
         self.display = _hide_password(url)
         try:
             self.conn = psycopg.connect(url, autocommit=True, connect_timeout=10)
+            if readonly:
+                self.conn.execute("SET SESSION CHARACTERISTICS AS TRANSACTION READ ONLY")
         except psycopg.Error as e:
             raise UserError(f"cannot connect to {self.display}: "
                             f"{str(e).strip().splitlines()[0] if str(e).strip() else e}") from None
 
     def sql(self, text: str) -> str:
         return text.replace("?", "%s")
+
+    def prepare_writes(self):
+        pass
+
+    def app_id(self) -> None:
+        return None                          # PostgreSQL: recognised by its tables
+
+    def set_app_id(self, cur):
+        pass
+
+    def columns(self, table: str) -> set[str]:
+        cur = self.conn.execute("SELECT column_name FROM information_schema.columns WHERE "
+                                "table_schema = current_schema() AND table_name = %s", (table,))
+        return {r[0] for r in cur.fetchall()}
 
     def tables(self) -> set[str]:
         cur = self.conn.execute("SELECT table_name FROM information_schema.tables "
@@ -372,16 +436,16 @@ def _hide_password(url: str) -> str:
     return url
 
 
-def _backend_for(target: str, create: bool):
+def _backend_for(target: str, create: bool, readonly: bool = False):
     if target.startswith(("postgresql://", "postgres://")):
-        return _PostgresBackend(target, create)
+        return _PostgresBackend(target, create, readonly)
     if target.startswith("sqlite:///"):
         target = target[len("sqlite:///") - 1:] if target.startswith("sqlite:////") \
             else target[len("sqlite:///"):]
     elif "://" in target:
         raise UserError(f"unsupported database URL {target} (use a sqlite file path "
                         "or postgresql://...)")
-    return _SqliteBackend(target, create)
+    return _SqliteBackend(target, create, readonly)
 
 
 # --------------------------------------------------------------------------
@@ -469,38 +533,72 @@ class Store:
             self._b = None
 
     # -- schema ------------------------------------------------------------
+    def _foreign(self, why: str) -> UserError:
+        return UserError(f"{self.target} is not a motecal database ({why}); nothing was "
+                         "written to it")
+
     def _version(self, tables: set[str], create: bool) -> int:
-        """Schema version of the database (0: empty and may be created)."""
-        if "schema_version" not in tables:
-            if tables:
-                raise UserError(f"{self.target} is not a motecal database "
-                                f"(tables: {', '.join(sorted(tables)[:5])})")
-            if not create or self._b.readonly:
-                raise UserError(f"{self.target} is not a motecal database (it is empty)")
+        """Schema version of the database (0: empty and may be created).
+
+        A motecal database is recognised by its application id (sqlite) and
+        its signature: the tables and columns of ``SIGNATURE`` (and of the
+        later versions, ``SIGNATURE_SINCE``), one whole-number version.  Any
+        other file is refused before anything is written to it."""
+        b = self._b
+        app = b.app_id()
+        if app not in (None, 0, APPLICATION_ID):
+            raise self._foreign(f"its sqlite application id is {app:#x}, another program's")
+        if not tables:
+            if not create or b.readonly:
+                raise self._foreign("it is empty")
             return 0
+        missing = [t for t in SIGNATURE if t not in tables]
+        if missing:
+            raise self._foreign(f"no {', '.join(missing)} table; it holds "
+                                f"{', '.join(sorted(tables)[:5])}")
+        for table, cols in SIGNATURE.items():
+            lack = cols - b.columns(table)
+            if lack:
+                raise self._foreign(f"table {table} lacks {', '.join(sorted(lack))}")
         rows = self._query("SELECT version FROM schema_version")
-        if len(rows) != 1:
-            raise UserError(f"{self.target} is not a motecal database (bad schema_version)")
-        version = int(rows[0][0])
+        if len(rows) != 1 or not isinstance(rows[0][0], int) or isinstance(rows[0][0], bool) \
+                or rows[0][0] < 1:
+            raise self._foreign("its schema_version is not one whole number")
+        version = rows[0][0]
         if version > SCHEMA_VERSION:
             raise UserError(f"{self.target} has schema version {version}, newer than this "
                             f"motecal understands ({SCHEMA_VERSION}); upgrade motecal")
+        for since, names in SIGNATURE_SINCE.items():
+            lack = [t for t in names if since <= version and t not in tables]
+            if lack:
+                raise self._foreign(f"schema version {version} without {', '.join(lack)}")
         return version
 
     def _check_schema(self, create: bool):
         b = self._b
         try:
-            version = self._version(b.tables(), create)
+            self._tables = b.tables()
+            version = self._version(self._tables, create)
         except b.errors as e:
-            raise UserError(f"{self.target} is not a motecal database ({e})") from None
-        if version < SCHEMA_VERSION:
-            if b.readonly:
-                raise UserError(f"{self.target} has an old schema ({version}) and is read-only")
+            raise self._foreign(" ".join(str(e).split())[:200]) from None
+        self.version = version
+        if b.readonly:
+            return                  # an older schema is read as it is (see the readers)
+        b.prepare_writes()          # only now: never on a foreign file
+        if version < SCHEMA_VERSION or b.app_id() not in (None, APPLICATION_ID):
             self._migrate(create)
+            self._tables = b.tables()
+            self.version = SCHEMA_VERSION
+
+    @property
+    def readonly(self) -> bool:
+        """Opened read-only (asked for, or the file or its folder cannot be written)."""
+        return bool(self._b.readonly)
 
     def _migrate(self, create: bool):
         """Bring the schema to SCHEMA_VERSION in one transaction (re-checked under
-        the lock, as another process may have done it meanwhile)."""
+        the lock, as another process may have done it meanwhile), and mark the
+        file as motecal's (sqlite application id)."""
         b = self._b
         with self._tx() as cur:
             b.lock_schema(cur)
@@ -513,6 +611,7 @@ class Store:
                             (SCHEMA_VERSION,))
             elif current < SCHEMA_VERSION:
                 cur.execute(b.sql("UPDATE schema_version SET version = ?"), (SCHEMA_VERSION,))
+            b.set_app_id(cur)
 
     @property
     def schema_version(self) -> int:
@@ -728,19 +827,26 @@ class Store:
     def link_stats(self, session: str) -> dict:
         """``{"line": {...}, "motes": {mote: {...}}}`` counters of a session."""
         info = self._require(session)
+        if "link_stats" not in self._tables:        # schema 1, opened read-only
+            return {"line": {}, "motes": {}}
         names = list(LINK_COUNTERS)
         motes = {int(r[0]): dict(zip(names, (int(v) for v in r[1:]))) for r in self._query(
             f"SELECT mote, {', '.join(names)} FROM link_stats WHERE session = ? ORDER BY mote",
             (info.id,))}
-        lnames = list(LINE_COUNTERS)
+        have = self._b.columns("line_stats")        # an older schema lacks later counters
+        lnames = [n for n in LINE_COUNTERS if n in have]
         rows = self._query(f"SELECT {', '.join(lnames)} FROM line_stats WHERE session = ?",
                            (info.id,))
         line = {n: (float(v) if n == "gap_s" else int(v))
                 for n, v in zip(lnames, rows[0])} if rows else {}
+        if rows:
+            line.update({n: 0 for n in LINE_COUNTERS if n not in have})
         return {"line": line, "motes": motes}
 
     def events(self, session: str) -> list[dict]:
         info = self._require(session)
+        if "events" not in self._tables:
+            return []
         return [dict(t=t, kind=k, mote=m, detail=d) for t, k, m, d in self._query(
             "SELECT t, kind, mote, detail FROM events WHERE session = ? ORDER BY t",
             (info.id,))]
@@ -779,7 +885,7 @@ class Store:
         writer) and conflicts (stored with other values; kept in
         ``sample_conflicts``)."""
         info = self._require(session)
-        if "writers" not in self._b.tables():
+        if "writers" not in self._tables:
             return []                            # an older schema, opened read-only
         return [dict(writer=w, source=src, started=_iso(a), ended=_iso(e), stored=int(n),
                      duplicates=int(d), conflicts=int(c)) for w, src, a, e, n, d, c in self._query(
@@ -791,7 +897,7 @@ class Store:
         info = self._require(session)
         rows = self._query("SELECT mote, seq, t, flags, ax, ay, az, gx, gy, gz, mx, my, mz "
                            "FROM sample_conflicts WHERE session = ? ORDER BY mote, seq",
-                           (info.id,)) if "sample_conflicts" in self._b.tables() else []
+                           (info.id,)) if "sample_conflicts" in self._tables else []
         num = np.array([[np.nan if v is None else v for v in r] for r in rows],
                        dtype=float).reshape(-1, 13)
         return SessionData(name=session, raw=num[:, 4:13], mote=num[:, 0].astype(np.int32),
@@ -1055,14 +1161,20 @@ class SessionWriter:
                         (now, self.id, self.writer_id))
 
 
-def open_store(target: str, *, create: bool = False) -> Store:
+def open_store(target: str, *, create: bool = False, readonly: bool = False) -> Store:
     """Open a motecal database: a sqlite file path (or ``sqlite:///path``) or a
     ``postgresql://`` URL.  ``create`` makes a new sqlite file if there is none.
+    ``readonly`` (commands that only read) opens it read-only: nothing is
+    written, an older schema is read as it is, read-only media work; a file
+    that cannot be written is opened so anyway (``Store.readonly``).
     Problems (missing, unwritable, not a motecal database, newer schema) raise
-    UserError with one line."""
+    UserError with one line; nothing is written to a file that is not a
+    motecal database."""
     if not target:
         raise UserError("no database given (--db FILE)")
-    backend = _backend_for(str(target), create)
+    if create and readonly:
+        raise ValueError("create and readonly exclude each other")
+    backend = _backend_for(str(target), create, readonly)
     try:
         return Store(backend, create=create or backend.name == "postgresql")
     except BaseException:

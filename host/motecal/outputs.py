@@ -246,19 +246,3 @@ def check_output_dir(path, *, inputs=(), what: str = "") -> str:
         raise UserError(f"cannot write into {label}: it exists and is not a folder")
     return real
 
-
-def check_input_file(path, *, what: str = "", max_bytes: int | None = None) -> str:
-    """An input file that is read whole: it must exist and be a regular file
-    (not a device such as /dev/zero, a FIFO or a folder), within ``max_bytes``."""
-    p = os.fspath(path)
-    label = f"{what} {p}" if what else p
-    try:
-        st = os.stat(p)
-    except OSError as e:
-        raise UserError(f"cannot read {label}: {e.strerror or e}") from None
-    if not stat.S_ISREG(st.st_mode):
-        raise UserError(f"cannot read {label}: it is {_kind(st.st_mode)}, not a regular file")
-    if max_bytes is not None and st.st_size > max_bytes:
-        raise UserError(f"cannot read {label}: {st.st_size} bytes, more than the "
-                        f"{max_bytes} such a file can have")
-    return p

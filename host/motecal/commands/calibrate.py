@@ -51,7 +51,7 @@ def register(subparsers):
     p.add_argument("--params", help="paper model: comma-separated subset of "
                                     "offsets,scales,angles (default all three)")
     p.add_argument("--seed", type=seed, help="GA seed (default: random, recorded in cal.json)")
-    p.add_argument("--mag-field", type=positive(float), metavar="GAUSS",
+    p.add_argument("--mag-field", type=positive(float, 100.0), metavar="GAUSS",
                    help="known local field magnitude: fixes the magnetometer gauge to it "
                         "instead of det(A) = 1")
     p.add_argument("--no-gyro-matrix", action="store_true",

@@ -9,6 +9,7 @@ import time
 from ..errors import UserError
 from ..line import protocol as P
 from ..outputs import check_output, open_output, write_text
+from ..sim.world import MAX_DURATION_S
 from .args import baud_rate, positive
 
 
@@ -45,7 +46,7 @@ def register(subparsers) -> None:
                    help="static80 | rotation | idle | free, or several in a row separated "
                         "by commas, e.g. static80,static80 (static80)")
     p.add_argument("--seed", type=int, default=1, help="random seed (1)")
-    p.add_argument("--duration", type=positive(float), default=None, metavar="S",
+    p.add_argument("--duration", type=positive(float, MAX_DURATION_S), default=None, metavar="S",
                    help="simulated seconds (default: the session's natural length)")
     p.add_argument("--baud", type=baud_rate, default=250000,
                    help="serial baud rate, 10 bits per byte (250000; iris stock 57600)")
@@ -62,7 +63,7 @@ def register(subparsers) -> None:
                         "at boot, written when a mote stores a set")
     p.add_argument("--realtime", action="store_true",
                    help="pace the bytes at the line rate in wall time")
-    p.add_argument("--speed", type=positive(float), default=None, metavar="X",
+    p.add_argument("--speed", type=positive(float, 1e6), default=None, metavar="X",
                    help="pace at X times real time (implies pacing)")
     p.add_argument("--quiet", action="store_true", help="no summary on stderr")
     p.set_defaults(func=run)

@@ -53,9 +53,9 @@ def register(sub) -> None:
     mode.add_argument("--reset", action="store_true", help="put the mote back to raw output")
     mode.add_argument("--show", action="store_true",
                       help="read back and print the set in force (with cal.json: compare)")
-    p.add_argument("--timeout", type=positive(float), default=DEFAULT_TIMEOUT,
+    p.add_argument("--timeout", type=positive(float, 3600), default=DEFAULT_TIMEOUT,
                    help=f"seconds to wait for each reply of the mote ({DEFAULT_TIMEOUT:g})")
-    p.add_argument("--retries", type=int_range("whole number", 0), default=DEFAULT_RETRIES,
+    p.add_argument("--retries", type=int_range("whole number", 0, 10_000), default=DEFAULT_RETRIES,
                    help=f"repeats of a message that gets no reply ({DEFAULT_RETRIES})")
     p.add_argument("--force", action="store_true",
                    help="upload a calibration the quality gate refused")

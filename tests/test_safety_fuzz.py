@@ -166,7 +166,12 @@ def run_one(cmd, template):
             argv.append(a.replace("{r}", tmp) if isinstance(a, str) else a)
         before = snapshot(root)
         db_before = digest(files.db)
-        rc, out, err = motecal(*argv)
+        cwd = os.getcwd()
+        os.chdir(root)                   # relative names ('-' as a folder...) land here
+        try:
+            rc, out, err = motecal(*argv)
+        finally:
+            os.chdir(cwd)
         where = f"motecal {' '.join(map(repr, argv))}"
         assert rc in OK.get(cmd, (0, 2)), f"{where}: exit {rc}: {err}"
         assert "Traceback" not in err, where

@@ -108,6 +108,16 @@ def test_case3_dash_is_stdout(tmp_path, monkeypatch):
     assert "standard output" in err
     rc, out, err = motecal("sim", "--out", "-", "--duration", "0.1", "--quiet")
     assert rc == 0 and out
+    # where a folder or a database is expected, '-' is refused (found by the fuzz test)
+    rec = tmp_path / "rec.bin"
+    rec.write_bytes(out.encode("utf-8", "surrogateescape")[:0])
+    for argv in (("report", "--db", db, "--session", "board", "--out", "-"),
+                 ("diagnose", "--db", db, "--session", "board", "--report", "-"),
+                 ("log", "--port", rec, "--db", "-", "--session", "s"),
+                 ("sessions", "--db", "-")):
+        rc, _, err = motecal(*argv)
+        assert rc == 2 and "standard" in err, (argv, err)
+    rec.unlink()
     assert sorted(os.listdir(tmp_path)) == ["e.db"]             # no file named '-'
 
 

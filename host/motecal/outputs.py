@@ -233,6 +233,8 @@ def check_output_dir(path, *, inputs=(), what: str = "") -> str:
         raise UserError(f"no {what or 'output'} folder given")
     p = os.fspath(path)
     label = f"{what} {p}" if what else p
+    if p == STDOUT:
+        raise UserError(f"{label}: a folder is needed here, not standard output")
     real = os.path.realpath(p)
     for inp in inputs:
         f = file_path(inp)

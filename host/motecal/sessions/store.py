@@ -1172,6 +1172,8 @@ def open_store(target: str, *, create: bool = False, readonly: bool = False) -> 
     motecal database."""
     if not target:
         raise UserError("no database given (--db FILE)")
+    if str(target) == "-":
+        raise UserError("--db -: a database is a file or a URL, not standard input/output")
     if create and readonly:
         raise ValueError("create and readonly exclude each other")
     backend = _backend_for(str(target), create, readonly)

@@ -25,6 +25,7 @@ LAYERS = [
     ("motecal.capture",),       # logging: link tracking, logger loop, guided flows
     ("motecal.calib",),         # calibration engine
     ("motecal.firmware",),      # the mote's rules on the host (fixed point, its C)
+    ("motecal.targets",),       # a calibration in other tools' forms (export-cal)
     ("motecal.upload",),        # a calibration to a mote
     ("motecal.sim",),           # simulator
     ("motecal.diagnose",),      # model discrepancy

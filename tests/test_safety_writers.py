@@ -112,26 +112,26 @@ def test_case6_the_summary_says_so(tmp_path):
     assert f"{len(rows)} stored with other values" in text
 
 
-def test_schema_4_migrates_a_version_3_database(tmp_path):
-    v3 = str(tmp_path / "v3.db")
-    con = sqlite3.connect(v3)
+def test_schema_5_migrates_a_version_4_database(tmp_path):
+    v4 = str(tmp_path / "v4.db")
+    con = sqlite3.connect(v4)
     b = store_mod._SqliteBackend.types
-    for v in (1, 2, 3):
+    for v in (1, 2, 3, 4):
         for stmt in store_mod.MIGRATIONS[v]:
             con.execute(stmt.format(**b))
-    con.execute("INSERT INTO schema_version VALUES (3)")
+    con.execute("INSERT INTO schema_version VALUES (4)")
     con.execute("INSERT INTO sessions (name, kind, started, scales, chips, meta) VALUES "
-                "('three', 'free', 0, '{}', '{}', '{}')")
+                "('four', 'free', 0, '{}', '{}', '{}')")
     con.execute("INSERT INTO samples (session, mote, seq, ax) VALUES (1, 2, 5, 7)")
     con.commit()
     con.close()
-    with open_store(v3) as st:
-        assert st.schema_version == SCHEMA_VERSION == 4
-        assert st.load_session("three").raw[0, 0] == 7
-        assert st.writers("three") == [] and len(st.conflicts("three")) == 0
-        w = st.open_session("three", kind="free", append=True)
+    with open_store(v4) as st:
+        assert st.schema_version == SCHEMA_VERSION == 5
+        assert st.load_session("four").raw[0, 0] == 7
+        assert st.writers("four") == [] and len(st.conflicts("four")) == 0
+        w = st.open_session("four", kind="free", append=True)
         w.add_samples(np.array([2, 2]), np.array([5, 6]), np.zeros(2), np.zeros(2, int),
                       np.array([[7, 0, 0, 0, 0, 0, 0, 0, 0], [1] * 9]))
         w.end()
         # seq 5 held NULLs where these are 0: a conflict, kept, not dropped
-        assert len(st.load_session("three")) == 2 and len(st.conflicts("three")) == 1
+        assert len(st.load_session("four")) == 2 and len(st.conflicts("four")) == 1

@@ -35,12 +35,12 @@ from ..errors import UserError
 from .session import (COLUMNS, NOMINAL_CHIPS, NOMINAL_SCALES, SessionData, label_from_text,
                       label_to_text)
 
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 
 SAMPLE_COLUMNS = ("session", "mote", "seq", "t", "label", "flags") + COLUMNS
 
 # Per-mote link counters (link_stats) and per-line counters (line_stats):
-# name -> meaning.  The logger fills them; README's schema section lists them.
+# name -> meaning.  The logger fills them; docs/log.md (the database) lists them.
 LINK_COUNTERS = {
     "frames": "sample messages received from this mote",
     "samples": "records stored",
@@ -58,6 +58,9 @@ LINK_COUNTERS = {
     "mote_late": "mote counter: periods whose read was late",
     "cal_version": "calibration version in force on the mote",
     "cal_sensors": "sensors corrected on the mote (bit mask)",
+    "mote_i2c_nacks": "mote counter: I2C operations a chip did not acknowledge",
+    "mote_bus_resets": "mote counter: hung I2C operations aborted, bus cleared",
+    "mote_chip_reinits": "mote counter: chips found with reset registers, configured again",
 }
 LINE_COUNTERS = {
     "frames": "good serial frames",
@@ -92,7 +95,7 @@ SIGNATURE = {
                 "gz", "mx", "my", "mz"},
     "calibrations": {"id", "session", "mote", "created", "cal"},
 }
-SIGNATURE_SINCE = {2: ("link_stats", "line_stats", "events"), 4: ("writers", "sample_conflicts")}
+SIGNATURE_SINCE = {2: ("link_stats", "line_stats", "events"), 5: ("writers", "sample_conflicts")}
 _NULL = 1 << 40                    # a stored NULL, when samples are compared
 
 # A live session waits this long for a write lock another process holds,
@@ -147,6 +150,7 @@ def _counter_cols(names, real=("gap_s",)):
 
 
 _LINE_COUNTERS_V3 = ("cut_off",)      # line counters that schema version 3 added
+_LINK_COUNTERS_V4 = ("mote_i2c_nacks", "mote_bus_resets", "mote_chip_reinits")  # version 4
 
 MIGRATIONS = {
     1: [
@@ -186,7 +190,7 @@ MIGRATIONS = {
         f"""CREATE TABLE link_stats (
              session BIGINT NOT NULL,
              mote INTEGER NOT NULL,
-             {_counter_cols(LINK_COUNTERS)},
+             {_counter_cols(k for k in LINK_COUNTERS if k not in _LINK_COUNTERS_V4)},
              updated {{real}},
              PRIMARY KEY (session, mote))""",
         f"""CREATE TABLE line_stats (
@@ -202,10 +206,11 @@ MIGRATIONS = {
         "CREATE INDEX events_session ON events (session, t)",
     ],
     3: [f"ALTER TABLE line_stats ADD COLUMN {_counter_cols([k])}" for k in _LINE_COUNTERS_V3],
-    # 4: several writers to one session (docs/guarantees.md, "several writers"):
+    4: [f"ALTER TABLE link_stats ADD COLUMN {_counter_cols([k])}" for k in _LINK_COUNTERS_V4],
+    # 5: several writers to one session (docs/guarantees.md, "several writers"):
     # each live writer's own row of counts, and every sample a writer received
     # under a key already stored with other values, kept whole
-    4: [
+    5: [
         """CREATE TABLE writers (
              session BIGINT NOT NULL,
              writer TEXT NOT NULL,
@@ -829,10 +834,12 @@ class Store:
         info = self._require(session)
         if "link_stats" not in self._tables:        # schema 1, opened read-only
             return {"line": {}, "motes": {}}
-        names = list(LINK_COUNTERS)
-        motes = {int(r[0]): dict(zip(names, (int(v) for v in r[1:]))) for r in self._query(
-            f"SELECT mote, {', '.join(names)} FROM link_stats WHERE session = ? ORDER BY mote",
-            (info.id,))}
+        have_link = self._b.columns("link_stats")   # an older schema lacks later counters
+        names = [n for n in LINK_COUNTERS if n in have_link]
+        motes = {int(r[0]): {**dict(zip(names, (int(v) for v in r[1:]))),
+                             **{n: 0 for n in LINK_COUNTERS if n not in have_link}}
+                 for r in self._query(f"SELECT mote, {', '.join(names)} FROM link_stats "
+                                      "WHERE session = ? ORDER BY mote", (info.id,))}
         have = self._b.columns("line_stats")        # an older schema lacks later counters
         lnames = [n for n in LINE_COUNTERS if n in have]
         rows = self._query(f"SELECT {', '.join(lnames)} FROM line_stats WHERE session = ?",

@@ -1,6 +1,6 @@
 """Issue 15: every command under hostile command lines (hypothesis).
 
-For each command, argument lists are drawn from pools of hostile and valid
+For each of the ten commands, argument lists are drawn from pools of hostile and valid
 values: paths that are the database, a foreign sqlite file, a FIFO, a folder,
 a symlink to the database, '-', garbage, missing files; numbers that are
 huge, negative, NaN, infinite, text; names that are empty or blank.  Each
@@ -59,12 +59,15 @@ class Files:
         (root / "cal.json").write_text(json.dumps(cal))
         cal["accel"]["c"] = ["0", None, 1]
         (root / "badcal.json").write_text(json.dumps(cal))
+        (root / "float.log").write_text("0.01 -0.02 9.81\n" * 60)      # other tools' shapes
+        (root / "raw.txt").write_text("Raw:10,-20,2048,1,2,3,100,200,-300\n" * 60)
 
     def inputs(self):
         r = str(self.root)
         return [self.db, f"{r}/foreign.db", f"{r}/fifo", f"{r}/folder", f"{r}/link.db",
                 f"{r}/garbage.bin", f"{r}/empty", f"{r}/in.csv", f"{r}/rec.bin",
-                f"{r}/cal.json", f"{r}/badcal.json", f"{r}/missing", "-", "", f"{r}/m.db-wal"]
+                f"{r}/cal.json", f"{r}/badcal.json", f"{r}/missing", "-", "", f"{r}/m.db-wal",
+                f"{r}/float.log", f"{r}/raw.txt"]
 
     def outputs(self):
         r = str(self.root)
@@ -80,9 +83,15 @@ COMMANDS = {
     "sessions": (None, {"--db": "db"}, {"--json": None}),
     "export": (None, {"--db": "db", "--session": "name", "--csv": "out"}, {"--mote": "num"}),
     "import": ("in", {"--db": "db", "--session": "name"},
-               {"--format": ["auto", "csv", "razor-text", "razor-float", "x"],
+               {"--format": ["auto", "csv", "razor-text", "razor-float", "timestamped-csv",
+                             "imucal-annotated", "imucal-session", "float-log", "motioncal",
+                             "x"],
                 "--chip": ["mag=hmc5843", "mag=name:0", "mag=name:nan", "x", "accel=", "=1"],
-                "--kind": ["auto", "static", "rotation", "idle", "x"], "--replace": None}),
+                "--kind": ["auto", "static", "rotation", "idle", "x"], "--replace": None,
+                "--units": ["si", "counts", "gyro=deg/s", "x", "gyro="],
+                "--scale": ["accel=256", "accel=nan", "accel=0", "x"],
+                "--gravity": "num", "--rate-hz": "num", "--rate-dps": "num", "--rpm": "num",
+                "--columns": ["gyro", "accel,gyro", "x", ""], "--angle-deg": "num"}),
     "calibrate": (None, {"--db": "db", "--session": "name", "--out": "out"},
                   {"--mote": "num", "--model": ["paper", "full", "x"],
                    "--params": ["offsets", "scales,angles", "x", ""], "--seed": "num",
@@ -108,6 +117,9 @@ COMMANDS = {
              "--poses": "num", "--pose-samples": "num", "--min-angle": "num",
              "--rot-samples": "num", "--coverage": "num", "--lock-timeout": "num",
              "--baud": ["250000", "0", "x"]}),
+    "export-cal": ("in", {"--to": ["razor-c", "razor-yaml", "ardupilot", "imucal",
+                                   "c-header", "x"]},
+                   {"--out": "out", "--db": "db", "--session": "name"}),
     "upload": ("in", {"--dry-run": None},
                {"--mote": "num", "--version": "num", "--timeout": "num", "--retries": "num",
                 "--force": None}),
@@ -116,8 +128,9 @@ WRITES_DB = {"import", "calibrate", "log"}
 # exit 3: a calibration the quality gate refuses / the mote's fixed point cannot hold
 OK = {"calibrate": (0, 2, 3), "upload": (0, 2, 3)}
 # the index of a valid input / output per command (Files.inputs / Files.outputs)
-IN_GOOD = {"import": 7, "report": 9, "upload": 9, "sim": 11}
-OUT_GOOD = {"export": 0, "calibrate": 1, "diagnose": 1, "report": 2, "sim": 0}
+IN_GOOD = {"import": 7, "report": 9, "upload": 9, "sim": 11, "export-cal": 9}
+OUT_GOOD = {"export": 0, "calibrate": 1, "diagnose": 1, "report": 2, "sim": 0,
+            "export-cal": 0}
 
 
 @st.composite
@@ -133,8 +146,8 @@ def command_lines(draw, cmd):
             return either(pool[0], draw(st.sampled_from(pool)))
         return {"num": lambda: either("1", draw(st.sampled_from(NUMBERS))),
                 "name": lambda: either("board", draw(st.sampled_from(NAMES))),
-                "db": lambda: ("@in", either(0, draw(st.integers(0, 14)))),
-                "in": lambda: ("@in", either(IN_GOOD[cmd], draw(st.integers(0, 14)))),
+                "db": lambda: ("@in", either(0, draw(st.integers(0, 16)))),
+                "in": lambda: ("@in", either(IN_GOOD[cmd], draw(st.integers(0, 16)))),
                 "out": lambda: ("@out", either(OUT_GOOD[cmd], draw(st.integers(0, 11))))}[pool]()
 
     argv = [cmd]
@@ -222,3 +235,4 @@ test_fuzz_report = _test("report", 3)
 test_fuzz_sim = _test("sim", 10)
 test_fuzz_log = _test("log", 15)
 test_fuzz_upload = _test("upload", 15)
+test_fuzz_export_cal = _test("export-cal", 12)

@@ -12,7 +12,7 @@ import subprocess
 
 import pytest
 
-from clirun import digest, motecal
+from clirun import digest, motecal, session as small_session
 from motecal.sessions.store import open_store
 from synthetic import paper_sized_session
 
@@ -25,6 +25,7 @@ def master(tmp_path_factory):
     s.name = "board"
     with open_store(str(path), create=True) as st:
         st.save_session(s)
+        st.save_session(small_session("small"))        # a quick report
     return path
 
 
@@ -118,7 +119,7 @@ def test_case8_every_command_works_on_read_only_media(master, tmp_path, monkeypa
         if how == "read-only bind mount":
             with pytest.raises(OSError):
                 (folder / "probe").write_text("x")
-        for cmd in READS + [("report", "--session", "board", "--out", "{out}/rep", "-q")]:
+        for cmd in READS + [("report", "--session", "small", "--out", "{out}/rep", "-q")]:
             rc, _, err = motecal(*_argv(cmd, db, out))
             assert rc == 0, (how, cmd, err)
         # calibrate: cal.json is written; the database cannot record it and says so

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from ..errors import UserError
-from ..inputs import MAX_JSON_BYTES, check_input_file
+from ..inputs import MAX_JSON_BYTES, read_input_text
 from ..outputs import check_output, is_stdout, write_text
 
 
@@ -31,8 +31,11 @@ def run(args) -> int:
     inputs = [args.cal, args.db]
     if args.out:
         check_output(args.out, inputs=inputs, what="--out")
-    check_input_file(args.cal, max_bytes=MAX_JSON_BYTES)     # never /dev/zero or a FIFO
-    board = BoardCalibration.load(args.cal)
+    # a regular UTF-8 file of sane size: never /dev/zero, a FIFO or a database
+    try:
+        board = BoardCalibration.loads(read_input_text(args.cal, max_bytes=MAX_JSON_BYTES))
+    except UserError as e:
+        raise UserError(f"{args.cal}: {e}") from None
     if not board.sensors():
         raise UserError(f"{args.cal}: no calibrated sensor in it")
     data = None

@@ -29,6 +29,19 @@ NUMBERS = ["0", "-1", "1", "2", "nan", "inf", "-inf", "1e308", "-1e308", "1e-320
 NAMES = ["board", "tiny", "nope", "", " ", "\t", "x" * 300, "rot", "a'b\"c", "-"]
 
 
+_REAL_CAL = []
+
+
+def real_cal() -> str:
+    """A whole cal.json (motecal calibrate of a simulated board), made once."""
+    if not _REAL_CAL:
+        from motecal.calib.board import calibrate_board
+        from synthetic import paper_sized_session
+        data = paper_sized_session(3, mote=1, rotation=False, n_poses=30, per_pose=100)
+        _REAL_CAL.append(calibrate_board(data, seed=1, kfold=0).dumps())
+    return _REAL_CAL[0]
+
+
 class Files:
     """The temporary folder of one run: a database with sessions 'board' and
     'tiny', a foreign sqlite file, a FIFO, a folder, a symlink to the
@@ -59,6 +72,7 @@ class Files:
         (root / "cal.json").write_text(json.dumps(cal))
         cal["accel"]["c"] = ["0", None, 1]
         (root / "badcal.json").write_text(json.dumps(cal))
+        (root / "full.json").write_text(real_cal())
         (root / "float.log").write_text("0.01 -0.02 9.81\n" * 60)      # other tools' shapes
         (root / "raw.txt").write_text("Raw:10,-20,2048,1,2,3,100,200,-300\n" * 60)
 
@@ -67,7 +81,7 @@ class Files:
         return [self.db, f"{r}/foreign.db", f"{r}/fifo", f"{r}/folder", f"{r}/link.db",
                 f"{r}/garbage.bin", f"{r}/empty", f"{r}/in.csv", f"{r}/rec.bin",
                 f"{r}/cal.json", f"{r}/badcal.json", f"{r}/missing", "-", "", f"{r}/m.db-wal",
-                f"{r}/float.log", f"{r}/raw.txt"]
+                f"{r}/float.log", f"{r}/raw.txt", f"{r}/full.json"]
 
     def outputs(self):
         r = str(self.root)
@@ -125,10 +139,11 @@ COMMANDS = {
                 "--force": None}),
 }
 WRITES_DB = {"import", "calibrate", "log"}
-# exit 3: a calibration the quality gate refuses / the mote's fixed point cannot hold
-OK = {"calibrate": (0, 2, 3), "upload": (0, 2, 3)}
+# exit 3 (QualityError): a calibration the gate refuses, a set the mote cannot hold,
+# a session with no data for any of the report's tables
+OK = {"calibrate": (0, 2, 3), "upload": (0, 2, 3), "report": (0, 2, 3)}
 # the index of a valid input / output per command (Files.inputs / Files.outputs)
-IN_GOOD = {"import": 7, "report": 9, "upload": 9, "sim": 11, "export-cal": 9}
+IN_GOOD = {"import": 7, "report": 17, "upload": 17, "sim": 11, "export-cal": 17}
 OUT_GOOD = {"export": 0, "calibrate": 1, "diagnose": 1, "report": 2, "sim": 0,
             "export-cal": 0}
 
@@ -146,8 +161,8 @@ def command_lines(draw, cmd):
             return either(pool[0], draw(st.sampled_from(pool)))
         return {"num": lambda: either("1", draw(st.sampled_from(NUMBERS))),
                 "name": lambda: either("board", draw(st.sampled_from(NAMES))),
-                "db": lambda: ("@in", either(0, draw(st.integers(0, 16)))),
-                "in": lambda: ("@in", either(IN_GOOD[cmd], draw(st.integers(0, 16)))),
+                "db": lambda: ("@in", either(0, draw(st.integers(0, 17)))),
+                "in": lambda: ("@in", either(IN_GOOD[cmd], draw(st.integers(0, 17)))),
                 "out": lambda: ("@out", either(OUT_GOOD[cmd], draw(st.integers(0, 11))))}[pool]()
 
     argv = [cmd]

@@ -64,6 +64,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 def pytest_configure(config):
     config.addinivalue_line("markers", "slow: takes more than a few seconds")
+    # hypothesis keeps caches (.hypothesis/) in the working folder: tests write
+    # only in their own temporary folders, so point it at one
+    if "HYPOTHESIS_STORAGE_DIRECTORY" not in os.environ:
+        import atexit
+        import shutil
+        import tempfile
+        where = tempfile.mkdtemp(prefix="motecal-hypothesis-")
+        atexit.register(shutil.rmtree, where, True)
+        os.environ["HYPOTHESIS_STORAGE_DIRECTORY"] = where
 
 
 @pytest.fixture(scope="session")

@@ -214,7 +214,7 @@ def test_newer_schema_refused_and_old_schema_migrated(tmp_path):
     assert "cut_off" not in [r[1] for r in con.execute("PRAGMA table_info(line_stats)")]
     con.close()
     with open_store(v2) as st:
-        assert st.schema_version == SCHEMA_VERSION == 4
+        assert st.schema_version == SCHEMA_VERSION == 5
         line = st.link_stats("two")["line"]
         assert (line["frames"], line["crc_errors"], line["cut_off"]) == (7, 1, 0)
     # version 3 (no fault counters of the mote yet) gains the columns, its rows read 0
@@ -232,7 +232,7 @@ def test_newer_schema_refused_and_old_schema_migrated(tmp_path):
     assert "mote_bus_resets" not in [r[1] for r in con.execute("PRAGMA table_info(link_stats)")]
     con.close()
     with open_store(v3) as st:
-        assert st.schema_version == 4
+        assert st.schema_version == SCHEMA_VERSION
         mote = st.link_stats("three")["motes"][5]
         assert (mote["frames"], mote["mote_i2c_errors"]) == (11, 2)
         assert (mote["mote_i2c_nacks"], mote["mote_bus_resets"], mote["mote_chip_reinits"]) == (0, 0, 0)
@@ -297,9 +297,9 @@ def test_export_csv_format_and_atomic(tmp_path, monkeypatch):
     class Boom(Exception):
         pass
 
-    def half_then_fail(d, path):           # dies after writing part of the file
-        with open(path, "w") as f:
-            f.write("mote,seq\n1,2\n")
+    def half_then_fail(d, f):              # dies after writing part of the file
+        f.write("mote,seq\n1,2\n")
+        f.flush()
         raise Boom()
 
     monkeypatch.setattr(motecal.sessions.importer, "write_csv", half_then_fail)
@@ -414,3 +414,12 @@ def test_postgres_two_base_stations_log_into_one_server(pg_url, tmp_path):
     r = _motecal("export", "--db", pg_url, "--session", "bs0", "--csv", str(out))
     assert r.returncode == 0, r.stderr
     assert len(out.read_text().splitlines()) == 1 + sum(len(s) for s, _ in sent[0].values())
+
+
+def test_postgres_two_loggers_one_session_keep_every_sample(pg_url, tmp_path):
+    """Issue 15 case 6 on PostgreSQL, where the two writers run side by side
+    (no file lock): the same model as sqlite (test_safety_writers)."""
+    from test_safety_writers import check_model, log_together, two_stations
+    recs, raw, other, rows = two_stations(tmp_path, seed=2)
+    writers = log_together(pg_url, recs, session="pgx")
+    check_model(pg_url, writers, raw, other, rows, session="pgx")

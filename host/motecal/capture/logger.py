@@ -24,7 +24,7 @@ import numpy as np
 from ..line import protocol as P
 from ..line import sources as S
 from ..line.samples import decode_sample_frames
-from ..sessions.store import SessionWriter
+from ..sessions.store import SessionWriter, StoreError
 from .guide import GuidedFlow
 from .link import LinkTracker
 
@@ -64,6 +64,7 @@ class Logger:
         self.stop_reason = ""
         self.connected = False
         self.started = time.monotonic()
+        self._lock_began = 0.0
 
     def request_stop(self, reason: str = "stopped") -> None:
         if not self.stop_event.is_set():
@@ -80,6 +81,9 @@ class Logger:
         return self.stop_event.is_set()
 
     def run(self) -> None:
+        """Log until stopped; raises ``StoreError`` (after ending the session
+        with what was committed) when the database fails."""
+        failure = None
         self.started = time.monotonic()
         src = self.source or S.open_source(self.spec)
         self.connected = True
@@ -126,15 +130,43 @@ class Logger:
                     if drained or now - last_data >= DRAIN_IDLE_S \
                             or now - drain_since >= DRAIN_MAX_S:
                         self.request_stop("guided flow done")
+        except StoreError as e:
+            failure = e
         finally:
             if src is not None:
                 self.handle(src.flush())
                 self.tracker.decoder(src.stats, closed=True)
                 src.close()
             self.connected = False
-            self.commit()
-            self.writer.end()
+            failure = self._finish(failure)
             self.display.stop(self)
+        if failure is not None:
+            raise failure
+
+    def _finish(self, failure: StoreError | None) -> StoreError | None:
+        """Commit what is queued and mark the session ended.  When the store
+        fails (disk full, I/O error, a lock held past the timeout) the session
+        is still marked ended with what was committed, and the failure comes
+        back as one line saying how much was stored and how much was not."""
+        w = self.writer
+        if failure is None:
+            try:
+                while not self.commit():          # a held lock: wait (bounded)
+                    time.sleep(0.05)
+                w.mark_ended()
+                return None
+            except StoreError as e:
+                failure = e
+        lost = w.discard()
+        try:
+            w.mark_ended()
+            state = "marked ended"
+        except StoreError:
+            state = "left open (the database refused even that)"
+        self.stop_reason = "database failed"
+        return type(failure)(f"{failure}; logging stopped: {w.committed_samples} samples stored, "
+                          f"{lost} received samples not stored; session {w.name} {state}",
+                          exit_code=failure.exit_code)
 
     def handle(self, frames: list[P.Frame]) -> None:
         if not frames:
@@ -156,11 +188,33 @@ class Logger:
                     self.writer.add_event(ev.kind, ev.text, ev.mote)
                 self.display.event(ev.text)
 
-    def commit(self) -> None:
+    def _set_counters(self) -> None:
         for m, link in self.tracker.seen().items():
             self.writer.set_link_stats(m, link.c)
         self.writer.set_line_stats(self.tracker.line)
-        self.writer.commit()
+
+    def commit(self) -> bool:
+        """Commit what is queued.  While another process holds the database's
+        write lock the samples stay queued (``SessionWriter.commit``) and the
+        loop reads on; the wait is shown and stored as a ``db_locked`` event."""
+        w = self.writer
+        waiting = w.locked_since is not None
+        self._set_counters()
+        done = w.commit()
+        if not done and not waiting:
+            self.display.event(f"database locked by another process: buffering samples, "
+                               f"retrying for up to {w.lock_timeout:g} s")
+        elif done and waiting:
+            waited = time.monotonic() - self._lock_began
+            w.add_event("db_locked", f"database locked by another process for {waited:.1f} s; "
+                                     "samples were buffered, none lost")
+            self.display.event(f"database free again after {waited:.1f} s; buffered samples "
+                               "stored")
+            self._set_counters()
+            w.commit()
+        if not done and not waiting:
+            self._lock_began = time.monotonic()
+        return done
 
     def _reconnect(self, reason: str) -> S.Source | None:
         self.connected = False
@@ -206,6 +260,10 @@ class Logger:
             elif cap is not None:
                 line += f", rotation {cap.count} samples, coverage {cap.coverage.fraction:.0%}"
             out.append(line)
+        if w.duplicates or w.conflicts:
+            out.append(f"  other writers of this session: {w.duplicates} samples they had "
+                       f"stored already (duplicates), {w.conflicts} stored with other values "
+                       "(conflicts, kept in sample_conflicts)")
         ln = tr.line
         out.append(f"  line: {ln['frames']} frames, {ln['crc_errors']} CRC errors, "
                    f"{ln['cut_off']} cut off, "

@@ -3,7 +3,7 @@
 The types raise ``argparse.ArgumentTypeError``, which the parser turns into
 one line on stderr (exit 2), as for every user error.
 
-* ``positive(kind)``: a number > 0 (finite for floats);
+* ``positive(kind, most=None)``: a number > 0 (finite for floats), at most ``most``;
 * ``int_range(what, lo, hi)``: a whole number in lo..hi (hi None: no bound);
 * ``mote_id``: a sensing mote's id, 1..65534 (0 is the BaseStation, 65535 the
   broadcast address);
@@ -24,15 +24,18 @@ from ..line.protocol import MOTE_ID_MAX, MOTE_ID_MIN
 from ..line.sources import baud_problem
 
 
-def positive(kind=float):
-    """Argument type: a number of ``kind`` (int or float) > 0, finite."""
+def positive(kind=float, most=None):
+    """Argument type: a number of ``kind`` (int or float) > 0, finite, and at
+    most ``most`` when given (checked before anything uses the value)."""
     def parse(text):
         try:
             v = kind(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+            raise argparse.ArgumentTypeError(f"not a number: {text[:40]!r}") from None
         if not v > 0 or (isinstance(v, float) and not math.isfinite(v)):
-            raise argparse.ArgumentTypeError(f"must be > 0: {text!r}")
+            raise argparse.ArgumentTypeError(f"must be > 0: {text[:40]!r}")
+        if most is not None and v > most:
+            raise argparse.ArgumentTypeError(f"must be at most {most:g}: {text[:40]!r}")
         return v
     return parse
 

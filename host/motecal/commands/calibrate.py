@@ -30,6 +30,8 @@ from ..calib.models import MODEL_FAMILIES, parse_groups
 from ..calib.result import BoardCalibration
 from ..calib.terms import apply_diagnosis, load_diagnosis
 from ..errors import QualityError, UserError
+from ..outputs import check_output, write_text
+from ..sessions.store import StoreError, open_store
 from .args import description, int_range, mote_id, positive, seed
 
 
@@ -50,7 +52,7 @@ def register(subparsers):
     p.add_argument("--params", help="paper model: comma-separated subset of "
                                     "offsets,scales,angles (default all three)")
     p.add_argument("--seed", type=seed, help="GA seed (default: random, recorded in cal.json)")
-    p.add_argument("--mag-field", type=positive(float), metavar="GAUSS",
+    p.add_argument("--mag-field", type=positive(float, 100.0), metavar="GAUSS",
                    help="known local field magnitude: fixes the magnetometer gauge to it "
                         "instead of det(A) = 1")
     p.add_argument("--no-gyro-matrix", action="store_true",
@@ -91,10 +93,19 @@ def calibrate(data, args) -> BoardCalibration:
                            kfold=args.kfold)
 
 
-def deliver(board: BoardCalibration, args, store, path: Path) -> int:
-    """Write cal.json and store the calibration in the database; returns its id."""
-    board.save(path)
-    return store.save_calibration(board.session, board.mote, board.to_json())
+def deliver(board: BoardCalibration, args, store, path: Path) -> int | None:
+    """Write cal.json (``outputs.write_text``: never over the database, a
+    device or half-written) and record the calibration in the database;
+    returns its id, or None when the database cannot take it (read-only
+    media, full disk: cal.json is written all the same, and a note says so)."""
+    write_text(path, board.dumps(), inputs=[args.db], what="--out")
+    if store.readonly:
+        return None
+    try:
+        return store.save_calibration(board.session, board.mote, board.to_json())
+    except StoreError as e:
+        print(f"  note: not recorded in the database: {e}", file=sys.stderr)
+        return None
 
 
 def _fmt(x, spec=".3e"):
@@ -144,7 +155,6 @@ def summary(board: BoardCalibration) -> str:
 
 
 def run(args) -> int:
-    from ..sessions.store import open_store
     from .upload import calibrate_step
     step = calibrate_step(args)          # None without --upload; checks the port first
     with open_store(args.db) as store:
@@ -153,6 +163,8 @@ def run(args) -> int:
         if not motes or len(data) == 0:
             raise UserError(f"session {args.session!r} has no samples")
         several = len(motes) > 1
+        for m in motes:                  # every output checked before any work
+            check_output(out_path(args.out, m, several), inputs=[args.db], what="--out")
         refused = []
         diag = load_diagnosis(args.diagnosis) if getattr(args, "diagnosis", None) else None
         for m in motes:
@@ -174,7 +186,10 @@ def run(args) -> int:
                 continue
             path = out_path(args.out, m, several)
             cid = deliver(board, args, store, path)
-            print(f"  wrote {path} (database calibration {cid})")
+            print(f"  wrote {path} " + (f"(database calibration {cid})" if cid is not None
+                                        else "(not recorded in the database: it is read-only)"
+                                        if store.readonly else
+                                        "(not recorded in the database)"))
             if step is not None:
                 step(board, path)
     sys.stdout.flush()

@@ -12,13 +12,13 @@ files get ``-mote<ID>`` before their extension (as ``motecal calibrate``).
 from __future__ import annotations
 
 import json
-import os
 import sys
 from pathlib import Path
 
 from ..diagnose.gain import DEFAULT_ALPHA
 from ..diagnose.summary import render
 from ..errors import UserError
+from ..outputs import check_output, check_output_dir, write_text
 from .args import between, description, mote_id, seed
 
 
@@ -43,24 +43,23 @@ def register(subparsers):
     return p
 
 
-def _write_json(path: Path, obj):
-    try:
-        path.write_text(json.dumps(obj, indent=1) + "\n", encoding="utf-8")
-    except OSError as e:
-        raise UserError(f"cannot write {path}: {e.strerror or e}") from None
+def _write_json(path: Path, obj, inputs=()):
+    write_text(path, json.dumps(obj, indent=1) + "\n", inputs=inputs)
 
 
 def run(args) -> int:
     from .calibrate import out_path
     from ..sessions.store import open_store
     from ..diagnose.engine import diagnose
+    inputs = [args.db]
     for opt in ("json", "model_out"):
         v = getattr(args, opt)
         if v:
-            folder = os.path.dirname(os.path.abspath(v))
-            if not os.path.isdir(folder):
-                raise UserError(f"--{opt.replace('_', '-')} {v}: folder {folder} does not exist")
-    with open_store(args.db) as store:
+            check_output(v, inputs=inputs, what=f"--{opt.replace('_', '-')}")
+            inputs.append(v)             # --json and --model-out must differ too
+    if args.report:
+        check_output_dir(args.report, inputs=[args.db], what="--report")
+    with open_store(args.db, readonly=True) as store:
         data = store.load_session(args.session, args.mote)
     if len(data) == 0:
         raise UserError(f"session {args.session!r} has no samples"
@@ -72,10 +71,10 @@ def run(args) -> int:
                      simulate=not args.no_sim)
         print(render(d))
         if args.json:
-            _write_json(out_path(args.json, m, several), d.to_json())
+            _write_json(out_path(args.json, m, several), d.to_json(), [args.db, args.model_out])
         if args.model_out:
             p = out_path(args.model_out, m, several)
-            _write_json(p, d.model)
+            _write_json(p, d.model, [args.db, args.json])
             print(f"   extended model written to {p} (motecal sim --model {p})")
         if args.report:
             from ..diagnose.plots import write_report

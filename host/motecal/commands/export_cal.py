@@ -5,12 +5,12 @@ on the session's own rows with ``--db`` (the session named in cal.json, or
 written whole or not at all (a temporary file renamed into place)."""
 from __future__ import annotations
 
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 from ..errors import UserError
+from ..inputs import MAX_JSON_BYTES, read_input_text
+from ..outputs import check_output, is_stdout, write_text
 
 
 def _formats():
@@ -18,37 +18,31 @@ def _formats():
     return FORMATS
 
 
-def write_atomic(path: Path, text: str) -> None:
-    path = Path(path)
-    d = path.parent if str(path.parent) else Path(".")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=d)
-    except OSError as e:
-        raise UserError(f"cannot write {path}: {e.strerror or e}") from None
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except OSError as e:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise UserError(f"cannot write {path}: {e.strerror or e}") from None
+def write_atomic(path: Path, text: str, inputs=()) -> None:
+    """The output file, whole or not at all, never over an input
+    (``outputs.write_text``)."""
+    write_text(path, text, inputs=inputs, what="--out")
 
 
 def run(args) -> int:
     from ..calib.result import BoardCalibration
     from ..targets import export
     from ..targets.common import cost_lines, costs
-    board = BoardCalibration.load(args.cal)
+    inputs = [args.cal, args.db]
+    if args.out:
+        check_output(args.out, inputs=inputs, what="--out")
+    # a regular UTF-8 file of sane size: never /dev/zero, a FIFO or a database
+    try:
+        board = BoardCalibration.loads(read_input_text(args.cal, max_bytes=MAX_JSON_BYTES))
+    except UserError as e:
+        raise UserError(f"{args.cal}: {e}") from None
     if not board.sensors():
         raise UserError(f"{args.cal}: no calibrated sensor in it")
     data = None
     if args.db:
         from ..sessions.store import open_store
         name = args.session or board.session
-        with open_store(args.db) as store:
+        with open_store(args.db, readonly=True) as store:
             data = store.load_session(name, mote=board.mote)
     exp = export(board, args.to)
     held = [s for s, _ in board.sensors() if s in exp.apply]
@@ -56,8 +50,8 @@ def run(args) -> int:
         raise UserError(f"{args.to} holds none of the sensors of {args.cal} "
                         f"({', '.join(s for s, _ in board.sensors())})")
     cost = costs(board, exp, data)
-    if args.out:
-        write_atomic(Path(args.out), exp.text)
+    if args.out and not is_stdout(args.out):
+        write_atomic(Path(args.out), exp.text, inputs)
         info = sys.stdout
         print(f"wrote {args.out} ({args.to})", file=info)
     else:
@@ -77,7 +71,8 @@ def register(subparsers) -> None:
                     "the target cannot hold and what it costs.")
     p.add_argument("cal", metavar="CAL_JSON", help="a calibration written by motecal calibrate")
     p.add_argument("--to", required=True, choices=_formats(), help="target format")
-    p.add_argument("--out", metavar="FILE", help="output file (default: standard output)")
+    p.add_argument("--out", metavar="FILE",
+                   help="output file ('-' or none: standard output)")
     p.add_argument("--db", metavar="FILE",
                    help="session database: measure the cost on the session's own rows")
     p.add_argument("--session", metavar="NAME",

@@ -20,7 +20,7 @@ from ..capture.logger import Logger
 from ..errors import UserError
 from ..line import protocol as P
 from ..line import sources as S
-from ..sessions.store import open_store
+from ..sessions.store import LOCK_TIMEOUT_S, open_store
 from .args import baud_rate, mote_id, positive, session_name
 from .log_screen import KeyReader, PlainDisplay, RichDisplay, no_echo
 
@@ -50,21 +50,26 @@ def register(sub) -> None:
     p.add_argument("--kind", choices=("free", "idle", "static80", "rotation"),
                    help="session kind when not guided (default free)")
     p.add_argument("--mote", type=mote_id, help="mote the guided flow follows (default all)")
-    p.add_argument("--duration", type=positive(float), help="stop after SECONDS")
+    p.add_argument("--duration", type=positive(float, 1e8), help="stop after SECONDS")
     p.add_argument("--yes", action="store_true",
                    help="non-interactive: advance whenever a new still pose appears")
     p.add_argument("--notes", help="free text stored with the session")
     p.add_argument("--board", type=_board, action="append", default=[], metavar="MOTE=BOARD",
                    help="which sensor board sits on which mote (repeatable)")
     g = p.add_argument_group("guided flow")
-    g.add_argument("--poses", type=positive(int), default=DEFAULT_POSES)
-    g.add_argument("--pose-samples", type=positive(int), default=DEFAULT_POSE_SAMPLES)
+    g.add_argument("--poses", type=positive(int, 10_000), default=DEFAULT_POSES)
+    g.add_argument("--pose-samples", type=positive(int, 1_000_000),
+                   default=DEFAULT_POSE_SAMPLES)
     g.add_argument("--min-angle", type=positive(float), default=DEFAULT_MIN_ANGLE,
                    help="degrees a new pose must be from every earlier one")
-    g.add_argument("--rot-samples", type=positive(int), default=DEFAULT_ROT_SAMPLES)
+    g.add_argument("--rot-samples", type=positive(int, 100_000_000),
+                   default=DEFAULT_ROT_SAMPLES)
     g.add_argument("--coverage", type=positive(float), default=DEFAULT_COVERAGE,
                    help="rotation stops at this fraction of sphere cells hit")
-    p.add_argument("--commit-every", type=positive(float), default=0.25,
+    p.add_argument("--lock-timeout", type=positive(float, 86400), default=LOCK_TIMEOUT_S,
+                   metavar="S", help="while another process holds the database's write lock, "
+                   f"buffer samples and retry for up to S seconds ({LOCK_TIMEOUT_S:g})")
+    p.add_argument("--commit-every", type=positive(float, 60), default=0.25,
                    help=argparse.SUPPRESS)
     p.set_defaults(func=run)
 
@@ -112,7 +117,11 @@ def run(args) -> int:
             last = store.last_seqs(args.session)
         writer = store.open_session(args.session, kind=args.guided or args.kind or "free",
                                     meta=meta, append=args.append,
-                                    commit_every=args.commit_every)
+                                    commit_every=args.commit_every,
+                                    lock_timeout=args.lock_timeout)
+        # a commit attempt waits briefly for a held lock, then the loop reads
+        # on with the samples queued (SessionWriter.commit) and tries again
+        store.set_busy_timeout(0.05)
         tracker = LinkTracker(link, line, last)
         display = RichDisplay() if sys.stdout.isatty() else PlainDisplay()
         logger = Logger(spec, writer, tracker, guide=guide, display=display,

@@ -2,13 +2,18 @@
 (``motecal.report``)."""
 from __future__ import annotations
 
+from ..outputs import check_output_dir
 from ..report import write_report
 from ..sessions.store import open_store
+from ..upload.calfile import load_cal
 from .args import mote_id, seed
 
 
 def run(args) -> int:
-    store = open_store(args.db)
+    check_output_dir(args.out, inputs=[args.db, args.cal], what="--out")
+    if args.cal is not None:
+        load_cal(args.cal)       # a regular file, a calibration, finite numbers: one line if not
+    store = open_store(args.db, readonly=True)
     try:
         def log(msg):
             if not args.quiet:

@@ -8,11 +8,12 @@ from ..sessions.store import open_store
 
 
 def list_sessions(args) -> int:
-    with open_store(args.db) as store:
+    with open_store(args.db, readonly=True) as store:
         rows = store.sessions()
         if args.json:
             for r in rows:
                 r["link"] = store.link_stats(r["name"])
+                r["writers"] = store.writers(r["name"])
             json.dump(rows, sys.stdout, indent=1)
             print()
             return 0

@@ -2,11 +2,14 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 
 from ..errors import UserError
 from ..line import protocol as P
+from ..outputs import check_output, open_output, write_text
+from ..sim.world import MAX_DURATION_S
 from .args import baud_rate, positive
 
 
@@ -43,7 +46,7 @@ def register(subparsers) -> None:
                    help="static80 | rotation | idle | free, or several in a row separated "
                         "by commas, e.g. static80,static80 (static80)")
     p.add_argument("--seed", type=int, default=1, help="random seed (1)")
-    p.add_argument("--duration", type=positive(float), default=None, metavar="S",
+    p.add_argument("--duration", type=positive(float, MAX_DURATION_S), default=None, metavar="S",
                    help="simulated seconds (default: the session's natural length)")
     p.add_argument("--baud", type=baud_rate, default=250000,
                    help="serial baud rate, 10 bits per byte (250000; iris stock 57600)")
@@ -60,7 +63,7 @@ def register(subparsers) -> None:
                         "at boot, written when a mote stores a set")
     p.add_argument("--realtime", action="store_true",
                    help="pace the bytes at the line rate in wall time")
-    p.add_argument("--speed", type=positive(float), default=None, metavar="X",
+    p.add_argument("--speed", type=positive(float, 1e6), default=None, metavar="X",
                    help="pace at X times real time (implies pacing)")
     p.add_argument("--quiet", action="store_true", help="no summary on stderr")
     p.set_defaults(func=run)
@@ -92,24 +95,24 @@ def run(args) -> int:
     n_out = sum(x is not None and x is not False for x in (args.out, args.serve, args.pty or None))
     if n_out != 1:
         raise UserError("choose one output: --out FILE, --serve HOST:PORT or --pty")
+    inputs = [args.model, args.eeprom]
+    if args.out is not None:
+        check_output(args.out, inputs=inputs, what="--out")
+    if args.truth:
+        check_output(args.truth, inputs=inputs + [args.out], what="--truth")
     speed = args.speed if args.speed is not None else (1.0 if args.realtime else None)
     world = World(motes=args.motes, session=args.session, seed=args.seed, baud=args.baud,
                   loss=args.loss, model=args.model, batch=args.batch,
                   duration=args.duration, eeprom=args.eeprom)
     if args.truth:
-        world.write_truth(args.truth)
+        write_text(args.truth, json.dumps(world.truth(), indent=1) + "\n",
+                   inputs=inputs + [args.out], what="--truth")
     t0 = time.monotonic()
     if args.out is not None:
-        if args.out == "-":
-            write_file(world, sys.stdout.buffer, speed)
-            sys.stdout.buffer.flush()
-        else:
-            try:
-                fh = open(args.out, "wb")
-            except OSError as e:
-                raise UserError(f"cannot write {args.out}: {e.strerror or e}") from None
-            with fh:
-                write_file(world, fh, speed)
+        # '-' is stdout; a file is complete or not there (outputs.open_output)
+        with open_output(args.out, inputs=inputs + [args.truth], binary=True,
+                         what="--out") as fh:
+            write_file(world, fh, speed)
         if not args.quiet:
             print(_summary(world, time.monotonic() - t0), file=sys.stderr)
         return 0

@@ -19,7 +19,7 @@ from ..line import sources as S
 from ..upload.calfile import build_set, cal_from_board, check_set, load_cal
 from ..upload.describe import dry_run_lines, show_lines
 from ..upload.link import DEFAULT_RETRIES, DEFAULT_TIMEOUT, Link
-from ..upload.uploader import (MAX_VERSION, Options, Result, Uploader, check_cal, next_version,
+from ..upload.uploader import (MAX_VERSION, Options, Result, Uploader, check_cal, choose_version,
                                summary, upload_cal)
 from .args import baud_rate, int_range, mote_id, positive
 from .upload_screen import PlainProgress, make_progress
@@ -46,19 +46,21 @@ def register(sub) -> None:
     p.add_argument("--baud", type=baud_rate, help="baud rate (default 250000)")
     p.add_argument("--mote", type=mote_id, help="target mote (default: the mote of cal.json)")
     p.add_argument("--version", type=int_range("version", 1, MAX_VERSION),
-                   help="version of the new set, 1..65535 (default: the one in force + 1)")
+                   help="version of the new set, 1..65535, above the one in force "
+                        "(default: the one in force + 1)")
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--dry-run", action="store_true",
                       help="print the fixed-point values and their rounding error; no port")
     mode.add_argument("--reset", action="store_true", help="put the mote back to raw output")
     mode.add_argument("--show", action="store_true",
                       help="read back and print the set in force (with cal.json: compare)")
-    p.add_argument("--timeout", type=positive(float), default=DEFAULT_TIMEOUT,
+    p.add_argument("--timeout", type=positive(float, 3600), default=DEFAULT_TIMEOUT,
                    help=f"seconds to wait for each reply of the mote ({DEFAULT_TIMEOUT:g})")
-    p.add_argument("--retries", type=int_range("whole number", 0), default=DEFAULT_RETRIES,
+    p.add_argument("--retries", type=int_range("whole number", 0, 10_000), default=DEFAULT_RETRIES,
                    help=f"repeats of a message that gets no reply ({DEFAULT_RETRIES})")
     p.add_argument("--force", action="store_true",
-                   help="upload a calibration the quality gate refused")
+                   help="upload a calibration the quality gate refused, or under a "
+                        "--version not above the one in force")
     p.set_defaults(func=run)
 
 
@@ -112,7 +114,7 @@ def _reset(source, mote, opts) -> int:
     try:
         t0 = link.clock()
         old = up.in_force()
-        version = opts.version or next_version(old.version)
+        version = choose_version(mote, old.version, opts)
         progress.note(f"mote {mote}: version {old.version} in force; reset to raw output, "
                       f"version {version}")
         res = up.reset(version, old.version, opts.verify_wait)

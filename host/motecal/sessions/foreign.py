@@ -29,6 +29,7 @@ import numpy as np
 
 from . import floatlog as F
 from ..errors import UserError
+from ..inputs import check_input_file, read_input_text
 from .importer import _fail, _finish, _read_text_lines, _session, add_note
 from .session import LABEL_ROT, SENSOR_SLICES, UNITS
 from .still import segment_recording
@@ -208,10 +209,8 @@ def _labelled(path, raw, samples, parts, rate, meta, lsbs, chip, angle_deg, kind
 
 def _section_list(path) -> dict:
     try:
-        d = json.loads(Path(path).read_text(encoding="utf-8"))
-    except OSError as e:
-        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        d = json.loads(read_input_text(path))
+    except (json.JSONDecodeError, RecursionError) as e:
         line = getattr(e, "lineno", 1)
         raise _fail(path, line, f"not a JSON section list: {e}") from None
     if not isinstance(d, dict):
@@ -532,6 +531,7 @@ def detect(path) -> str | None:
     p = Path(path)
     if p.is_dir():
         return None
+    check_input_file(p)                   # not a FIFO or device: opening one would block
     try:
         with open(p, "rb") as f:
             head = f.read(8192)

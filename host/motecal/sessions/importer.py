@@ -18,6 +18,7 @@ store in one go, so a bad file leaves the database unchanged.
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import re
 from dataclasses import asdict
@@ -26,9 +27,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from ..inputs import check_input_file, read_input_bytes
 from ..line.protocol import NINEDOF_RATE_HZ
 from .session import (ADXL345_LSB_PER_G, COLUMNS, HMC5883L_LSB_PER_GAUSS, HMC5883L_OVERFLOW,
-                      ITG3200_LSB_PER_DPS, LABEL_NONE, LABEL_ROT, NOMINAL_CHIPS, NOMINAL_SCALES,
+                      ITG3200_LSB_PER_DPS, LABEL_MAX, LABEL_NONE, LABEL_ROT, NOMINAL_CHIPS, NOMINAL_SCALES,
                       SENSOR_SLICES, UNITS, SessionData, batch_times, label_from_text,
                       label_to_text, rate_from_times)
 from .still import StillThresholds, segment_recording, window_rows
@@ -171,22 +173,28 @@ def _count(tok: str, path, line, what: str, allow_empty=False) -> float:
     return v
 
 
-def _integer(tok: str, path, line, what: str) -> int:
+SEQ_MAX = 2 ** 53 - 1      # sequence numbers: exact as float64 too
+T_MAX = 1e10               # seconds
+
+
+def _integer(tok: str, path, line, what: str, lo: int | None = None,
+             hi: int | None = None) -> int:
     tok = tok.strip()
     try:
-        return int(tok)
+        v = int(tok)
     except ValueError:
-        raise _fail(path, line, f"{what} is not an integer: {tok!r}") from None
+        raise _fail(path, line, f"{what} is not an integer: {tok[:40]!r}") from None
+    if (lo is not None and v < lo) or (hi is not None and v > hi):
+        raise _fail(path, line, f"{what} out of range {lo}..{hi}: {tok[:40]}")
+    return v
 
 
 def _read_bytes(path) -> bytes:
-    """A file's bytes; a directory or an unreadable file is a UserError."""
-    try:
-        return Path(path).read_bytes()
-    except IsADirectoryError:
-        raise UserError(f"{path}: is a directory, expected a file") from None
-    except OSError as e:
-        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
+    """A file's bytes; a directory, a device or FIFO (``/dev/zero`` would never
+    end), an unreadable or oversized file is a UserError (``inputs``)."""
+    if Path(path).is_dir():
+        raise UserError(f"{path}: is a directory, expected a file")
+    return read_input_bytes(path)
 
 
 def _read_text_lines(path) -> list[str]:
@@ -378,18 +386,30 @@ def read_csv(path, chip=None, kind="auto") -> SessionData:
                     f"{','.join(CSV_HEADER)!r}")
     ncol = len(CSV_HEADER)
     rows = []
-    for lineno, row in enumerate(csv.reader(lines[i + 1:]), start=i + 2):
+    reader = csv.reader(lines[i + 1:])
+    while True:
+        try:
+            row = next(reader)
+        except StopIteration:
+            break
+        except csv.Error as e:                      # e.g. a field of megabytes
+            raise _fail(path, i + 1 + reader.line_num, f"not CSV: {e}") from None
+        lineno = i + 1 + reader.line_num
         if not row or (len(row) == 1 and not row[0].strip()):
             continue
         if len(row) != ncol:
             raise _fail(path, lineno, f"expected {ncol} columns, found {len(row)}")
-        mote = _integer(row[0], path, lineno, "mote")
-        seq = _integer(row[1], path, lineno, "seq")
+        # ranges checked here, before numpy or the database see a value
+        mote = _integer(row[0], path, lineno, "mote", 0, 0xFFFF)
+        seq = _integer(row[1], path, lineno, "seq", -SEQ_MAX, SEQ_MAX)
         t = _number(row[2], path, lineno, "t", allow_empty=True)
+        if abs(t) > T_MAX:
+            raise _fail(path, lineno, f"t must be within +-{T_MAX:g} s, not {row[2].strip()!r}")
         try:
             label = label_from_text(row[3])
         except ValueError:
-            raise _fail(path, lineno, f"label must be 1.., 'rot' or empty, not {row[3]!r}") from None
+            raise _fail(path, lineno, f"label must be 1..{LABEL_MAX}, 'rot' or empty, not "
+                        f"{row[3][:40]!r}") from None
         vals = [_count(v, path, lineno, name, allow_empty=True)
                 for v, name in zip(row[4:], COLUMNS)]
         rows.append((mote, seq, t, label, vals, lineno))
@@ -437,14 +457,19 @@ def read_csv(path, chip=None, kind="auto") -> SessionData:
 
 
 def write_csv(data: SessionData, path) -> None:
-    """Write ``data`` in the project CSV format (the inverse of :func:`read_csv`).
+    """Write ``data`` in the project CSV format (the inverse of :func:`read_csv`)
+    to a file path or an open text file.
 
     ``t`` is when each sample was taken: ``SessionData.sample_times`` when the
     stored ``t`` is batch receive times (a logged session: rows of a batch
     share the time the host got it, compressed when the line is read faster
     than real time), else ``t`` as stored, empty where unknown."""
     times = data.sample_times() if batch_times(data.t) else data.t
-    with open(path, "w", newline="") as f:
+    if hasattr(path, "write"):          # an open text file (motecal.outputs.open_output)
+        f = contextlib.nullcontext(path)
+    else:
+        f = open(path, "w", newline="")
+    with f as f:
         w = csv.writer(f, lineterminator="\n")
         w.writerow(CSV_HEADER)
         for i in range(len(data)):
@@ -727,6 +752,7 @@ def detect_format(path) -> str:
         if list(p.glob("*_counts.csv")):
             return "timestamped-csv"
         raise UserError(f"{p}: directory is not a timestamped run (no *_counts.csv inside)")
+    check_input_file(p)                   # not a FIFO or device: opening one would block
     try:
         with open(p, "rb") as f:
             head = f.read(4096)

@@ -38,6 +38,7 @@ NOMINAL_CHIPS = {"accel": "ADXL345", "gyro": "ITG3200", "mag": "HMC5883L"}
 
 LABEL_NONE = 0
 LABEL_ROT = -1
+LABEL_MAX = 65535           # pose labels are 1..LABEL_MAX (int32 arrays, text in the store)
 
 RATE_PAUSE_S = 1.0       # a longer step between rows is a pause, not a sample interval
 BATCHED_FRACTION = 0.2   # more steps than this that are not positive: batch receive times
@@ -85,8 +86,8 @@ def label_from_text(text: str) -> int:
     if text == "rot":
         return LABEL_ROT
     v = int(text)
-    if v < 1:
-        raise ValueError(f"pose label must be >= 1, 'rot' or empty, not {text!r}")
+    if not 1 <= v <= LABEL_MAX:
+        raise ValueError(f"pose label must be 1..{LABEL_MAX}, 'rot' or empty, not {text!r}")
     return v
 
 

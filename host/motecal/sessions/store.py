@@ -23,8 +23,11 @@ import datetime as _dt
 import itertools
 import json
 import os
+import socket
 import sqlite3
+import stat
 import time
+import urllib.parse
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,7 +36,7 @@ from ..errors import UserError
 from .session import (COLUMNS, NOMINAL_CHIPS, NOMINAL_SCALES, SessionData, label_from_text,
                       label_to_text)
 
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 
 SAMPLE_COLUMNS = ("session", "mote", "seq", "t", "label", "flags") + COLUMNS
 
@@ -81,6 +84,51 @@ LINE_COUNTERS = {
 }
 
 INT16_MIN, INT16_MAX = -32768, 32767
+
+# sqlite's PRAGMA application_id of a motecal database ("MCAL"): set on
+# create, and on the first write to an older motecal database recognised by
+# SIGNATURE (its tables and their columns).
+APPLICATION_ID = 0x4D43414C
+SIGNATURE = {
+    "schema_version": {"version"},
+    "sessions": {"id", "name", "kind", "started", "ended", "scales", "chips", "meta"},
+    "samples": {"session", "mote", "seq", "t", "label", "flags", "ax", "ay", "az", "gx", "gy",
+                "gz", "mx", "my", "mz"},
+    "calibrations": {"id", "session", "mote", "created", "cal"},
+}
+SIGNATURE_SINCE = {2: ("link_stats", "line_stats", "events"), 5: ("writers", "sample_conflicts")}
+_NULL = 1 << 40                    # a stored NULL, when samples are compared
+
+# A live session waits this long for a write lock another process holds,
+# buffering samples meanwhile, before it gives up (SessionWriter.commit).
+LOCK_TIMEOUT_S = 60.0
+LOCK_BUFFER_SAMPLES = 2_000_000     # ~0.3 GB of queued samples at most
+
+
+class StoreError(UserError):
+    """The database failed under a command: disk full, I/O error, a lock held
+    too long.  One line on stderr; exit status 1 (the user's input was fine)."""
+
+    exit_code = 1
+
+
+class StoreBusy(StoreError):
+    """Another process holds the database's write lock."""
+
+
+def store_fault(target: str, e: Exception) -> StoreError:
+    """A database driver's error as one line (StoreBusy for a held lock)."""
+    text = " ".join(str(e).split()) or type(e).__name__
+    low = text.lower()
+    if "locked" in low or "busy" in low or "lock timeout" in low:
+        return StoreBusy(f"{target}: the database is locked by another process")
+    if "full" in low or "no space" in low or "diskfull" in low:
+        return StoreError(f"{target}: the database or its disk is full")
+    if "i/o" in low or "ioerr" in low:
+        return StoreError(f"{target}: disk I/O error")
+    if "readonly" in low or "read-only" in low or "read only" in low:
+        return StoreError(f"{target}: the database is read-only")
+    return StoreError(f"{target}: database error: {text[:200]}")
 
 
 def check_session_name(name) -> str:
@@ -160,6 +208,34 @@ MIGRATIONS = {
     ],
     3: [f"ALTER TABLE line_stats ADD COLUMN {_counter_cols([k])}" for k in _LINE_COUNTERS_V3],
     4: [f"ALTER TABLE link_stats ADD COLUMN {_counter_cols([k])}" for k in _LINK_COUNTERS_V4],
+    # 5: several writers to one session (docs/guarantees.md, "several writers"):
+    # each live writer's own row of counts, and every sample a writer received
+    # under a key already stored with other values, kept whole
+    5: [
+        """CREATE TABLE writers (
+             session BIGINT NOT NULL,
+             writer TEXT NOT NULL,
+             source TEXT,
+             started {real} NOT NULL,
+             updated {real},
+             ended {real},
+             stored BIGINT NOT NULL DEFAULT 0,
+             duplicates BIGINT NOT NULL DEFAULT 0,
+             conflicts BIGINT NOT NULL DEFAULT 0,
+             PRIMARY KEY (session, writer))""",
+        """CREATE TABLE sample_conflicts (
+             session BIGINT NOT NULL,
+             mote INTEGER NOT NULL,
+             seq BIGINT NOT NULL,
+             t {real},
+             flags SMALLINT NOT NULL DEFAULT 0,
+             ax {int16}, ay {int16}, az {int16},
+             gx {int16}, gy {int16}, gz {int16},
+             mx {int16}, my {int16}, mz {int16},
+             writer TEXT NOT NULL,
+             found {real} NOT NULL)""",
+        "CREATE INDEX sample_conflicts_key ON sample_conflicts (session, mote, seq)",
+    ],
 }
 
 
@@ -175,7 +251,7 @@ class _SqliteBackend:
              "wr": " WITHOUT ROWID"}
     errors = (sqlite3.Error,)
 
-    def __init__(self, path: str, create: bool):
+    def __init__(self, path: str, create: bool, readonly: bool = False):
         self.path = path
         self.display = path
         if os.path.isdir(path):
@@ -183,34 +259,67 @@ class _SqliteBackend:
         exists = os.path.exists(path)
         if not exists and not create:
             raise UserError(f"no database {path}")
+        folder = os.path.dirname(os.path.abspath(path))
         if not exists:
-            parent = os.path.dirname(os.path.abspath(path))
-            if not os.path.isdir(parent):
-                raise UserError(f"cannot create database {path}: folder {parent} does not exist")
-            if not os.access(parent, os.W_OK):
-                raise UserError(f"cannot create database {path}: folder {parent} is not writable")
-        elif create and not os.access(path, os.W_OK):
-            raise UserError(f"database {path} is not writable")
-        self.readonly = exists and not os.access(path, os.W_OK)
+            if not os.path.isdir(folder):
+                raise UserError(f"cannot create database {path}: folder {folder} does not exist")
+            if not os.access(folder, os.W_OK):
+                raise UserError(f"cannot create database {path}: folder {folder} is not writable")
+        else:
+            mode = os.stat(path).st_mode
+            if not stat.S_ISREG(mode):
+                raise UserError(f"{path} is not a database file (it is a device, FIFO or "
+                                "socket)")
+            if create and not os.access(path, os.W_OK):
+                raise UserError(f"database {path} is not writable")
+            if create and not os.access(folder, os.W_OK):
+                raise UserError(f"database {path} cannot be written: its folder {folder} is "
+                                "read-only")
+        # read-only: asked for (commands that only read), or the file or its
+        # folder (where the WAL lives) cannot be written -- read-only media
+        self.readonly = exists and (readonly or not os.access(path, os.W_OK)
+                                    or not os.access(folder, os.W_OK))
         try:
             if self.readonly:
-                uri = "file:" + os.path.abspath(path) + "?mode=ro"
-                self.conn = sqlite3.connect(uri, uri=True, isolation_level=None,
+                self.conn = sqlite3.connect(self._ro_uri(path), uri=True, isolation_level=None,
                                             check_same_thread=False)
             else:
                 self.conn = sqlite3.connect(path, isolation_level=None, timeout=10.0,
                                             check_same_thread=False)
             self.conn.execute("PRAGMA busy_timeout = 10000")
             self.tables()                         # fails on a non-sqlite file
-            if not self.readonly:
-                self.conn.execute("PRAGMA journal_mode = WAL")
-                self.conn.execute("PRAGMA synchronous = NORMAL")
         except sqlite3.DatabaseError as e:
             with contextlib.suppress(Exception):
                 self.conn.close()
             if "not a database" in str(e) or "malformed" in str(e):
                 raise UserError(f"{path} is not a motecal database ({e})") from None
             raise UserError(f"cannot open database {path}: {e}") from None
+
+    @staticmethod
+    def _ro_uri(path: str) -> str:
+        """Read-only URI: ``immutable`` (no lock, no -shm/-wal made: works on
+        read-only media and leaves the folder as it was) unless a write-ahead
+        log with data is there -- a logger may be writing, or crashed before
+        checkpointing -- which only a normal read-only open sees."""
+        wal = path + "-wal"
+        live = os.path.exists(wal) and os.path.getsize(wal) > 0
+        return ("file:" + urllib.parse.quote(os.path.abspath(path)) + "?mode=ro"
+                + ("" if live else "&immutable=1"))
+
+    def prepare_writes(self):
+        """Write-ahead log, synchronous=NORMAL: only once the file is known to
+        be a motecal database (or a new one), never on a foreign file."""
+        self.conn.execute("PRAGMA journal_mode = WAL")
+        self.conn.execute("PRAGMA synchronous = NORMAL")
+
+    def app_id(self) -> int:
+        return int(self.conn.execute("PRAGMA application_id").fetchone()[0])
+
+    def set_app_id(self, cur):
+        cur.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+
+    def columns(self, table: str) -> set[str]:
+        return {r[1] for r in self.conn.execute(f"PRAGMA table_info({table})")}
 
     def sql(self, text: str) -> str:
         return text
@@ -221,6 +330,9 @@ class _SqliteBackend:
 
     def begin(self):
         self.conn.execute("BEGIN IMMEDIATE")        # writers queue here (busy_timeout)
+
+    def set_busy_timeout(self, seconds: float):
+        self.conn.execute(f"PRAGMA busy_timeout = {max(0, int(seconds * 1000))}")
 
     def lock_schema(self, cur):
         pass                                         # BEGIN IMMEDIATE already serialises
@@ -252,9 +364,9 @@ class _PostgresBackend:
     name = "postgresql"
     types = {"int16": "SMALLINT", "real": "DOUBLE PRECISION",
              "id_pk": "BIGINT GENERATED BY DEFAULT AS IDENTITY PRIMARY KEY", "wr": ""}
-    readonly = False
 
-    def __init__(self, url: str, create: bool):
+    def __init__(self, url: str, create: bool, readonly: bool = False):
+        self.readonly = readonly
         try:
             import psycopg
         except ImportError:
@@ -265,12 +377,28 @@ class _PostgresBackend:
         self.display = _hide_password(url)
         try:
             self.conn = psycopg.connect(url, autocommit=True, connect_timeout=10)
+            if readonly:
+                self.conn.execute("SET SESSION CHARACTERISTICS AS TRANSACTION READ ONLY")
         except psycopg.Error as e:
             raise UserError(f"cannot connect to {self.display}: "
                             f"{str(e).strip().splitlines()[0] if str(e).strip() else e}") from None
 
     def sql(self, text: str) -> str:
         return text.replace("?", "%s")
+
+    def prepare_writes(self):
+        pass
+
+    def app_id(self) -> None:
+        return None                          # PostgreSQL: recognised by its tables
+
+    def set_app_id(self, cur):
+        pass
+
+    def columns(self, table: str) -> set[str]:
+        cur = self.conn.execute("SELECT column_name FROM information_schema.columns WHERE "
+                                "table_schema = current_schema() AND table_name = %s", (table,))
+        return {r[0] for r in cur.fetchall()}
 
     def tables(self) -> set[str]:
         cur = self.conn.execute("SELECT table_name FROM information_schema.tables "
@@ -279,6 +407,9 @@ class _PostgresBackend:
 
     def begin(self):
         self.conn.execute("BEGIN")
+
+    def set_busy_timeout(self, seconds: float):
+        self.conn.execute(f"SET lock_timeout = {max(1, int(seconds * 1000))}")
 
     def lock_schema(self, cur):
         cur.execute("SELECT pg_advisory_xact_lock(7260001)")   # one migrator at a time
@@ -311,19 +442,19 @@ def _hide_password(url: str) -> str:
     return url
 
 
-def _backend_for(target: str, create: bool):
+def _backend_for(target: str, create: bool, readonly: bool = False):
     if target.startswith(("postgresql://", "postgres://")):
-        return _PostgresBackend(target, create)
+        return _PostgresBackend(target, create, readonly)
     if target.startswith(("mysql://", "mariadb://")):
         from .store_mysql import MysqlBackend        # its driver only when asked for
-        return MysqlBackend(target, create)
+        return MysqlBackend(target, create, readonly)
     if target.startswith("sqlite:///"):
         target = target[len("sqlite:///") - 1:] if target.startswith("sqlite:////") \
             else target[len("sqlite:///"):]
     elif "://" in target:
         raise UserError(f"unsupported database URL {target} (use a sqlite file path, "
                         "postgresql://... or mysql://...)")
-    return _SqliteBackend(target, create)
+    return _SqliteBackend(target, create, readonly)
 
 
 # --------------------------------------------------------------------------
@@ -411,38 +542,72 @@ class Store:
             self._b = None
 
     # -- schema ------------------------------------------------------------
+    def _foreign(self, why: str) -> UserError:
+        return UserError(f"{self.target} is not a motecal database ({why}); nothing was "
+                         "written to it")
+
     def _version(self, tables: set[str], create: bool) -> int:
-        """Schema version of the database (0: empty and may be created)."""
-        if "schema_version" not in tables:
-            if tables:
-                raise UserError(f"{self.target} is not a motecal database "
-                                f"(tables: {', '.join(sorted(tables)[:5])})")
-            if not create or self._b.readonly:
-                raise UserError(f"{self.target} is not a motecal database (it is empty)")
+        """Schema version of the database (0: empty and may be created).
+
+        A motecal database is recognised by its application id (sqlite) and
+        its signature: the tables and columns of ``SIGNATURE`` (and of the
+        later versions, ``SIGNATURE_SINCE``), one whole-number version.  Any
+        other file is refused before anything is written to it."""
+        b = self._b
+        app = b.app_id()
+        if app not in (None, 0, APPLICATION_ID):
+            raise self._foreign(f"its sqlite application id is {app:#x}, another program's")
+        if not tables:
+            if not create or b.readonly:
+                raise self._foreign("it is empty")
             return 0
+        missing = [t for t in SIGNATURE if t not in tables]
+        if missing:
+            raise self._foreign(f"no {', '.join(missing)} table; it holds "
+                                f"{', '.join(sorted(tables)[:5])}")
+        for table, cols in SIGNATURE.items():
+            lack = cols - b.columns(table)
+            if lack:
+                raise self._foreign(f"table {table} lacks {', '.join(sorted(lack))}")
         rows = self._query("SELECT version FROM schema_version")
-        if len(rows) != 1:
-            raise UserError(f"{self.target} is not a motecal database (bad schema_version)")
-        version = int(rows[0][0])
+        if len(rows) != 1 or not isinstance(rows[0][0], int) or isinstance(rows[0][0], bool) \
+                or rows[0][0] < 1:
+            raise self._foreign("its schema_version is not one whole number")
+        version = rows[0][0]
         if version > SCHEMA_VERSION:
             raise UserError(f"{self.target} has schema version {version}, newer than this "
                             f"motecal understands ({SCHEMA_VERSION}); upgrade motecal")
+        for since, names in SIGNATURE_SINCE.items():
+            lack = [t for t in names if since <= version and t not in tables]
+            if lack:
+                raise self._foreign(f"schema version {version} without {', '.join(lack)}")
         return version
 
     def _check_schema(self, create: bool):
         b = self._b
         try:
-            version = self._version(b.tables(), create)
+            self._tables = b.tables()
+            version = self._version(self._tables, create)
         except b.errors as e:
-            raise UserError(f"{self.target} is not a motecal database ({e})") from None
-        if version < SCHEMA_VERSION:
-            if b.readonly:
-                raise UserError(f"{self.target} has an old schema ({version}) and is read-only")
+            raise self._foreign(" ".join(str(e).split())[:200]) from None
+        self.version = version
+        if b.readonly:
+            return                  # an older schema is read as it is (see the readers)
+        b.prepare_writes()          # only now: never on a foreign file
+        if version < SCHEMA_VERSION or b.app_id() not in (None, APPLICATION_ID):
             self._migrate(create)
+            self._tables = b.tables()
+            self.version = SCHEMA_VERSION
+
+    @property
+    def readonly(self) -> bool:
+        """Opened read-only (asked for, or the file or its folder cannot be written)."""
+        return bool(self._b.readonly)
 
     def _migrate(self, create: bool):
         """Bring the schema to SCHEMA_VERSION in one transaction (re-checked under
-        the lock, as another process may have done it meanwhile)."""
+        the lock, as another process may have done it meanwhile), and mark the
+        file as motecal's (sqlite application id)."""
         b = self._b
         with self._tx() as cur:
             b.lock_schema(cur)
@@ -455,6 +620,7 @@ class Store:
                             (SCHEMA_VERSION,))
             elif current < SCHEMA_VERSION:
                 cur.execute(b.sql("UPDATE schema_version SET version = ?"), (SCHEMA_VERSION,))
+            b.set_app_id(cur)
 
     @property
     def schema_version(self) -> int:
@@ -463,17 +629,28 @@ class Store:
     # -- low level -----------------------------------------------------------
     @contextlib.contextmanager
     def _tx(self):
-        """One transaction: everything inside is committed together or not at all."""
+        """One transaction: everything inside is committed together or not at
+        all.  A driver error (disk full, lock, I/O) rolls back and becomes a
+        ``StoreError`` (``StoreBusy`` for a lock another process holds)."""
         b = self._b
-        b.begin()
+        try:
+            b.begin()
+        except b.errors as e:
+            raise store_fault(self.target, e) from None
         cur = b.cursor()
         try:
             yield cur
             b.commit()
-        except BaseException:
+        except BaseException as e:
             with contextlib.suppress(Exception):
                 b.rollback()
+            if isinstance(e, b.errors):
+                raise store_fault(self.target, e) from None
             raise
+
+    def set_busy_timeout(self, seconds: float) -> None:
+        """How long one attempt waits for another process's write lock (sqlite)."""
+        self._b.set_busy_timeout(seconds)
 
     def _query(self, sql: str, params=()) -> list[tuple]:
         cur = self._b.cursor()
@@ -537,7 +714,8 @@ class Store:
         return int(cur.fetchone()[0])
 
     def _delete_session(self, cur, sid: int):
-        for table in ("samples", "calibrations", "link_stats", "line_stats", "events"):
+        for table in ("samples", "calibrations", "link_stats", "line_stats", "events",
+                      "writers", "sample_conflicts"):
             cur.execute(self._b.sql(f"DELETE FROM {table} WHERE session = ?"), (sid,))
         cur.execute(self._b.sql("DELETE FROM sessions WHERE id = ?"), (sid,))
 
@@ -658,19 +836,28 @@ class Store:
     def link_stats(self, session: str) -> dict:
         """``{"line": {...}, "motes": {mote: {...}}}`` counters of a session."""
         info = self._require(session)
-        names = list(LINK_COUNTERS)
-        motes = {int(r[0]): dict(zip(names, (int(v) for v in r[1:]))) for r in self._query(
-            f"SELECT mote, {', '.join(names)} FROM link_stats WHERE session = ? ORDER BY mote",
-            (info.id,))}
-        lnames = list(LINE_COUNTERS)
+        if "link_stats" not in self._tables:        # schema 1, opened read-only
+            return {"line": {}, "motes": {}}
+        have_link = self._b.columns("link_stats")   # an older schema lacks later counters
+        names = [n for n in LINK_COUNTERS if n in have_link]
+        motes = {int(r[0]): {**dict(zip(names, (int(v) for v in r[1:]))),
+                             **{n: 0 for n in LINK_COUNTERS if n not in have_link}}
+                 for r in self._query(f"SELECT mote, {', '.join(names)} FROM link_stats "
+                                      "WHERE session = ? ORDER BY mote", (info.id,))}
+        have = self._b.columns("line_stats")        # an older schema lacks later counters
+        lnames = [n for n in LINE_COUNTERS if n in have]
         rows = self._query(f"SELECT {', '.join(lnames)} FROM line_stats WHERE session = ?",
                            (info.id,))
         line = {n: (float(v) if n == "gap_s" else int(v))
                 for n, v in zip(lnames, rows[0])} if rows else {}
+        if rows:
+            line.update({n: 0 for n in LINE_COUNTERS if n not in have})
         return {"line": line, "motes": motes}
 
     def events(self, session: str) -> list[dict]:
         info = self._require(session)
+        if "events" not in self._tables:
+            return []
         return [dict(t=t, kind=k, mote=m, detail=d) for t, k, m, d in self._query(
             "SELECT t, kind, mote, detail FROM events WHERE session = ? ORDER BY t",
             (info.id,))]
@@ -678,7 +865,8 @@ class Store:
     # -- live sessions ---------------------------------------------------------------
     def open_session(self, name: str, *, kind: str, meta: dict | None = None,
                      scales: dict | None = None, chips: dict | None = None,
-                     append: bool = False, commit_every: float = 0.25) -> "SessionWriter":
+                     append: bool = False, commit_every: float = 0.25,
+                     lock_timeout: float = LOCK_TIMEOUT_S) -> "SessionWriter":
         """Start (or, with ``append``, continue) a live session; returns its writer."""
         check_session_name(name)
         info = self._info(name)
@@ -698,7 +886,35 @@ class Store:
                 cur.execute(self._b.sql("UPDATE sessions SET ended = NULL WHERE id = ?"),
                             (info.id,))
             sid = info.id
-        return SessionWriter(self, sid, name, info.started, commit_every)
+        w = SessionWriter(self, sid, name, info.started, commit_every, lock_timeout)
+        w.source = (meta or {}).get("source")
+        return w
+
+    def writers(self, session: str) -> list[dict]:
+        """The live writers that logged into a session, each with its own counts:
+        samples it stored, duplicates (already stored the same by another
+        writer) and conflicts (stored with other values; kept in
+        ``sample_conflicts``)."""
+        info = self._require(session)
+        if "writers" not in self._tables:
+            return []                            # an older schema, opened read-only
+        return [dict(writer=w, source=src, started=_iso(a), ended=_iso(e), stored=int(n),
+                     duplicates=int(d), conflicts=int(c)) for w, src, a, e, n, d, c in self._query(
+            "SELECT writer, source, started, ended, stored, duplicates, conflicts FROM writers "
+            "WHERE session = ? ORDER BY started, writer", (info.id,))]
+
+    def conflicts(self, session: str) -> SessionData:
+        """The samples writers received under a stored key with other values."""
+        info = self._require(session)
+        rows = self._query("SELECT mote, seq, t, flags, ax, ay, az, gx, gy, gz, mx, my, mz "
+                           "FROM sample_conflicts WHERE session = ? ORDER BY mote, seq",
+                           (info.id,)) if "sample_conflicts" in self._tables else []
+        num = np.array([[np.nan if v is None else v for v in r] for r in rows],
+                       dtype=float).reshape(-1, 13)
+        return SessionData(name=session, raw=num[:, 4:13], mote=num[:, 0].astype(np.int32),
+                           seq=num[:, 1].astype(np.int64), t=num[:, 2],
+                           label=np.zeros(len(num), np.int32),
+                           flags=num[:, 3].astype(np.uint8), kind="conflicts")
 
     def last_seqs(self, session: str) -> dict[int, int]:
         """Highest stored sequence number per mote (to continue an appended session)."""
@@ -713,14 +929,26 @@ class SessionWriter:
     ``add_samples`` and ``set_label`` only queue; ``commit`` writes everything
     queued in one transaction (samples first, then labels, counters, events),
     and ``due`` says when ``commit_every`` seconds have passed.
+
+    Several writers may log into one session at once (two BaseStations that
+    hear the same motes, or other motes): a sample whose (mote, seq) is not
+    stored yet is stored, and belongs to the writer that committed it first;
+    one stored already with the same flags and values is a duplicate
+    (counted); one stored with other values is a conflict: kept whole in
+    ``sample_conflicts`` with this writer's id and counted, never dropped.
+    Each writer keeps its counts in its own ``writers`` row (``writer_id``).
     """
 
     _INSERT = ("INSERT INTO samples (session, mote, seq, t, flags, ax, ay, az, gx, gy, gz, "
                "mx, my, mz) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) "
                "ON CONFLICT DO NOTHING")
 
-    def __init__(self, store: Store, sid: int, name: str, started: float, commit_every: float):
+    def __init__(self, store: Store, sid: int, name: str, started: float, commit_every: float,
+                 lock_timeout: float = LOCK_TIMEOUT_S):
         self.store = store
+        self.lock_timeout = lock_timeout
+        self.locked_since: float | None = None   # monotonic time the lock wait began
+        self.lock_waits = 0                       # times a commit found the lock held
         self.id = sid
         self.name = name
         self.started = started          # unix seconds; t is relative to it
@@ -733,6 +961,10 @@ class SessionWriter:
         self._last_commit = time.monotonic()
         self.committed_samples = 0
         self.commits = 0
+        self.duplicates = 0              # samples another writer had stored the same
+        self.conflicts = 0               # ... had stored with other values (kept aside)
+        self.writer_id = f"{socket.gethostname()}:{os.getpid()}:{id(self):x}"
+        self.source: str | None = None
 
     def now(self) -> float:
         """Seconds since the session started (the ``t`` column's clock)."""
@@ -773,7 +1005,38 @@ class SessionWriter:
         """``commit_every`` seconds have passed since the last commit."""
         return time.monotonic() - self._last_commit >= self.commit_every
 
-    def commit(self) -> None:
+    def commit(self) -> bool:
+        """Write everything queued in one transaction; True when done.
+
+        When another process holds the write lock nothing is lost: the queue
+        is kept and False returned (the caller goes on reading and tries again);
+        after ``lock_timeout`` seconds of that, or ``LOCK_BUFFER_SAMPLES``
+        queued, ``StoreBusy`` is raised.  Other failures (disk full, I/O) raise
+        ``StoreError``; the queue is then kept too (``pending``)."""
+        try:
+            self._commit()
+        except StoreBusy:
+            now = time.monotonic()
+            if self.locked_since is None:
+                self.locked_since = now
+                self.lock_waits += 1
+            waited = now - self.locked_since
+            if waited >= self.lock_timeout or self.pending > LOCK_BUFFER_SAMPLES:
+                raise StoreBusy(f"{self.store.target}: the database stayed locked by another "
+                                f"process for {waited:.0f} s ({self.pending} samples held in "
+                                "memory could not be stored)") from None
+            return False
+        self.locked_since = None
+        return True
+
+    def discard(self) -> int:
+        """Drop what is queued (it cannot be stored); returns the samples dropped."""
+        n = self.pending
+        self._rows, self._labels, self._events = [], [], []
+        self._link, self._line = {}, None
+        return n
+
+    def _commit(self) -> None:
         st = self.store
         b = st._b
         rows, labels, events = self._rows, self._labels, self._events
@@ -786,10 +1049,10 @@ class SessionWriter:
                 t = np.concatenate([r[2] for r in rows])
                 flags = np.concatenate([r[3] for r in rows])
                 raw = np.concatenate([r[4] for r in rows]).astype(np.int64)
-                n = len(seq)
-                data = zip(itertools.repeat(self.id), mote.tolist(), seq.tolist(), t.tolist(),
-                           flags.tolist(), *raw.T.tolist())
-                cur.executemany(b.sql(self._INSERT), data)
+                n, dups, clash = self._insert(cur, mote, seq, t, flags, raw)
+                self._writer_row(cur, n, dups, clash)
+            elif self.commits == 0:
+                self._writer_row(cur, 0, 0, 0)
             if labels:
                 cur.executemany(b.sql("UPDATE samples SET label = ? WHERE session = ? AND "
                                       "mote = ? AND seq BETWEEN ? AND ?"), labels)
@@ -806,6 +1069,82 @@ class SessionWriter:
         self.commits += 1
         self._last_commit = time.monotonic()
 
+    # -- several writers ----------------------------------------------------------
+    _KEY_COLS = "seq, flags, ax, ay, az, gx, gy, gz, mx, my, mz"
+
+    def _stored(self, cur, m: int, seqs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Stored (seq, [flags + 9 values]) of mote ``m`` within the span of ``seqs``
+        (NULL read as a value no sample has)."""
+        cur.execute(self.store._b.sql(
+            f"SELECT {self._KEY_COLS} FROM samples WHERE session = ? AND mote = ? "
+            "AND seq BETWEEN ? AND ? ORDER BY seq"), (self.id, m, int(seqs.min()), int(seqs.max())))
+        got = cur.fetchall()
+        if not got:
+            return np.zeros(0, np.int64), np.zeros((0, 10), np.int64)
+        arr = np.array([[_NULL if v is None else v for v in r] for r in got], dtype=np.int64)
+        return arr[:, 0], arr[:, 1:]
+
+    def _classify(self, cur, mote, seq, flags, raw):
+        """Per row: 0 new, 1 duplicate of a stored sample, 2 conflict with one."""
+        kind = np.zeros(len(seq), np.int8)
+        vals = np.column_stack([flags.astype(np.int64), raw])
+        for m in np.unique(mote):
+            rows = np.flatnonzero(mote == m)
+            sseq, svals = self._stored(cur, int(m), seq[rows])
+            if not len(sseq):
+                continue
+            pos = np.searchsorted(sseq, seq[rows])
+            hit = pos < len(sseq)
+            hit[hit] = sseq[pos[hit]] == seq[rows][hit]
+            same = np.zeros(len(rows), bool)
+            same[hit] = (svals[pos[hit]] == vals[rows[hit]]).all(axis=1)
+            kind[rows[hit & same]] = 1
+            kind[rows[hit & ~same]] = 2
+        return kind
+
+    def _insert(self, cur, mote, seq, t, flags, raw) -> tuple[int, int, int]:
+        """Store the new samples, count duplicates, keep conflicts aside;
+        returns (stored, duplicates, conflicts)."""
+        b = self.store._b
+        kind = self._classify(cur, mote, seq, flags, raw)
+        new = kind == 0
+        rows = lambda sel: zip(itertools.repeat(self.id), mote[sel].tolist(),  # noqa: E731
+                               seq[sel].tolist(), t[sel].tolist(), flags[sel].tolist(),
+                               *raw[sel].T.tolist())
+        cur.executemany(b.sql(self._INSERT), rows(new))
+        stored = cur.rowcount if cur.rowcount is not None and cur.rowcount >= 0 \
+            else int(new.sum())
+        if stored < new.sum():
+            # another writer committed some of these keys meanwhile (PostgreSQL
+            # runs writers side by side): what differs from ours is a conflict
+            again = self._classify(cur, mote[new], seq[new], flags[new], raw[new])
+            idx = np.flatnonzero(new)
+            kind[idx[again == 2]] = 2
+            twins = int(new.sum()) - stored - int((again == 2).sum())
+        else:
+            twins = 0
+        clash = kind == 2
+        if clash.any():
+            cur.executemany(b.sql(
+                "INSERT INTO sample_conflicts (session, mote, seq, t, flags, ax, ay, az, gx, "
+                "gy, gz, mx, my, mz, writer, found) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
+                "?, ?, ?, ?, ?)"),
+                [r + (self.writer_id, time.time()) for r in rows(clash)])
+        return stored, int((kind == 1).sum()) + twins, int(clash.sum())
+
+    def _writer_row(self, cur, stored: int, dups: int, clash: int) -> None:
+        """This writer's own row of counts (added to in the same transaction)."""
+        now = time.time()
+        cur.execute(self.store._b.sql(
+            "INSERT INTO writers (session, writer, source, started, updated, stored, duplicates, "
+            "conflicts) VALUES (?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT (session, writer) DO UPDATE "
+            "SET updated = excluded.updated, stored = writers.stored + excluded.stored, "
+            "duplicates = writers.duplicates + excluded.duplicates, "
+            "conflicts = writers.conflicts + excluded.conflicts"),
+            (self.id, self.writer_id, self.source, now, now, stored, dups, clash))
+        self.duplicates += dups
+        self.conflicts += clash
+
     def _upsert(self, cur, table: str, key: dict, counters: dict) -> None:
         """Set a row of counters (link_stats / line_stats) to these values."""
         values = {**key, **counters, "updated": time.time()}
@@ -817,22 +1156,38 @@ class SessionWriter:
             tuple(values.values()))
 
     def end(self) -> None:
-        """Commit what is queued and mark the session ended."""
-        self.commit()
+        """Commit what is queued and mark the session ended (waiting for a
+        held lock up to ``lock_timeout``)."""
+        while not self.commit():
+            time.sleep(0.05)
+        self.mark_ended()
+
+    def mark_ended(self) -> None:
+        """Mark the session ended, with what was committed."""
         st = self.store
+        now = time.time()
         with st._tx() as cur:
-            cur.execute(st._b.sql("UPDATE sessions SET ended = ? WHERE id = ?"),
-                        (time.time(), self.id))
+            cur.execute(st._b.sql("UPDATE sessions SET ended = ? WHERE id = ?"), (now, self.id))
+            cur.execute(st._b.sql("UPDATE writers SET ended = ? WHERE session = ? AND writer = ?"),
+                        (now, self.id, self.writer_id))
 
 
-def open_store(target: str, *, create: bool = False) -> Store:
+def open_store(target: str, *, create: bool = False, readonly: bool = False) -> Store:
     """Open a motecal database: a sqlite file path (or ``sqlite:///path``), a
     ``postgresql://`` or a ``mysql://`` URL.  ``create`` makes a new sqlite file if there is none.
+    ``readonly`` (commands that only read) opens it read-only: nothing is
+    written, an older schema is read as it is, read-only media work; a file
+    that cannot be written is opened so anyway (``Store.readonly``).
     Problems (missing, unwritable, not a motecal database, newer schema) raise
-    UserError with one line."""
+    UserError with one line; nothing is written to a file that is not a
+    motecal database."""
     if not target:
         raise UserError("no database given (--db FILE)")
-    backend = _backend_for(str(target), create)
+    if str(target) == "-":
+        raise UserError("--db -: a database is a file or a URL, not standard input/output")
+    if create and readonly:
+        raise ValueError("create and readonly exclude each other")
+    backend = _backend_for(str(target), create, readonly)
     try:
         return Store(backend, create=create or backend.name != "sqlite")
     except BaseException:

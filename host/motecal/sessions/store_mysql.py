@@ -110,6 +110,7 @@ def _first_line(e: Exception) -> str:
 _TEXT_COLUMN = {            # text columns that MySQL needs as VARCHAR
     "name": "VARCHAR(700)",         # unique key: no TEXT
     "label": "VARCHAR(16)",         # "1".."80", "rot" or ""
+    "writer": "VARCHAR(255)",       # a writer's id (key of writers): host, pid, time
 }
 
 
@@ -162,10 +163,12 @@ class _Cursor:
         self._b = backend
         self._c = backend.conn.cursor()
         self._id: tuple | None = None
+        self.rowcount = -1          # rows the last statement(s) inserted or changed
 
     def execute(self, sql: str, params=()):
         q, returning = translate(sql, self._b.table_options)
         self._c.execute(q, _nan_free(params) if params else None)
+        self.rowcount = self._c.rowcount
         self._id = (self._c.lastrowid,) if returning else None
         return self
 
@@ -173,9 +176,10 @@ class _Cursor:
         q, _ = translate(sql, self._b.table_options)
         m = _INSERT.match(q)
         if m and " VALUES " in q:
-            self._b.insert_rows(self._c, q, rows)
+            self.rowcount = self._b.insert_rows(self._c, q, rows)
         else:
             self._c.executemany(q, [_nan_free(r) for r in rows])
+            self.rowcount = self._c.rowcount
         self._id = None
 
     def fetchone(self):
@@ -198,9 +202,8 @@ class MysqlBackend:
     name = "mysql"
     types = {"int16": "SMALLINT", "real": "DOUBLE",
              "id_pk": "BIGINT AUTO_INCREMENT PRIMARY KEY", "wr": ""}
-    readonly = False
-
-    def __init__(self, url: str, create: bool):
+    def __init__(self, url: str, create: bool, readonly: bool = False):
+        self.readonly = readonly
         try:
             import pymysql
         except ImportError:
@@ -221,6 +224,8 @@ class MysqlBackend:
                 cur.execute("SET SESSION sql_mode = 'STRICT_ALL_TABLES,NO_ENGINE_SUBSTITUTION,"
                             "ERROR_FOR_DIVISION_BY_ZERO'")
                 cur.execute("SET SESSION TRANSACTION ISOLATION LEVEL READ COMMITTED")
+                if readonly:
+                    cur.execute("SET SESSION TRANSACTION READ ONLY")
                 cur.execute("SELECT COLLATION_NAME FROM information_schema.COLLATIONS "
                             "WHERE COLLATION_NAME IN (%s, %s, %s)", _COLLATIONS)
                 have = {r[0] for r in cur.fetchall()}
@@ -234,6 +239,25 @@ class MysqlBackend:
 
     def sql(self, text: str) -> str:
         return text                      # the cursor translates (it must see RETURNING)
+
+    def prepare_writes(self):
+        pass
+
+    def app_id(self) -> None:
+        return None                          # a server database: recognised by its tables
+
+    def set_app_id(self, cur):
+        pass
+
+    def columns(self, table: str) -> set[str]:
+        with self.conn.cursor() as cur:
+            cur.execute("SELECT column_name FROM information_schema.columns "
+                        "WHERE table_schema = DATABASE() AND table_name = %s", (table,))
+            return {r[0] for r in cur.fetchall()}
+
+    def set_busy_timeout(self, seconds: float):
+        with self.conn.cursor() as cur:
+            cur.execute(f"SET SESSION innodb_lock_wait_timeout = {max(1, int(seconds))}")
 
     def tables(self) -> set[str]:
         """The database's tables, read under the migration lock: MySQL shows
@@ -302,18 +326,21 @@ class MysqlBackend:
         a chunk of plain rows (numbers, None, NaN and texts of word characters
         only: sample rows) through Python's own tuple ``repr``, which is
         already SQL once None/NaN read NULL; any other chunk value by value
-        with the driver's escaping."""
+        with the driver's escaping.  Returns the rows inserted (a duplicate
+        key left as it is counts 0: the connection does not ask for found rows)."""
         head, _, rest = q.partition(" VALUES ")
         tail = rest[rest.index(")") + 1:]
         prefix = head + " VALUES "
         limit = self.max_statement - len(prefix) - len(tail)
         rows = iter(rows)
+        done = 0
         while True:
             chunk = list(itertools.islice(rows, _CHUNK_ROWS))
             if not chunk:
-                break
+                return done
             for body in self._bodies(chunk, limit):
                 raw_cursor.execute(prefix + body + tail)
+                done += max(raw_cursor.rowcount, 0)
 
     def _bodies(self, chunk: list, limit: int):
         body = ",".join(map(repr, chunk))

@@ -33,6 +33,9 @@ MAX_BATCH = 6        # 4 + 18 * 6 = 112 <= 114, the RF230's largest TOSH_DATA_LE
 MAX_MOTES = 1000
 
 
+MAX_DURATION_S = 1e6          # simulated seconds (11.6 days)
+
+
 def check_options(motes, session, baud, loss, batch, duration) -> None:
     """UserError (one line) for any option out of range."""
     if isinstance(motes, bool) or not isinstance(motes, int) or not 1 <= motes <= MAX_MOTES:
@@ -48,8 +51,9 @@ def check_options(motes, session, baud, loss, batch, duration) -> None:
     if not isinstance(batch, int) or not 1 <= batch <= MAX_BATCH:
         raise UserError(f"--batch must be 1..{MAX_BATCH} (4 + 18 x batch bytes must fit "
                         f"the RF230's 114-byte payload), not {batch}")
-    if duration is not None and not (duration > 0 and math.isfinite(duration)):
-        raise UserError(f"--duration must be a positive number of seconds, not {duration}")
+    if duration is not None and not (0 < duration <= MAX_DURATION_S):
+        raise UserError(f"--duration must be a number of seconds within 0..{MAX_DURATION_S:g}, "
+                        f"not {duration}")
 
 
 class World(Network):

@@ -4,24 +4,33 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from ..errors import QualityError, UserError
 from ..firmware import fixedpoint as FP
+from ..inputs import read_input_text
 from ..line import protocol as P
 from ..line.protocol import MOTE_ID_MAX, MOTE_ID_MIN
 
 # --------------------------------------------------------------------------
 # cal.json -> the set
 # --------------------------------------------------------------------------
+def _numbers(v) -> bool:
+    """Nested lists of JSON numbers only (a string "1.0" or true is not one)."""
+    if isinstance(v, list):
+        return all(_numbers(x) for x in v)
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
 def _matrix(d, key, shape, where):
+    if key not in d:
+        raise UserError(f"{where}: no {key!r}")
+    if not _numbers(d[key]):
+        raise UserError(f"{where}: {key!r} is not a list of numbers")
     try:
         a = np.array(d[key], dtype=np.float64)
-    except KeyError:
-        raise UserError(f"{where}: no {key!r}") from None
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise UserError(f"{where}: {key!r} is not a list of numbers") from None
     if a.shape != shape:
         raise UserError(f"{where}: {key!r} must be {'x'.join(map(str, shape))}, not "
@@ -52,18 +61,15 @@ def load_cal(path) -> CalFile:
     per calibrated sensor, ``A`` (3x3) and ``c`` (3); the messages name the
     field that is missing or wrong."""
     from ..calib.result import FORMAT_VERSION
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as e:
-        raise UserError(f"cannot read {path}: {e.strerror or e}") from None
+    text = read_input_text(path)         # a regular file of sane size: never /dev/zero
     try:
         d = json.loads(text)
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+    except (json.JSONDecodeError, RecursionError) as e:
         raise UserError(f"{path} is not JSON: {e}") from None
     if not isinstance(d, dict) or "format_version" not in d:
         raise UserError(f"{path} is not a motecal calibration (no format_version)")
     fv = d["format_version"]
-    if isinstance(fv, bool) or not isinstance(fv, int) or fv > FORMAT_VERSION:
+    if isinstance(fv, bool) or not isinstance(fv, int) or not 1 <= fv <= FORMAT_VERSION:
         raise UserError(f"{path}: calibration format_version {fv!r} is not one this motecal "
                         f"reads (1..{FORMAT_VERSION})")
     mote = d.get("mote")

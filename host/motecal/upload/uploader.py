@@ -31,13 +31,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..errors import QualityError
+from ..errors import QualityError, UserError
 from ..firmware import fixedpoint as FP
 from ..line import protocol as P
 from ..line import sources as S
 from .calfile import CalFile, build_set, check_set
-from .link import (DEFAULT_RETRIES, DEFAULT_TIMEOUT, Link, LinkStats, NullProgress, Rejected,
-                   UploadFailed)
+from .link import (DEFAULT_RETRIES, DEFAULT_TIMEOUT, Link, LinkStats, NoAnswer, NullProgress,
+                   Rejected, UploadFailed)
 
 VERIFY_WAIT = 2.0            # s: for the mote's sample messages after the commit
 VERIFY_MESSAGES = 3          # consecutive sample messages with the new flags
@@ -48,6 +48,21 @@ MAX_VERSION = 0xFFFF
 def next_version(in_force: int) -> int:
     """The version after ``in_force``: +1, 65535 wraps to 1 (0 is never valid)."""
     return in_force % MAX_VERSION + 1
+
+
+def choose_version(mote: int, in_force: int, opts: "Options") -> int:
+    """The version of a new set: ``opts.version``, or the one in force + 1.
+    Versions strictly increase (but for the wrap 65535 -> 1 of the default):
+    a given version not above the one in force is refused unless
+    ``opts.force`` -- two sets under one version could not be told apart by
+    the samples' flags or by --show."""
+    if opts.version is None:
+        return next_version(in_force)
+    if opts.version <= in_force and not opts.force:
+        raise UserError(f"mote {mote} has version {in_force} in force: --version "
+                        f"{opts.version} is not newer (versions strictly increase; "
+                        "--force sends it anyway)")
+    return opts.version
 
 
 def fragments(calset: bytes) -> list[tuple[int, bytes]]:
@@ -264,7 +279,11 @@ class Uploader:
         cs = FP.unpack_calset(calset)
         crc = P.crc16(calset)
         self.stage(calset, cs.version)
-        ack = self.apply(cs.version, crc)
+        try:
+            ack = self.apply(cs.version, crc)
+        except NoAnswer as e:
+            ack = self._after_lost_ack(e, cs.version, crc, lambda back: back.data == calset,
+                                       cs.mask)
         back = self.read_set(expect_version=cs.version)
         if back.data != calset:
             i = next(k for k in range(len(calset)) if back.data[k] != calset[k])
@@ -279,7 +298,11 @@ class Uploader:
     def reset(self, version: int, previous: int, verify_wait: float = VERIFY_WAIT) -> Result:
         """Back to raw output with ``version``; verified like an upload."""
         t0 = self.link.clock()
-        ack = self.commit(version, 0, action=P.CAL_RESET)
+        try:
+            ack = self.commit(version, 0, action=P.CAL_RESET)
+        except NoAnswer as e:
+            ack = self._after_lost_ack(e, version, 0, lambda back: back.version == version
+                                       and not back.calset.sensors, 0)
         if ack["status"] != P.CAL_OK:
             raise Rejected(f"mote {self.mote} refused the reset to version {version}: "
                            f"{P.cal_reason(ack['status'])}; version {ack['version']} stays in "
@@ -297,6 +320,27 @@ class Uploader:
         self._note_samples(chk)
         return Result(self.mote, version, back.crc, 0, previous, True, chk,
                       self.link.clock() - t0, self.link.stats)
+
+    def _after_lost_ack(self, error: NoAnswer, version: int, crc: int, took, sensors: int):
+        """No commit ack came (every repeat lost): the mote may have applied the
+        set all the same.  The read-back decides what is reported -- the new
+        set in force: go on as if acknowledged; the old one: nothing changed;
+        no read-back: the state is unknown, and the message says so."""
+        self.progress.note("  no commit ack: reading back what the mote has in force")
+        try:
+            back = self.read_set()
+        except UploadFailed as e2:
+            raise UploadFailed(f"{error}; reading back what is in force failed too ({e2}): "
+                               f"whether version {version} is in force on mote {self.mote} "
+                               "is unknown (motecal upload --show tells)") from None
+        if took(back):
+            self.progress.note(f"  commit ack lost, but the read-back shows version {version} "
+                               f"in force (CRC 0x{back.crc:04x}): the commit took effect")
+            return {"status": P.CAL_OK, "crc": back.crc if crc == 0 else crc,
+                    "version": version, "sensors": sensors}
+        raise UploadFailed(f"mote {self.mote} did not acknowledge the commit of version "
+                           f"{version}, and the read-back shows version {back.version} "
+                           f"(CRC 0x{back.crc:04x}) in force: the new set was not applied")
 
     def _note_samples(self, chk: SampleCheck) -> None:
         if chk.seen:
@@ -346,7 +390,7 @@ def upload_cal(source: S.Source, cal: CalFile, mote: int, opts: Options = Option
     try:
         t0 = link.clock()
         old = up.in_force()
-        version = opts.version or next_version(old.version)
+        version = choose_version(mote, old.version, opts)
         calset, _ = build_set(cal, mote, version)
         progress.note(f"mote {mote}: version {old.version} in force (CRC 0x{old.crc:04x}); "
                       f"uploading version {version} ({len(calset)} bytes, "

@@ -11,9 +11,10 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-$(shell cat host/requirements.txt host/pyproject.toml | md5sum | cut -c1-8)
 # Debian packages: the demo needs a C compiler (the simulated motes run the
 # firmware's C code); the tests also need avr-gcc + simavr and a PostgreSQL
-# server (the store's server test).  Installed with apt-get when missing.
+# server (the store's server test) and Chromium (the browser view's test, headless).
+# Installed with apt-get when missing.
 DEMO_PACKAGES := gcc libc6-dev
-TEST_PACKAGES := $(DEMO_PACKAGES) gcc-avr avr-libc simavr postgresql
+TEST_PACKAGES := $(DEMO_PACKAGES) gcc-avr avr-libc simavr postgresql chromium
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 DEMO_DIR ?= demo-out

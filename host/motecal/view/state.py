@@ -112,11 +112,12 @@ class LiveView:
 
     def event(self, text):
         if text:
-            self._events.append((time.monotonic() - self._t0, "line", None, text))
+            self._events.append((time.monotonic() - self._t0, "line", None, text, None))
 
     def guide_event(self, ev):
         if ev.text:
-            self._events.append((time.monotonic() - self._t0, ev.kind, ev.mote, ev.text))
+            self._events.append((time.monotonic() - self._t0, ev.kind, ev.mote, ev.text,
+                                 ev.pose or None))
 
     def rows(self, rows):
         now = time.monotonic()
@@ -157,8 +158,8 @@ class LiveView:
         if guide is not None:
             for st in guide.status():
                 cap = guide.captures[st["mote"]]
-                entry = motes.setdefault(st["mote"], dict(id=st["mote"], link={}, row=None,
-                                                          state="silent"))
+                entry = motes.setdefault(st["mote"], dict(
+                    id=st["mote"], link={}, row=self._last_rows.get(st["mote"]), state="silent"))
                 entry[cap.kind] = (st, cap.picture())
         self._version += 1
         self._snap = (self._version, dict(
@@ -208,7 +209,8 @@ class LiveView:
                           coverage=st["coverage"])
                 out["sweep"] = sw
             motes.append(out)
-        events = [dict(t=round(t, 2), kind=k, mote=m, text=x) for t, k, m, x in s["events"]]
+        events = [dict(t=round(t, 2), kind=k, mote=m, text=x, pose=p)
+                  for t, k, m, x, p in s["events"]]
         return dict(mode="live", version=version, session=s["session"], source=s["source"],
                     flow=s["flow"], elapsed=s["elapsed"], connected=s["connected"],
                     ended=s["ended"], stop_reason=s["stop_reason"], line=s["line"],

@@ -138,7 +138,7 @@
   function sphereFrame(ctx, W, H, s, cx, cy, cells) {
     ctx.clearRect(0, 0, W, H);
     ctx.strokeStyle = "#999"; ctx.lineWidth = 1;
-    ctx.beginPath(); ctx.arc(cx, cy, s, 0, 2 * Math.PI); ctx.stroke();
+    if (!(cells && cells.bare)) { ctx.beginPath(); ctx.arc(cx, cy, s, 0, 2 * Math.PI); ctx.stroke(); }
     ctx.strokeStyle = "#e2e2e2";
     var b, k, t;
     var bands = cells ? cells.bands : 6, sectors = cells ? cells.sectors : 12;
@@ -218,7 +218,7 @@
     } else {                                    // raw counts: the offset shows
       var m = 1;
       sw.points.forEach(function (q) { m = Math.max(m, norm(q)); });
-      sphereFrame(ctx, W, H, 0, cx, cy, { bands: 1, sectors: 0 });
+      sphereFrame(ctx, W, H, s, cx, cy, { bands: 1, sectors: 0, bare: true });
       for (i = 0; i < sw.points.length; i++) {
         p = sw.points[i];
         dotAt(ctx, [p[0] / m, p[1] / m, p[2] / m], cx, cy, s, 1.6, "#7a4fc0");
@@ -258,7 +258,14 @@
       '<span id="' + P + 'phase"></span><br><span id="' + P + 'target"></span>'));
     st.appendChild(el("div", { "class": "warn", id: P + "warning" }));
     var r = el("div", { "class": "row" });
-    r.appendChild(card("take this pose", P + "board-target", 250, 210));
+    var tc = card("take this pose", P + "board-target", 250, 210);
+    var slider = el("input", { type: "range", id: P + "posepick", min: 1, max: 80, value: 80 });
+    slider.oninput = function () { schedule(); };
+    var sl = el("div", { "class": "legend", id: P + "pickrow" });
+    sl.appendChild(slider);
+    sl.appendChild(el("span", { id: P + "pickname" }));
+    tc.appendChild(sl);
+    r.appendChild(tc);
     r.appendChild(card("the board now (accelerometer, magnetometer heading)", P + "board-live", 250, 210));
     r.appendChild(card("gravity directions (drag to turn)", P + "gravity", 250, 250));
     var g = card("coverage cells (4 x 5)", P + "grid", 170, 120);
@@ -359,7 +366,13 @@
         setText(P + "poses", st.poses);
         setText(P + "phase", st.phase);
         setText(P + "target", st.target_text ? "suggested: " + st.target_text : "");
-        setText(P + "warning", st.warning || "");
+        var warn = st.warning || "";
+        if (!warn && st.captured === 0) {        // the last capture of this pose was discarded
+          (doc.events || []).forEach(function (e) {
+            if (e.mote === m.id && e.pose === st.pose && e.kind === "discarded") warn = e.text;
+          });
+        }
+        setText(P + "warning", warn);
         setText(P + "accepted", st.accepted.length, st.accepted.length);
         setText(P + "coverage", pct(st.coverage), st.coverage);
         setText(P + "still", doc.mode === "static" ? "-" : st.still ? "yes" : "no");
@@ -404,7 +417,16 @@
       var st = m.static, sw = m.sweep;
       if (st) {
         // the pose shown: the next suggested one, or (stored) the last taken
-        var tgt = st.target || (st.accepted.length ? st.accepted[st.accepted.length - 1] : null);
+        var tgt = st.target, stored = state.mode === "static";
+        $(P + "pickrow").style.display = stored && st.accepted.length ? "" : "none";
+        if (stored && st.accepted.length) {          // a stored session: any pose taken
+          var pick = $(P + "posepick");
+          pick.max = st.accepted.length;
+          var k = Math.min(Number(pick.value), st.accepted.length);
+          tgt = st.accepted[k - 1];
+          setText(P + "pickname", " pose " + (st.labels ? st.labels[k - 1] : k) + " as taken");
+          $(P + "board-target").previousSibling.textContent = "a pose taken (slide to choose)";
+        }
         var ref = [1, 0, 0];
         if (acc && mag) ref = frame(acc, mag)[1];     // the live board's north, board frame
         drawBoard($(P + "board-target"), tgt, ref, { ghost: true, faceUp: true, empty: "all poses taken" });
@@ -414,6 +436,7 @@
           if (!st.still) colour = "#e08a00";
           if (st.still && st.captured === 0) ring = 1, colour = "#9ccf9f";
         }
+        $(P + "board-live").parentNode.style.display = stored ? "none" : "";
         drawBoard($(P + "board-live"), acc, mag || [1, 0, 0],
                   { ring: ring, ringColour: colour, empty: state.mode === "static" ? "stored session: no live data" : "waiting for samples" });
         drawGravity($(P + "gravity"), st, acc);

@@ -10,16 +10,17 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-$(shell cat host/requirements.txt host/pyproject.toml | md5sum | cut -c1-8)
 # Debian packages: the demo needs a C compiler (the simulated motes run the
-# firmware's C code); the tests also need avr-gcc + simavr and a PostgreSQL
-# server (the store's server test) and Chromium (the browser view's test, headless).
-# Installed with apt-get when missing.
+# firmware's C code); the tests also need avr-gcc + simavr, libsimavr-dev +
+# libelf-dev + pkg-config (the emulator harness, emu/), a PostgreSQL
+# server (the store's server test) and Chromium (the browser view's test,
+# headless).  Installed with apt-get when missing.
 DEMO_PACKAGES := gcc libc6-dev
-TEST_PACKAGES := $(DEMO_PACKAGES) gcc-avr avr-libc simavr postgresql chromium
+TEST_PACKAGES := $(DEMO_PACKAGES) gcc-avr avr-libc simavr libsimavr-dev libelf-dev pkg-config postgresql chromium
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 DEMO_DIR ?= demo-out
 
-.PHONY: all venv sysdeps demodeps test demo bench clean
+.PHONY: all venv sysdeps demodeps test demo bench emulate clean
 
 all: test
 
@@ -62,5 +63,11 @@ bench: venv sysdeps
 	$(PY) bench/results.py $(BENCH_RESULTS) bench/RESULTS.md
 	$(PY) bench/goals_table.py
 
+# N sensor motes + BaseStation in the emulator harness (needs a TinyOS tree and
+# nesC >= 1.4.0: make emulate TINYOS_ROOT_DIR=... EMULATE_ARGS="--motes 3"; docs/emulation.md)
+EMULATE_ARGS ?=
+emulate: venv sysdeps
+	TINYOS_ROOT_DIR="$(TINYOS_ROOT_DIR)" $(PY) emu/emulate.py $(EMULATE_ARGS)
+
 clean:
-	rm -rf $(VENV) $(DEMO_DIR) build .pytest_cache
+	rm -rf $(VENV) $(DEMO_DIR) build .pytest_cache emu/build

@@ -6,6 +6,11 @@ Also builds the portable C kernel (-DNINEDOF_PORTABLE_KERNEL: int32 products
 through avr-gcc's __mulhisi3) for comparison.  Timing is reported, never pass/fail; exits non-zero only if
 the benchmark did not run through (no END, or the TWI operation it times
 did not end exactly once).
+
+The I2C time per sample of the nesC build (both masters, three RC clocks)
+comes from the emulator harness (emu/, `make emulate`) when TINYOS_ROOT_DIR
+names a TinyOS tree and nesC >= 1.4.0 is on PATH; otherwise it is not
+measured here.
 """
 from __future__ import annotations
 
@@ -40,44 +45,60 @@ def measure(defines=()) -> dict:
     return out
 
 
-# I2C time per sample (NineDofBoardP.read() to readDone): the bits on the
-# wire plus the CPU time while SCL is held low or the bus idles between
-# transfers.  The CPU figures per event were measured by running the nesC
-# build for iris (a timing app on NineDofBoardC, this repository's board and
-# chip components) in simavr built from its current source (TWI timing
-# patched to count the START and the address byte) with register-level
-# models of the three chips, once with TinyOS's stock Atm128I2CMasterC and
-# once with the lean master (NINEDOF_LEAN_I2C=1: NineDofTwiMasterC,
-# tinyos/ninedof_twi.c), same run, same chips: 1537.0 us and 1390.5 us per
-# sample there.  They are constants here because that run needs nesC,
-# TinyOS and a newer simavr than Debian's, which CI does not have.
-SCL_HZ = 8_000_000 // (16 + 2 * 3)     # TWBR = 3 (NINEDOF_I2C_HZ 380 kHz limit): 363636 Hz
-TRANSFERS = [   # (what goes on the bus, bytes incl. address bytes, START + Sr)
-    ("ADXL345   S 53w 32 Sr 53r d*6 P", 9, 2),
-    ("ITG-3200  S 68w 1D Sr 68r d*6 P", 9, 2),
-    ("HMC5883L  S 1Ew 02 01 Sr 1Er d*6 P (trigger + read)", 10, 2),
-]
-EVENTS = [      # (event, count per sample)
-    ("TWI interrupt: START/Sr done -> address byte", 6),
-    ("TWI interrupt: byte done -> next byte or STOP", 25),
-    ("pointer written -> repeated START (writeDone, chip, read())", 3),
-    ("STOP -> next chip's START (readDone, board, chip, write())", 2),
-    ("read() -> first START (one grant: arbiter, bus power, TWBR)", 1),
-    ("last STOP -> readDone (STOP on release, power off, release)", 1),
-]
-MASTERS = {  # master -> (CPU cycles of each event above (mean over the run), measured us)
-    "stock Atm128I2CMasterC": ((204, 117, 265, 311, 350, 696), 1537.0),
-    "lean NineDofTwiMasterC (NINEDOF_LEAN_I2C=1)": ((181, 71, 290, 346, 294, 703), 1390.5),
-}
+GOAL = ("all three sensors read, per sample", "<= 1.2 ms (#5)")
 
 
-def i2c_model(master: str) -> tuple[float, float, list]:
-    """(wire us, total us, rows) for one sample with the given master."""
-    bit = 1e6 / SCL_HZ
-    cyc = 1e6 / avrsim.F_CPU
-    wire = sum(nb * 9 + ns for _, nb, ns in TRANSFERS) * bit
-    rows = [(name, n, c, n * c * cyc) for (name, n), c in zip(EVENTS, MASTERS[master][0])]
-    return wire, wire + sum(r[3] for r in rows), rows
+def emulated_i2c(tmp: Path) -> None:
+    """read() -> readDone and I2C time per sample of the real images, both
+    masters, three RC clocks, from the emulator harness (emu/emulate.py):
+    only with a TinyOS tree (TINYOS_ROOT_DIR) and nesC >= 1.4.0."""
+    sys.path.insert(0, str(avrsim.REPO / "emu"))
+    import emulate  # noqa: E402
+    try:
+        emulate.toolchain()
+    except emulate.Unavailable as e:
+        print(f"I2C per sample of the nesC build: not measured here ({e}; "
+              "`make emulate` / docs/emulation.md)")
+        record(*GOAL, None, note=f"needs the nesC build in the emulator harness ({e}); "
+               "run make bench with TINYOS_ROOT_DIR and nesC >= 1.4.0 (docs/emulation.md)")
+        return
+    print("I2C per sample of the nesC build, measured on the emulated bus (ninedof-emu, "
+          "1 mote, 12 s emulated, counted from 4 s; goal <= 1200 us read() to readDone)")
+    got = {}
+    for lean, name in ((False, "stock Atm128I2CMasterC"),
+                       (True, "lean NineDofTwiMasterC (NINEDOF_LEAN_I2C=1)")):
+        elf = emulate.build_image("tinyos", tmp / f"mote-{int(lean)}.elf", lean=lean)
+        for mhz in (7.84, 8.0, 8.16):
+            n = emulate.measure(tmp, motes=1, seconds=12, settle=4, mhz=(mhz,), lean=lean,
+                                base=False, mote=elf)["nodes"][0]
+            if not n["samples"]:
+                print(f"  {name} at {mhz:.2f} MHz: no reads"
+                      + ("" if n["radio"] else " (no RF230 model in this harness: the app "
+                         "starts sampling only once its radio has started)"))
+                continue
+            sp = n.get("span")
+            if sp:
+                got[lean, mhz] = sp["us_mean"]
+                print(f"  {name} at {mhz:.2f} MHz: read() -> readDone {sp['us_mean']:.1f} us "
+                      f"(min {sp['us_min']:.1f}, max {sp['us_max']:.1f}; goal <= 1200 us)")
+            print(f"  {name} at {mhz:.2f} MHz: first START -> last STOP {n['i2c_us_mean']:.1f} us "
+                  f"(min {n['i2c_us_min']:.1f}, max {n['i2c_us_max']:.1f}), of which on the wire "
+                  f"{n['wire_us_mean']:.1f} us and SCL held for the CPU {n['held_us_mean']:.1f} us; "
+                  f"{n['reads_per_s']:.3f} reads/s, {n['missing_periods']} periods without a read, "
+                  f"CPU load {100 * n['cpu_load']:.1f} %, ROM {n['rom']} B / RAM {n['ram']} B")
+    if (False, 8.0) not in got:
+        record(*GOAL, None, note="the emulated mote did not sample (no RF230 model in this "
+               "harness, or no read() -> readDone in the image)")
+        return
+    stock = got[False, 8.0] / 1000
+    rng = ", ".join(f"{got[False, m]:.0f}" for m in (7.84, 8.16) if (False, m) in got)
+    record(*GOAL, stock, "ms", stock <= 1.2,
+           note=f"read() -> readDone, TinyOS's Atm128I2CMasterC, 8.00 MHz, emulated "
+                f"(ninedof-emu); {rng} us at 7.84 / 8.16 MHz")
+    if (True, 8.0) in got:
+        lean = got[True, 8.0] / 1000
+        record("the same with the lean TWI master (NINEDOF_LEAN_I2C=1)", GOAL[1], lean, "ms",
+               lean <= 1.2, note="read() -> readDone, 8.00 MHz, emulated (ninedof-emu)")
 
 
 def main() -> int:
@@ -114,20 +135,6 @@ def main() -> int:
     for name, cyc, goal in rows:
         print(f"{name:50s} {cyc:8.0f} {cyc / MHZ:8.1f}  {goal}")
     print()
-    print(f"I2C per sample at {SCL_HZ / 1000:.0f} kHz (CPU cycles per event measured in simavr "
-          "on the nesC build, outside CI: see bench_cycles.py)")
-    for name, nb, ns in TRANSFERS:
-        print(f"  {name:60s} {(nb * 9 + ns) * 1e6 / SCL_HZ:6.1f} us on the wire")
-    for master, (_, measured_us) in MASTERS.items():
-        wire, total, rows = i2c_model(master)
-        print(f" {master}")
-        print(f"  {'wire time, three transfers':60s} {wire:6.1f} us")
-        for name, n, c, us in rows:
-            print(f"  {name:60s} {us:6.1f} us  ({n} x {c} cycles)")
-        print(f"  {'all three sensors, read() to readDone':60s} {total:6.1f} us   goal <= 1200 us"
-              f"  (measured {measured_us:.1f} us)")
-        isr = sum(us for name, _, _, us in rows if name.startswith("TWI interrupt"))
-        print(f"  of which the interrupts: {isr:.0f} us; wire + interrupts alone: {wire + isr:.0f} us")
     print("lean master's TWI handler alone, avr-gcc -Os in Debian's simavr (call + reti; "
           "the interrupt itself takes 8): "
           + ", ".join(f"{k[8:]} {asm[k]}" for k in ("twi_isr_start", "twi_isr_addr",
@@ -137,12 +144,12 @@ def main() -> int:
            "cycles", asm["correct_9axes"] <= 1500, digits=4,
            note=f"{asm['correct_block5'] / BATCH:.0f} per record in a batch of {BATCH}; "
                 "avr-gcc -Os in Debian's simavr")
-    record("all three sensors read, per sample", "<= 1.2 ms (#5)", None,
-           note="the nesC build's I2C does not run here: the I2C lines this bench prints "
-                "are rebuilt from cycle counts of an earlier run outside the repository")
     period = avrsim.F_CPU / 125
     print(f"per-sample work is {100 * per_sample / period:.1f}% of the 8 ms period "
           f"({period:.0f} cycles); commit status {asm['commit_status']} (0 = accepted)")
+    print()
+    with tempfile.TemporaryDirectory() as d:
+        emulated_i2c(Path(d))
     return 0
 
 

@@ -26,6 +26,7 @@ LAYERS = [
     ("motecal.view",),          # the browser view of a session (live and stored)
     ("motecal.calib",),         # calibration engine
     ("motecal.firmware",),      # the mote's rules on the host (fixed point, its C)
+    ("motecal.targets",),       # a calibration in other tools' forms (export-cal)
     ("motecal.upload",),        # a calibration to a mote
     ("motecal.sim",),           # simulator
     ("motecal.diagnose",),      # model discrepancy

@@ -37,6 +37,7 @@ from ..sessions.still import StillThresholds
 from . import fit as _fit
 from . import gate as _gate
 from . import gyro as _gyro
+from . import rotations as _rotations
 from .ga import GAOptions
 from .models import MagnitudeModel, mag_groups, make_model
 from .result import BoardCalibration, Param, SensorCalibration
@@ -104,6 +105,7 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
     else:
         board.gyro = _gyro_sensor(data, gyr_rows, board.accel, chips["gyro"], s_gyr, seed,
                                   ga_options, kfold, gyro_matrix, still)
+        _rotations.refine_board(board, data)     # known turns / turntable runs, if listed
 
     # magnetometer ----------------------------------------------------------------
     all_sets = mag_data_sets(data)

@@ -1,17 +1,25 @@
-"""``motecal import``: measured data files read (``sessions.importer``) and
-saved as one session; nothing is written when a file is bad."""
+"""``motecal import``: measured data files read (``sessions.importer``, and
+other tools' formats by ``sessions.foreign``, docs/interop.md) and saved as
+one session; nothing is written when a file is bad."""
 from __future__ import annotations
 
-from ..sessions.importer import FORMATS, KINDS, read_any, summary
+from ..sessions.foreign import FORMATS as FOREIGN, read_session
+from ..sessions.importer import FORMATS, KINDS, summary
 from ..sessions.store import open_store
 
 
 def run(args) -> int:
-    data = read_any(args.files, fmt=args.format, chip=args.chip or None, kind=args.kind)
+    data = read_session(args.files, fmt=args.format, chip=args.chip or None, kind=args.kind,
+                        units=args.units or None, scale=args.scale or None,
+                        gravity=args.gravity, rate_hz=args.rate_hz,
+                        rate_dps=args.rate_dps or None, rpm=args.rpm or None,
+                        columns=args.columns, angle_deg=args.angle_deg)
     data.name = args.session
     with open_store(args.db, create=True) as store:
         store.save_session(data, replace=args.replace)
     print(summary(data))
+    for line in (data.meta.get("rounding") or {}).values():
+        print(f"  {line}")
     print(f"Saved to {args.db} as session '{args.session}'.")
     return 0
 
@@ -20,13 +28,14 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "import", help="import measured data files into a session",
         description="Read measured data (the motecal CSV, Razor AHRS text or float logs, "
-                    "timestamped CSV pairs) and save it as one session; nothing is written "
-                    "when a file is bad.")
+                    "timestamped CSV pairs; imucal's Ferraris sessions, FreeIMU-cal float "
+                    "logs and turntable runs, MotionCal Raw: logs) and save it as one "
+                    "session; nothing is written when a file is bad.")
     p.add_argument("files", nargs="+", metavar="FILE",
                    help="data files (or one timestamped run directory)")
     p.add_argument("--db", required=True, metavar="FILE", help="session database (created if missing)")
     p.add_argument("--session", required=True, metavar="NAME", help="session name to write")
-    p.add_argument("--format", default="auto", choices=("auto",) + FORMATS,
+    p.add_argument("--format", default="auto", choices=("auto",) + FORMATS + FOREIGN,
                    help="input format (default: detected from the content)")
     p.add_argument("--chip", action="append", default=[], metavar="SENSOR=CHIP",
                    help="override a chip and its scale, e.g. mag=hmc5843, gyro=itg3205, "
@@ -35,4 +44,24 @@ def register(subparsers) -> None:
                    help="static (still segments are poses), rotation (all rows 'rot'), "
                         "idle, or auto (decided from stillness; default)")
     p.add_argument("--replace", action="store_true", help="replace an existing session")
+    g = p.add_argument_group("float inputs and other tools' formats (docs/interop.md)")
+    g.add_argument("--units", action="append", default=[], metavar="si|counts|SENSOR=UNIT",
+                   help="units of float values: si (m/s^2, rad/s, uT), counts, or per sensor, "
+                        "e.g. gyro=deg/s (repeatable)")
+    g.add_argument("--scale", action="append", default=[], metavar="SENSOR=LSB",
+                   help="LSB per g, deg/s or gauss to turn floats into counts (default: the "
+                        "chip's, else the file's own step); repeatable")
+    g.add_argument("--gravity", type=float, metavar="M/S2",
+                   help="m/s^2 per g for m/s^2 inputs (default 9.80665; imucal's example: 9.81)")
+    g.add_argument("--rate-hz", type=float, metavar="HZ",
+                   help="sample rate of files without times (imucal formats need it)")
+    g.add_argument("--rate-dps", action="append", default=[], metavar="DPS",
+                   help="turntable speed(s), deg/s: steady turns at it become rotations")
+    g.add_argument("--rpm", action="append", default=[], metavar="RPM",
+                   help="turntable speed(s) in rpm, e.g. 33.333,45")
+    g.add_argument("--columns", metavar="SENSORS",
+                   help="sensors of a float log's columns, e.g. gyro or accel,gyro "
+                        "(default: from the file name)")
+    g.add_argument("--angle-deg", type=float, metavar="DEG",
+                   help="size of the imucal session's turns (default 360)")
     p.set_defaults(func=run)

@@ -26,6 +26,7 @@ COMMANDS = {
     "export": ("export", "write a session as the project CSV"),
     "import": ("import_", "import measured data files as a session"),
     "calibrate": ("calibrate", "calibrate accelerometer, gyroscope and magnetometer"),
+    "export-cal": ("export_cal", "write a calibration in another tool's form"),
     "upload": ("upload", "send a calibration to a mote, or read/reset it"),
     "diagnose": ("diagnose", "what the simulation gets wrong, its cause and the gain"),
     "report": ("report", "the paper's tables and figures as an HTML report"),

@@ -37,7 +37,7 @@ SCHEMA_VERSION = 3
 SAMPLE_COLUMNS = ("session", "mote", "seq", "t", "label", "flags") + COLUMNS
 
 # Per-mote link counters (link_stats) and per-line counters (line_stats):
-# name -> meaning.  The logger fills them; README's schema section lists them.
+# name -> meaning.  The logger fills them; docs/log.md (the database) lists them.
 LINK_COUNTERS = {
     "frames": "sample messages received from this mote",
     "samples": "records stored",

@@ -16,7 +16,7 @@ Any value V may be a number, a list of the parameter's shape, or a
 distribution ``{"uniform": [lo, hi]}`` / ``{"normal": [mean, sd]}`` (drawn per
 element, deterministically from the run seed and the mote id).  A
 ``"comment"`` key is allowed (and ignored) in every object.  Terms and their
-parameters are defined in ``physics.py`` (see README.md, "Simulator: the sensor model").
+parameters are defined in ``physics.py`` (see docs/simulator-model.md).
 """
 from __future__ import annotations
 

@@ -1,0 +1,66 @@
+/* emu/faults.c -- parse --fault and arm the windows in the models. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "faults.h"
+#include "twi.h"
+
+static int chip_index(const char *name)
+{
+    static const char *names[CHIP_COUNT] = { "adxl345", "itg3200", "hmc5883l" };
+    for (int i = 0; i < CHIP_COUNT; i++)
+        if (!strcmp(name, names[i]))
+            return i;
+    return -1;
+}
+
+int fault_apply(const char *spec, emu_node_t **nodes, int n)
+{
+    char buf[128];
+    if (strlen(spec) >= sizeof buf)
+        goto bad;
+    strcpy(buf, spec);
+    int only = -1;
+    char *at = strchr(buf, '@');
+    if (at) {
+        *at = 0;
+        char *end;
+        only = (int)strtol(at + 1, &end, 10);
+        if (*end || only < 0 || only >= n)
+            goto bad;
+    }
+    char kind[16] = "", chip[16] = "";
+    double t0, d;
+    int c = -1;
+    if (sscanf(buf, "hang:%lf:%lf", &t0, &d) == 2) {
+        strcpy(kind, "hang");
+    } else if (sscanf(buf, "%15[a-z]:%15[a-z0-9]:%lf:%lf", kind, chip, &t0, &d) == 4
+               && (!strcmp(kind, "nack") || !strcmp(kind, "power"))) {
+        c = chip_index(chip);
+        if (c < 0)
+            goto bad;
+    } else {
+        goto bad;
+    }
+    if (!(t0 >= 0) || !(d > 0))
+        goto bad;
+    uint64_t from = (uint64_t)(t0 * 1e9), until = (uint64_t)((t0 + d) * 1e9);
+    for (int i = 0; i < n; i++) {
+        emu_twi_t *t = nodes[i]->twi;
+        if (!t || (only >= 0 && i != only))
+            continue;
+        if (!strcmp(kind, "hang")) {
+            t->hang_from = from; t->hang_until = until;
+        } else if (!strcmp(kind, "nack")) {
+            t->chips[c].nack_from = from; t->chips[c].nack_until = until;
+        } else {
+            t->chips[c].off_from = from; t->chips[c].off_until = until;
+        }
+    }
+    return 0;
+bad:
+    fprintf(stderr, "ninedof-emu: bad --fault '%s' (nack:CHIP:T:D, power:CHIP:T:D or hang:T:D, "
+            "seconds, optional @NODE; CHIP adxl345|itg3200|hmc5883l)\n", spec);
+    return -1;
+}

@@ -1,0 +1,16 @@
+/* emu/faults.h -- fault injection on the sensor board's bus (--fault). */
+#ifndef EMU_FAULTS_H
+#define EMU_FAULTS_H
+
+#include "emu.h"
+
+/* SPEC, times in seconds of emulated time, optional @I = node index only:
+ *   nack:CHIP:T:D     CHIP (adxl345 | itg3200 | hmc5883l) NACKs its address
+ *                     from T for D seconds
+ *   power:CHIP:T:D    CHIP loses power at T, back after D with its reset
+ *                     register values (NACKs everything meanwhile)
+ *   hang:T:D          SDA held low from T for D seconds (bus hang)
+ * Returns 0, or -1 with a message on stderr. */
+int fault_apply(const char *spec, emu_node_t **nodes, int n);
+
+#endif

@@ -1,0 +1,386 @@
+/*
+ * emu/main.c -- ninedof-emu: N sensor motes (+ a BaseStation) in lockstep.
+ *
+ *   ninedof-emu --mote ELF[,id=N,mhz=F,xtal_ppm=P,board=FILE] ... [--base ELF[,...]]
+ *               [--serial pty|tcp:PORT|null] [--loss P] [--seed N] [--seconds S]
+ *               [--fault SPEC] ... [--settle S] [--twi-log FILE] [--console FILE]
+ *               [--report json|text]
+ *
+ * Every node runs on Debian's libsimavr (ATmega1281) with the harness's
+ * TWI model and chip models (sensor motes), the 32768 Hz crystal on
+ * timer 2 (simavr's asynchronous timer 2, at exactly 32768 Hz of emulated
+ * time) and its own RC clock (mhz=).  docs/emulation.md.
+ */
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "emu.h"
+#include "node.h"
+#include "twi.h"
+#include "board.h"
+#include "faults.h"
+#include "radio_api.h"
+
+#define MAX_NODES 32
+
+static uint64_t g_now_ns;
+
+uint64_t emu_global_now_ns(void)
+{
+    return g_now_ns;
+}
+
+static void usage(void)
+{
+    fprintf(stderr,
+            "usage: ninedof-emu --mote ELF[,id=N,mhz=F,xtal_ppm=P,board=FILE] ...\n"
+            "       [--base ELF[,id=N,mhz=F,xtal_ppm=P]]\n"
+            "       [--serial pty|tcp:PORT|null] [--loss P] [--seed N] [--seconds S]\n"
+            "       [--fault SPEC] ... [--settle S] [--twi-log FILE] [--console FILE]\n"
+            "       [--span FROM:TO] [--report json|text]\n");
+}
+
+static int bad(const char *what, const char *arg)
+{
+    fprintf(stderr, "ninedof-emu: bad %s '%s'\n", what, arg);
+    return 2;
+}
+
+typedef struct {
+    char elf[1024];
+    int id;
+    double mhz;
+    double xtal_ppm;
+    char board[1024];
+} node_spec_t;
+
+static int parse_node(const char *arg, node_spec_t *s, int default_id)
+{
+    char buf[2048];
+    if (strlen(arg) >= sizeof buf)
+        return -1;
+    strcpy(buf, arg);
+    s->id = default_id;
+    s->mhz = 8.0;
+    s->xtal_ppm = 0;
+    s->board[0] = 0;
+    char *save = NULL;
+    char *tok = strtok_r(buf, ",", &save);
+    if (!tok || strlen(tok) >= sizeof s->elf)
+        return -1;
+    strcpy(s->elf, tok);
+    while ((tok = strtok_r(NULL, ",", &save))) {
+        char *end;
+        if (!strncmp(tok, "id=", 3)) {
+            long v = strtol(tok + 3, &end, 0);
+            if (*end || v < 0 || v > 0xFFFF)
+                return -1;
+            s->id = (int)v;
+        } else if (!strncmp(tok, "mhz=", 4)) {
+            double v = strtod(tok + 4, &end);
+            if (*end || !(v >= 1.0 && v <= 20.0))
+                return -1;
+            s->mhz = v;
+        } else if (!strncmp(tok, "xtal_ppm=", 9)) {
+            double v = strtod(tok + 9, &end);
+            if (*end || !(v >= -1000 && v <= 1000))
+                return -1;
+            s->xtal_ppm = v;
+        } else if (!strncmp(tok, "board=", 6) && strlen(tok + 6) < sizeof s->board) {
+            strcpy(s->board, tok + 6);
+        } else {
+            return -1;
+        }
+    }
+    return 0;
+}
+
+static const char *state_name(int st)
+{
+    switch (st) {
+    case cpu_Done: return "done";
+    case cpu_Crashed: return "crashed";
+    case cpu_Sleeping: return "sleeping";
+    default: return "running";
+    }
+}
+
+int main(int argc, char **argv)
+{
+    node_spec_t specs[MAX_NODES];
+    int nspec = 0, base = -1;
+    const char *serial = NULL, *report = "text", *twi_log = NULL, *console = NULL;
+    char span_from[128] = "", span_to[128] = "";
+    const char *faults[64];
+    int nfault = 0;
+    double loss = 0, seconds = 10, settle = -1;
+    unsigned long seed = 1;
+
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
+        char *end;
+        if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
+            usage();
+            return 0;
+        }
+        if (!v) {
+            usage();
+            return 2;
+        }
+        i++;
+        if (!strcmp(a, "--mote") || !strcmp(a, "--base")) {
+            if (nspec == MAX_NODES)
+                return bad("node count (max 32)", v);
+            int is_base = !strcmp(a, "--base");
+            if (is_base && base >= 0)
+                return bad("second --base", v);
+            if (parse_node(v, &specs[nspec], is_base ? 0 : nspec + 1) < 0)
+                return bad(a, v);
+            if (is_base)
+                base = nspec;
+            nspec++;
+        } else if (!strcmp(a, "--serial")) {
+            serial = v;
+        } else if (!strcmp(a, "--loss")) {
+            loss = strtod(v, &end);
+            if (*end || !(loss >= 0 && loss <= 1))
+                return bad("--loss (0..1)", v);
+        } else if (!strcmp(a, "--seed")) {
+            seed = strtoul(v, &end, 0);
+            if (*end)
+                return bad("--seed", v);
+        } else if (!strcmp(a, "--seconds")) {
+            seconds = strtod(v, &end);
+            if (*end || !(seconds > 0 && seconds <= 3600))
+                return bad("--seconds (0..3600]", v);
+        } else if (!strcmp(a, "--settle")) {
+            settle = strtod(v, &end);
+            if (*end || !(settle >= 0))
+                return bad("--settle", v);
+        } else if (!strcmp(a, "--fault")) {
+            if (nfault == 64)
+                return bad("--fault count", v);
+            faults[nfault++] = v;
+        } else if (!strcmp(a, "--report")) {
+            if (strcmp(v, "json") && strcmp(v, "text"))
+                return bad("--report (json|text)", v);
+            report = v;
+        } else if (!strcmp(a, "--span")) {
+            const char *colon = strchr(v, ':');
+            if (!colon || colon == v || !colon[1] || (size_t)(colon - v) >= sizeof span_from
+                || strlen(colon + 1) >= sizeof span_to)
+                return bad("--span (FROM:TO, two function names)", v);
+            memcpy(span_from, v, (size_t)(colon - v));
+            span_from[colon - v] = 0;
+            strcpy(span_to, colon + 1);
+        } else if (!strcmp(a, "--twi-log")) {
+            twi_log = v;
+        } else if (!strcmp(a, "--console")) {
+            console = v;
+        } else {
+            usage();
+            return 2;
+        }
+    }
+    if (!nspec) {
+        usage();
+        return 2;
+    }
+    if (settle < 0)
+        settle = seconds >= 10 ? 5.0 : 0.0;
+
+    FILE *log = NULL;
+    if (twi_log && !(log = fopen(twi_log, "w"))) {
+        fprintf(stderr, "ninedof-emu: cannot write %s: %s\n", twi_log, strerror(errno));
+        return 2;
+    }
+    FILE *con = NULL;
+    if (console && !(con = strcmp(console, "-") ? fopen(console, "wb") : stdout)) {
+        fprintf(stderr, "ninedof-emu: cannot write %s: %s\n", console, strerror(errno));
+        return 2;
+    }
+
+    emu_node_t *nodes[MAX_NODES];
+    emu_channel_t *ch = channel_new(loss, (uint32_t)seed);
+    for (int i = 0; i < nspec; i++) {
+        nodes[i] = node_new(specs[i].elf, i, (uint16_t)specs[i].id, specs[i].mhz * 1e6);
+        if (!nodes[i])
+            return 2;
+        nodes[i]->is_base = i == base;
+        if (specs[i].xtal_ppm != 0 && node_crystal_ppm(nodes[i], specs[i].xtal_ppm) < 0) {
+            fprintf(stderr, "ninedof-emu: simavr refused the crystal at %g ppm\n", specs[i].xtal_ppm);
+            return 2;
+        }
+        if (i != base) {
+            emu_board_t *b = specs[i].board[0] ? board_load(specs[i].board) : board_synthetic();
+            if (!b)
+                return 2;
+            nodes[i]->board = b;
+            twi_attach(nodes[i], b, log);
+            nodes[i]->twi->st.settle_ns = (uint64_t)(settle * 1e9);
+            if (span_from[0] && node_span(nodes[i], span_from, span_to,
+                                          (uint64_t)(settle * 1e9)) < 0)
+                return 2;
+        }
+        if (ch)
+            rf230_attach(nodes[i], ch);
+        if (i == base && serial)
+            uart_attach(nodes[i], serial);
+        else if (i == 0 && con)
+            node_console(nodes[i], con);
+    }
+    for (int f = 0; f < nfault; f++)
+        if (fault_apply(faults[f], nodes, nspec) < 0)
+            return 2;
+
+    /* lockstep: every node runs to the end of each quantum, then the channel */
+    uint64_t end_ns = (uint64_t)(seconds * 1e9);
+    uint64_t settle_ns = (uint64_t)(settle * 1e9);
+    uint64_t cyc0[MAX_NODES] = { 0 }, sleep0[MAX_NODES] = { 0 };
+    int settled = 0, state[MAX_NODES];
+    for (int i = 0; i < nspec; i++)
+        state[i] = cpu_Running;
+    while (g_now_ns < end_ns) {
+        uint64_t q = g_now_ns + EMU_QUANTUM_NS;
+        int live = 0;
+        for (int i = 0; i < nspec; i++) {
+            if (state[i] == cpu_Done || state[i] == cpu_Crashed)
+                continue;
+            state[i] = node_run_until(nodes[i], q);
+            if (state[i] != cpu_Done && state[i] != cpu_Crashed)
+                live++;
+            uart_poll(nodes[i], q);
+        }
+        g_now_ns = q;
+        if (getenv("EMU_PC_TRACE") && g_now_ns % 100000000u == 0)
+            for (int i = 0; i < nspec; i++)
+                fprintf(stderr, "t=%.1f node %d pc %05x state %d cycle %llu sreg_i %d int_state %d\n",
+                        g_now_ns / 1e9, i, nodes[i]->avr->pc, nodes[i]->avr->state,
+                        (unsigned long long)nodes[i]->avr->cycle, nodes[i]->avr->sreg[S_I],
+                        nodes[i]->avr->interrupt_state);
+        if (ch)
+            channel_step(ch, g_now_ns);
+        if (!settled && g_now_ns >= settle_ns) {
+            settled = 1;
+            for (int i = 0; i < nspec; i++) {
+                cyc0[i] = nodes[i]->avr->cycle;
+                sleep0[i] = nodes[i]->sleep_cycles;
+            }
+        }
+        if (!live)
+            break;
+    }
+    for (int i = 0; i < nspec; i++)
+        if (nodes[i]->twi)
+            twi_finish(nodes[i]->twi);
+    if (log)
+        fclose(log);
+    if (con && con != stdout)
+        fclose(con);
+
+    int json = !strcmp(report, "json");
+    FILE *out = stdout;
+    if (json)
+        fprintf(out, "{\"seconds\": %.6f, \"settle\": %.3f, \"nodes\": [", g_now_ns / 1e9, settle);
+    int rc = 0;
+    for (int i = 0; i < nspec; i++) {
+        emu_node_t *n = nodes[i];
+        uint64_t cyc = n->avr->cycle - cyc0[i];
+        uint64_t slp = n->sleep_cycles - sleep0[i];
+        double load = cyc ? 1.0 - (double)slp / (double)cyc : 0;
+        if (state[i] == cpu_Crashed)
+            rc = 1;
+        emu_twi_t *t = n->twi;
+        emu_sample_stats_t *s = t ? &t->st : NULL;
+        double win = s && s->n_rate > 1 ? (s->last_ns - s->rate_first_ns) / 1e9 : 0;
+        double rate = win > 0 ? (s->n_rate - 1) / win : 0;
+        if (json) {
+            fprintf(out, "%s\n {\"index\": %d, \"id\": %u, \"role\": \"%s\", \"elf\": \"%s\", "
+                    "\"mhz\": %.4f, \"rom\": %u, \"ram\": %u, \"state\": \"%s\", \"cycles\": %llu, "
+                    "\"cpu_load\": %.5f, \"radio\": %s",
+                    i ? "," : "", i, n->am_addr, n->is_base ? "base" : "mote", n->elf,
+                    n->freq_hz / 1e6, n->rom_bytes, n->ram_bytes, state_name(state[i]),
+                    (unsigned long long)n->avr->cycle, load, n->rf ? "true" : "false");
+            if (t) {
+                fprintf(out, ", \"samples\": %llu, \"samples_after_settle\": %llu, "
+                        "\"reads_per_s\": %.4f, \"first_sample_s\": %.6f, "
+                        "\"i2c_us_mean\": %.2f, \"i2c_us_min\": %.2f, \"i2c_us_max\": %.2f, "
+                        "\"wire_us_mean\": %.2f, \"held_us_mean\": %.2f, "
+                        "\"interval_us_min\": %.1f, \"interval_us_max\": %.1f, "
+                        "\"gaps\": %llu, \"missing_periods\": %llu, \"other_bursts\": %llu, "
+                        "\"twbr\": %u, \"scl_hz\": %.0f, "
+                        "\"starts\": %llu, \"bytes\": %llu, \"addr_nacks\": %llu, "
+                        "\"data_nacks\": %llu, \"arb_lost\": %llu, \"hang_waits\": %llu, ",
+                        (unsigned long long)s->n, (unsigned long long)s->n_rate, rate,
+                        s->first_ns / 1e9,
+                        s->n ? s->span_sum / s->n : 0, s->span_min, s->span_max,
+                        s->n ? s->wire_sum / s->n : 0, s->n ? s->held_sum / s->n : 0,
+                        s->int_min, s->int_max,
+                        (unsigned long long)s->gaps, (unsigned long long)s->gap_periods,
+                        (unsigned long long)s->other_bursts,
+                        n->avr->data[0xB8], n->freq_hz / twi_period_cycles(t),
+                        (unsigned long long)t->starts, (unsigned long long)t->bytes,
+                        (unsigned long long)t->addr_nacks, (unsigned long long)t->data_nacks,
+                        (unsigned long long)t->arb_lost, (unsigned long long)t->hang_waits);
+                fprintf(out, "\"per_second\": [");
+                for (uint64_t k = 0; k < EMU_MAX_SECONDS && k < (g_now_ns + 999999999u) / 1000000000u; k++)
+                    fprintf(out, "%s%u", k ? ", " : "", s->per_second[k]);
+                fprintf(out, "], \"chips\": {");
+                for (int c = 0; c < CHIP_COUNT; c++) {
+                    emu_chip_t *cp = &t->chips[c];
+                    fprintf(out, "%s\"%s\": {\"data_reads\": %u, \"nacked\": %u, \"resets\": %u, "
+                            "\"stale_reads\": %u, \"last\": [%d, %d, %d]}", c ? ", " : "", cp->name,
+                            cp->data_reads, cp->nacked, cp->resets, cp->stale_reads, cp->last_data[0], cp->last_data[1],
+                            cp->last_data[2]);
+                }
+                fprintf(out, "}");
+                if (n->span_from)
+                    fprintf(out, ", \"span\": {\"from\": \"%s\", \"to\": \"%s\", \"n\": %llu, "
+                            "\"us_mean\": %.2f, \"us_min\": %.2f, \"us_max\": %.2f}",
+                            span_from, span_to, (unsigned long long)n->span_n,
+                            n->span_n ? n->span_sum / n->span_n : 0, n->span_min, n->span_max);
+            }
+            fprintf(out, "}");
+        } else {
+            fprintf(out, "node %d (id %u, %s, %.2f MHz, %s): %s, ROM %u B, RAM %u B, "
+                    "CPU load %.1f %%\n", i, n->am_addr, n->is_base ? "BaseStation" : "sensor mote",
+                    n->freq_hz / 1e6, n->elf, state_name(state[i]), n->rom_bytes, n->ram_bytes,
+                    100 * load);
+            if (t) {
+                fprintf(out, "  samples %llu (%llu after %.1f s): %.3f reads/s, %llu gaps "
+                        "(%llu periods missing), other bursts %llu\n",
+                        (unsigned long long)s->n, (unsigned long long)s->n_rate, settle, rate,
+                        (unsigned long long)s->gaps, (unsigned long long)s->gap_periods,
+                        (unsigned long long)s->other_bursts);
+                fprintf(out, "  I2C per sample (first START asked -> last STOP done): mean %.1f us "
+                        "(min %.1f, max %.1f); on the wire %.1f us, SCL held for the CPU %.1f us; "
+                        "SCL %.0f kHz\n",
+                        s->n ? s->span_sum / s->n : 0, s->span_min, s->span_max,
+                        s->n ? s->wire_sum / s->n : 0, s->n ? s->held_sum / s->n : 0,
+                        n->freq_hz / twi_period_cycles(t) / 1e3);
+                fprintf(out, "  bus: %llu starts, %llu bytes, %llu address NACKs, %llu data NACKs, "
+                        "%llu arbitration lost, %llu waits for a hung bus\n",
+                        (unsigned long long)t->starts, (unsigned long long)t->bytes,
+                        (unsigned long long)t->addr_nacks, (unsigned long long)t->data_nacks,
+                        (unsigned long long)t->arb_lost, (unsigned long long)t->hang_waits);
+                if (n->span_from)
+                    fprintf(out, "  %s -> %s: %llu times, mean %.1f us (min %.1f, max %.1f)\n",
+                            span_from, span_to, (unsigned long long)n->span_n,
+                            n->span_n ? n->span_sum / n->span_n : 0, n->span_min, n->span_max);
+                for (int c = 0; c < CHIP_COUNT; c++)
+                    fprintf(out, "  %-8s data reads %u (%u stale: no new sample since the read "
+                            "before), NACKed %u, power-on resets %u\n",
+                            t->chips[c].name, t->chips[c].data_reads, t->chips[c].stale_reads,
+                            t->chips[c].nacked, t->chips[c].resets);
+            }
+            if (n->rf)
+                rf230_stats(n, out);
+        }
+    }
+    if (json)
+        fprintf(out, "\n]}\n");
+    return rc;
+}

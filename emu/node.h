@@ -1,0 +1,35 @@
+/* emu/node.h -- one emulated mote: load an ELF into a simavr core. */
+#ifndef EMU_NODE_H
+#define EMU_NODE_H
+
+#include "emu.h"
+
+/* Load ELF into a new ATmega1281 core at freq_hz (the RC clock), patch
+ * TOS_NODE_ID / ActiveMessageAddressC__addr to am_addr when the image has
+ * them (as tos-set-symbols does), replace simavr's real-time sleep with
+ * a counter of sleeping cycles.  NULL (message on stderr) on failure. */
+emu_node_t *node_new(const char *elf, int index, uint16_t am_addr, double freq_hz);
+
+/* Copy every byte the node writes on UART0 to f (test programs print there). */
+void node_console(emu_node_t *n, FILE *f);
+
+/* Run the node until its time reaches end_ns (or it stops).  Returns the
+ * core state (cpu_Done / cpu_Crashed when the program ended). */
+int node_run_until(emu_node_t *n, uint64_t end_ns);
+
+/* The 32768 Hz crystal on timer 2 off by ppm (simavr's virtual AS2 clock,
+ * a float: about 0.1 ppm resolution).  0, or -1 if simavr refuses. */
+int node_crystal_ppm(emu_node_t *n, double ppm);
+
+/* byte address of a symbol of the image, 0 if it has none */
+uint32_t node_symbol(const emu_node_t *n, const char *name);
+
+/* Time every run from the entry of function `from` to the next entry of
+ * `to` (entries that start after settle_ns count).  0, or -1 with a
+ * message when the image lacks one of them. */
+int node_span(emu_node_t *n, const char *from, const char *to, uint64_t settle_ns);
+
+/* cycles at the node's clock for a time in ns, and back */
+uint64_t node_ns_to_cycles(const emu_node_t *n, uint64_t ns);
+
+#endif

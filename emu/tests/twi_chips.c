@@ -1,0 +1,127 @@
+/*
+ * emu/tests/twi_chips.c -- the harness's TWI and chip models from the AVR
+ * side (tests/test_emu_chips.py): the lean TWI master's state machine
+ * (tinyos/ninedof_twi.c) driven from the TWI interrupt, reading the three
+ * chip models through ninedof-emu's bus.  Prints on UART0:
+ *
+ *   ID <adxl devid> <itg who_am_i> <hmc id a,b,c>;
+ *   CFG <result of each register write, 11 digits>;
+ *   S <i> <adxl 6 bytes> <itg temp+gyro 8 bytes> <hmc 6 bytes> <results>;   x 20, every 8 ms
+ *   HMC2 <6 bytes>; HMC8 <6 bytes>;    read 2 ms / 8 ms after a trigger
+ *   MARK;                              a write to 0x77 (nobody): the fault phase starts
+ *   F <i> <adxl r> <power_ctl> <itg r> <who_am_i>;  x 40, every 5 ms
+ *   END
+ * Results are NINEDOF_TWI_* outcomes (0 ok, 1 address NACK, ...).
+ */
+#include <stdint.h>
+#include <avr/interrupt.h>
+#include <avr/io.h>
+#include <util/delay.h>
+
+#include "ninedof_board.h"
+#include "ninedof_twi.h"
+#include "test_out.h"
+
+static ninedof_twi_t twi;
+
+ISR(TWI_vect)
+{
+  uint8_t cmd = ninedof_twi_step(&twi, TWSR & 0xF8, TWDR);
+  TWDR = twi.out;
+  TWCR = cmd;
+}
+
+static uint8_t op(uint8_t read, uint8_t flags, uint8_t addr, uint8_t len, uint8_t *buf)
+{
+  uint8_t cmd;
+  cli();
+  cmd = ninedof_twi_begin(&twi, read, flags, addr, len, buf);
+  TWDR = twi.out;
+  TWCR = cmd;
+  sei();
+  while (*(volatile uint8_t *)&twi.state != NINEDOF_TWI_DONE)
+    ;
+  /* a STOP leaves no interrupt: wait until the TWI has sent it */
+  while (TWCR & _BV(TWSTO))
+    ;
+  return twi.result;
+}
+
+/* write reg, repeated START, read len bytes */
+static uint8_t read_regs(uint8_t addr, uint8_t reg, uint8_t len, uint8_t *buf)
+{
+  uint8_t r = op(0, NINEDOF_I2C_START, addr, 1, &reg);
+  if (r)
+    return r;
+  return op(1, NINEDOF_I2C_START | NINEDOF_I2C_STOP, addr, len, buf);
+}
+
+static uint8_t write_reg(uint8_t addr, uint8_t reg, uint8_t v)
+{
+  uint8_t b[2] = { reg, v };
+  return op(0, NINEDOF_I2C_START | NINEDOF_I2C_STOP, addr, 2, b);
+}
+
+static void out_digit(uint8_t d) { out_c((char)('0' + d)); }
+
+int main(void)
+{
+  uint8_t a[8], g[8], m[8], i, r1, r2, r3;
+  out_init();
+  ninedof_twi_init(&twi);
+  TWBR = NINEDOF_TWBR(F_CPU, NINEDOF_I2C_HZ);
+  TWSR = 0;
+  TWCR = _BV(TWEN);
+  sei();
+
+  read_regs(ADXL345_ADDR, ADXL345_DEVID, 1, a);
+  read_regs(ITG3200_ADDR, ITG3200_WHO_AM_I, 1, g);
+  read_regs(HMC5883L_ADDR, HMC5883L_ID_A, 3, m);
+  out_s("ID "); out_hex(a, 1); out_c(' '); out_hex(g, 1); out_c(' '); out_hex(m, 3); out_c(';');
+
+  out_s("CFG ");
+  for (i = 0; i < NINEDOF_ADXL345_CONFIG_LEN; i++)
+    out_digit(write_reg(ADXL345_ADDR, NINEDOF_ADXL345_CONFIG[i].reg, NINEDOF_ADXL345_CONFIG[i].value));
+  for (i = 0; i < NINEDOF_ITG3200_CONFIG_LEN; i++)
+    out_digit(write_reg(ITG3200_ADDR, NINEDOF_ITG3200_CONFIG[i].reg, NINEDOF_ITG3200_CONFIG[i].value));
+  for (i = 0; i < NINEDOF_HMC5883L_CONFIG_LEN; i++)
+    out_digit(write_reg(HMC5883L_ADDR, NINEDOF_HMC5883L_CONFIG[i].reg, NINEDOF_HMC5883L_CONFIG[i].value));
+  out_c(';');
+  _delay_ms(60);                        /* the ITG-3200's start-up */
+
+  for (i = 0; i < 20; i++) {
+    r1 = read_regs(ADXL345_ADDR, ADXL345_DATAX0, 6, a);
+    r2 = read_regs(ITG3200_ADDR, ITG3200_GYRO_XOUT_H - 2, 8, g);   /* TEMP_OUT_H first */
+    /* the firmware's magnetometer read: trigger (the pointer write) + read */
+    r3 = op(0, NINEDOF_I2C_START, HMC5883L_ADDR, 2, (uint8_t *)NINEDOF_HMC5883L_TRIGGER);
+    if (!r3)
+      r3 = op(1, NINEDOF_I2C_START | NINEDOF_I2C_STOP, HMC5883L_ADDR, 6, m);
+    out_s("S "); out_u16(i); out_c(' '); out_hex(a, 6); out_c(' '); out_hex(g, 8); out_c(' ');
+    out_hex(m, 6); out_c(' '); out_digit(r1); out_digit(r2); out_digit(r3); out_c(';');
+    _delay_ms(7);
+  }
+
+  /* single-measurement timing: 2 ms after the trigger the previous one */
+  write_reg(HMC5883L_ADDR, HMC5883L_MODE, 0x01);
+  _delay_ms(2);
+  read_regs(HMC5883L_ADDR, HMC5883L_DATA_X_MSB, 6, m);
+  out_s("HMC2 "); out_hex(m, 6); out_c(';');
+  _delay_ms(6);
+  read_regs(HMC5883L_ADDR, HMC5883L_DATA_X_MSB, 6, m);
+  out_s("HMC8 "); out_hex(m, 6); out_c(';');
+
+  out_s("MARK ");
+  out_digit(write_reg(0x77, 0, 0));
+  out_c(';');
+  for (i = 0; i < 40; i++) {
+    r1 = read_regs(ADXL345_ADDR, ADXL345_POWER_CTL, 1, a);
+    r2 = read_regs(ITG3200_ADDR, ITG3200_WHO_AM_I, 1, g);
+    out_s("F "); out_u16(i); out_c(' '); out_digit(r1); out_c(' '); out_hex(a, 1); out_c(' ');
+    out_digit(r2); out_c(' '); out_hex(g, 1); out_c(';');
+    _delay_ms(5);
+  }
+  out_s("END");
+  _delay_ms(1);
+  out_end();
+  return 0;
+}

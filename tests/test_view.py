@@ -226,6 +226,27 @@ def test_serves_only_its_page_and_data(run):
     r.close()
 
 
+def test_port_lost_shows_while_the_logger_reconnects(run):
+    """The line goes away mid-session: the view keeps serving and says so
+    (connected false, one disconnect), and the logger still ends cleanly."""
+    r = run(kind="static80", motes=1, speed=5)
+    end = time.monotonic() + 30
+    while time.monotonic() < end and not (r.state()["motes"] or [{}])[0].get("static"):
+        time.sleep(0.1)
+    r.server.stop()
+    r.server.close()
+    end = time.monotonic() + 30
+    doc = r.state()
+    while time.monotonic() < end and doc["connected"]:
+        time.sleep(0.1)
+        doc = r.state()
+    assert not doc["connected"] and doc["line"]["disconnects"] == 1
+    assert any(e["kind"] == "line" and "port lost" in e["text"] for e in doc["events"])
+    r.proc.terminate()
+    rc, err = r.wait(timeout=30)
+    assert rc == 0, err
+
+
 def _own_addresses():
     try:
         out = subprocess.run(["hostname", "-I"], capture_output=True, text=True).stdout

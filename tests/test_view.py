@@ -73,11 +73,12 @@ class LogRun:
         self.server.close()
 
 
-def sse_events(port, n, timeout=20):
-    """The first n ``state`` events of /events (a fresh connection)."""
+def sse_events(port, n, timeout=20, out=None):
+    """The first n ``state`` events of /events (a fresh connection), appended
+    to ``out`` as they come."""
     s = socket.create_connection(("127.0.0.1", port), timeout=timeout)
     s.sendall(b"GET /events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
-    buf, out = b"", []
+    buf, out = b"", ([] if out is None else out)
     end = time.monotonic() + timeout
     while len(out) < n and time.monotonic() < end:
         chunk = s.recv(65536)
@@ -288,8 +289,11 @@ def test_stuck_viewers_cost_nothing_and_the_last_state_is_the_database(run):
     ended session with the counters the database holds."""
     r = run(kind="static80", motes=3, seed=6)
     events = []
-    t = threading.Thread(target=lambda: events.extend(sse_events(r.port, 10_000, timeout=90)))
+    t = threading.Thread(target=sse_events, args=(r.port, 10_000, 90, events))
     t.start()
+    end = time.monotonic() + 30
+    while not events and time.monotonic() < end:      # the reader's stream is one of the 8
+        time.sleep(0.01)
     stuck = []
     for _ in range(9):
         s = socket.socket()

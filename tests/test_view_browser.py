@@ -90,8 +90,8 @@ INK = """(function(id){var c=document.getElementById(id); var d=c.getContext('2d
 
 
 def test_static80_in_chromium(procs, tmp_path):
-    log, url, db = _serve_and_log(procs, tmp_path, "static80", motes=2, speed=15, seed=8)
-    with Browser(tmp_path) as b:
+    with Browser(tmp_path) as b:        # the browser first: its start-up is no race
+        log, url, db = _serve_and_log(procs, tmp_path, "static80", motes=2, speed=15, seed=8)
         b.open(url)
         b.wait_for("document.getElementById('m1-pose') && "
                    "Number(document.getElementById('m1-pose').dataset.value) >= 2", timeout=30)
@@ -144,8 +144,8 @@ def st_events(db):
 
 
 def test_sweep_in_chromium(procs, tmp_path):
-    log, url, db = _serve_and_log(procs, tmp_path, "rotation", motes=1, speed=5, seed=9)
     with Browser(tmp_path) as b:
+        log, url, db = _serve_and_log(procs, tmp_path, "rotation", motes=1, speed=2, seed=9)
         b.open(url)
         b.wait_for("Number((document.getElementById('m1-points')||{dataset:{}}).dataset.value)"
                    " >= 300", timeout=60)
@@ -162,4 +162,5 @@ def test_sweep_in_chromium(procs, tmp_path):
         _shot(b, tmp_path, "view-sweep.png")
         doc = json.loads(b.eval("JSON.stringify(window.motecalView.state())"))
         assert doc["motes"][0]["sweep"]["count"] >= first[0]
-        assert log.wait(timeout=120) == 0
+        log.terminate()                     # ends the session cleanly (SIGTERM)
+        assert log.wait(timeout=60) == 0

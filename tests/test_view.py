@@ -165,7 +165,7 @@ def test_static80_page_state_and_events_follow_the_logger(run):
 
 # ------------------------------------------------------------------ a sweep
 def test_rotation_sweep_points_fit_and_coverage(run):
-    r = run(kind="rotation", motes=1, seed=5, speed=15)
+    r = run(kind="rotation", motes=1, seed=5, speed=4)
     sw = None
     end = time.monotonic() + 60
     while time.monotonic() < end:

@@ -15,10 +15,11 @@ STAMP := $(VENV)/.installed-$(shell cat $(REQUIREMENTS) | md5sum | cut -c1-8)
 # libelf-dev + pkg-config (the emulator harness, emu/), a PostgreSQL server
 # and a MariaDB server (the store's server tests, which start their own in a
 # temporary folder: the server core packages, so no system service is set up
-# or started).  Installed with apt-get when missing.
+# or started), and Chromium (the browser view's test, headless).  Installed
+# with apt-get when missing.
 DEMO_PACKAGES := gcc libc6-dev
 TEST_PACKAGES := $(DEMO_PACKAGES) gcc-avr avr-libc simavr libsimavr-dev libelf-dev pkg-config \
-  postgresql mariadb-server-core mariadb-client-core
+  postgresql mariadb-server-core mariadb-client-core chromium
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 DEMO_DIR ?= demo-out

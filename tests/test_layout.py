@@ -23,6 +23,7 @@ LAYERS = [
     ("motecal.line",),          # the serial line: protocol, sample decoding, sources
     ("motecal.sessions",),      # session data, still detection, store, import
     ("motecal.capture",),       # logging: link tracking, logger loop, guided flows
+    ("motecal.view",),          # the browser view of a session (live and stored)
     ("motecal.calib",),         # calibration engine
     ("motecal.firmware",),      # the mote's rules on the host (fixed point, its C)
     ("motecal.targets",),       # a calibration in other tools' forms (export-cal)

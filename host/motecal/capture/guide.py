@@ -317,6 +317,17 @@ class PoseCapture:
                     sketch=[] if self.done else sketch_up(self.target),
                     map=self.coverage.map(self.target))
 
+    def picture(self) -> dict:
+        """The numbers a drawing of this flow needs (``motecal.view``), read
+        from the state machine, never decided again: the suggested and the
+        accepted gravity directions, the stillness of the trailing window, the
+        capture's progress, the coverage cells.  Arrays are references to or
+        copies of small state; the caller must not change them."""
+        return dict(targets=self.targets, target=self.target, still=self.det.still,
+                    accepted=np.array([p.direction for p in self.accepted]).reshape(-1, 3),
+                    hits=self.coverage.hits.copy(), bands=self.coverage.bands,
+                    sectors=self.coverage.sectors, discards=self.discards)
+
 
 # --------------------------------------------------------------------------
 # Rotation sweep
@@ -393,6 +404,14 @@ class RotationCapture:
         return dict(kind=self.kind, mote=self.mote, phase=self.phase.value, count=self.count,
                     samples=self.samples, armed=self.armed, coverage=self.coverage.fraction,
                     target_coverage=self.target_coverage, map=self.coverage.map())
+
+    def picture(self) -> dict:
+        """The numbers a drawing of the sweep needs (``motecal.view``): every
+        usable magnetometer reading so far (raw counts; the array is replaced,
+        never changed, so the reference stays valid), the centre of the last
+        fit and the coverage cells it counted."""
+        return dict(points=self._mag, centre=self.centre.copy(), hits=self.coverage.hits.copy(),
+                    bands=self.coverage.bands, sectors=self.coverage.sectors)
 
 
 # --------------------------------------------------------------------------

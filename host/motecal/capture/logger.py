@@ -179,6 +179,7 @@ class Logger:
             return
         t = np.full(len(rows), self.writer.now())
         self.writer.add_samples(rows.mote, rows.seq, t, rows.flags, rows.raw)
+        self.display.rows(rows)
         if self.guide is not None:
             for ev in self.guide.update(rows.mote, rows.seq, rows.raw):
                 if ev.kind == "label":
@@ -186,7 +187,7 @@ class Logger:
                     continue
                 if ev.kind != "capturing":
                     self.writer.add_event(ev.kind, ev.text, ev.mote)
-                self.display.event(ev.text)
+                self.display.guide_event(ev)
 
     def _set_counters(self) -> None:
         for m, link in self.tracker.seen().items():
@@ -274,7 +275,47 @@ class Logger:
 
 
 class NullDisplay:
+    """What the loop tells a display (all called from the logging thread; a
+    display must return at once: ``tick`` comes after every read)."""
     def start(self, logger): pass
     def event(self, text): pass
     def tick(self, logger): pass
     def stop(self, logger): pass
+
+    def rows(self, rows):
+        """The rows just stored (``link.Rows``); do not keep or change them."""
+
+    def guide_event(self, ev):
+        """A ``guide.GuideEvent`` (its text is what a screen shows)."""
+        self.event(ev.text)
+
+
+class TeeDisplay(NullDisplay):
+    """Several displays at once (the terminal and the browser view)."""
+
+    def __init__(self, *displays):
+        self.displays = displays
+
+    def start(self, logger):
+        for d in self.displays:
+            d.start(logger)
+
+    def event(self, text):
+        for d in self.displays:
+            d.event(text)
+
+    def tick(self, logger):
+        for d in self.displays:
+            d.tick(logger)
+
+    def stop(self, logger):
+        for d in self.displays:
+            d.stop(logger)
+
+    def rows(self, rows):
+        for d in self.displays:
+            d.rows(rows)
+
+    def guide_event(self, ev):
+        for d in self.displays:
+            d.guide_event(ev)

@@ -16,11 +16,13 @@ from ..capture.guide import (DEFAULT_COVERAGE, DEFAULT_MIN_ANGLE, DEFAULT_POSE_S
                              DEFAULT_POSES, DEFAULT_ROT_SAMPLES, MAX_MIN_ANGLE, GuidedFlow,
                              max_poses)
 from ..capture.link import LinkTracker
-from ..capture.logger import Logger
+from ..capture.logger import Logger, TeeDisplay
 from ..errors import UserError
 from ..line import protocol as P
 from ..line import sources as S
 from ..sessions.store import LOCK_TIMEOUT_S, open_store
+from ..view.server import open_server, parse_address
+from ..view.state import LiveView
 from .args import baud_rate, mote_id, positive, session_name
 from .log_screen import KeyReader, PlainDisplay, RichDisplay, no_echo
 
@@ -54,6 +56,9 @@ def register(sub) -> None:
     p.add_argument("--yes", action="store_true",
                    help="non-interactive: advance whenever a new still pose appears")
     p.add_argument("--notes", help="free text stored with the session")
+    p.add_argument("--view", type=parse_address, metavar="[HOST:]PORT",
+                   help="serve a live view of the session in the browser at http://HOST:PORT/ "
+                        "(HOST default 127.0.0.1; port 0 = any free port)")
     p.add_argument("--board", type=_board, action="append", default=[], metavar="MOTE=BOARD",
                    help="which sensor board sits on which mote (repeatable)")
     g = p.add_argument_group("guided flow")
@@ -101,6 +106,13 @@ def run(args) -> int:
     interactive = bool(args.guided) and not args.yes and sys.stdin.isatty()
     guide = _guide(args, interactive)
     with contextlib.ExitStack() as stack:
+        view = None
+        if args.view is not None:
+            # the view's address first: taken, nothing is started (exit 2)
+            view = LiveView()
+            server = open_server(args.view, view)
+            stack.callback(server.close)
+            print(f"view: {server.url}", flush=True)
         # the port first: if it cannot be opened, no database file is made
         source = S.open_source(spec)
         stack.callback(source.close)
@@ -124,6 +136,8 @@ def run(args) -> int:
         store.set_busy_timeout(0.05)
         tracker = LinkTracker(link, line, last)
         display = RichDisplay() if sys.stdout.isatty() else PlainDisplay()
+        if view is not None:
+            display = TeeDisplay(display, view)
         logger = Logger(spec, writer, tracker, guide=guide, display=display,
                         duration=args.duration, source=source)
         old = {}

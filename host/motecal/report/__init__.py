@@ -11,6 +11,8 @@ writes into ``DIR``:
 * PNG figures per mote (magnitude per sample, 3D and three-plane scatter,
   residual against direction, coverage of directions, gyroscope Allan
   deviation, GA convergence);
+* ``view.html``: the 3D views of ``motecal log --view`` for the stored session
+  (``motecal.view``; one self-contained file, the data embedded);
 * ``index.html`` tying them together (relative links only; opens from disk).
 
 The report is built in a temporary directory beside ``DIR`` and renamed into

@@ -24,6 +24,8 @@ from ..errors import QualityError, UserError
 from ..maths import sphere as S
 from ..maths.stats import allan_deviation
 from ..sessions.session import SENSOR_SLICES, UNITS, SessionData
+from ..view import static_page
+from ..view.state import session_state
 from . import figures as F
 from . import html as H
 from .tables import Column, Table, write as write_table
@@ -438,6 +440,25 @@ def _tables(reports: list[MoteReport]) -> list[Table]:
 
 # ------------------------------------------------------------------ the whole report
 
+VIEW = "view.html"
+
+
+def _view_section(store, session, data, out: Path) -> H.Section:
+    """``view.html``: the 3D views of ``motecal log --view`` for the stored
+    session (one self-contained file, the data embedded)."""
+    stats = events = None
+    if store is not None and not isinstance(session, SessionData):
+        stats, events = store.link_stats(data.name), store.events(data.name)
+    doc = session_state(data, stats, events)
+    (out / VIEW).write_text(static_page(doc), encoding="utf-8")
+    return H.Section("view", "3D views",
+                     "The views of motecal log --view, from the database: per mote the poses' "
+                     "gravity directions beside the suggested ones, the board, the sweep's "
+                     "magnetometer points raw and as fitted, the coverage cells and gaps, and "
+                     "the link counters. One file with the data inside (it runs a small "
+                     "script, nothing external).", links=[(VIEW, "open the 3D views")])
+
+
 def build_report(store, session, out_dir, *, mote=None, cal=None, seed: int = 0,
                  log=None) -> Path:
     """Write every file of the report into ``out_dir`` (an existing, empty
@@ -504,6 +525,7 @@ def build_report(store, session, out_dir, *, mote=None, cal=None, seed: int = 0,
         if figs or other:
             sections.append(H.Section(f"mote{mr.mote}", f"Figures, mote {mr.mote}",
                                       mr.source, figures=figs, notes=other))
+    sections.append(_view_section(store, session, data, out))
     meta = [("session", name), ("kind", data.kind),
             ("motes", ", ".join(map(str, motes))), ("samples", str(len(data))),
             ("source", str(data.meta.get("source", ""))),

@@ -44,6 +44,7 @@ class Section:
     tables: list = field(default_factory=list)       # [Table]
     figures: list = field(default_factory=list)      # [FigureRef]
     notes: list = field(default_factory=list)        # [str]
+    links: list = field(default_factory=list)        # [(relative href, text)]
 
 
 def render(title: str, meta: list[tuple[str, str]], sections: list[Section],
@@ -65,6 +66,8 @@ def render(title: str, meta: list[tuple[str, str]], sections: list[Section],
         out.append(f'<h2 id="{escape(s.anchor)}">{escape(s.title)}</h2>')
         if s.intro:
             out.append(f"<p>{escape(s.intro)}</p>")
+        for href, text in s.links:
+            out.append(f'<p><a href="{escape(href)}">{escape(text)}</a></p>')
         for t in s.tables:
             out.append(f'<h3 id="{escape(t.name)}">{escape(t.title)}</h3>')
             out.append(f'<p>Files: <a href="{escape(t.name)}.csv">{escape(t.name)}.csv</a>, '

@@ -16,7 +16,7 @@ import pytest
 
 from clirun import make_db, motecal, session
 from motecal.capture.link import LinkTracker
-from motecal.capture.logger import Logger
+from motecal.capture.logger import Logger, NullDisplay
 from motecal.line import sources as S
 from motecal.sessions import importer
 from motecal.sessions import store as store_mod
@@ -134,13 +134,11 @@ class LockHolder(threading.Thread):
         con.close()
 
 
-class Events:
+class Events(NullDisplay):
+    """The logger's display interface (NullDisplay), keeping the event lines."""
+
     def __init__(self):
         self.lines = []
-
-    def start(self, lg): pass
-    def tick(self, lg): pass
-    def stop(self, lg): pass
 
     def event(self, text):
         self.lines.append(text)

@@ -189,6 +189,13 @@ def run_case(exe: Path, mote: Path, base: Path, name: str, faults: list[str], *,
               "tries_lines": len(re.findall(r"sending it again", text)),
               "last_line": text.strip().splitlines()[-1] if text.strip() else ""}
         (out / "upload.txt").write_text(text)
+        if res.returncode != 0:       # what is in force now, decoded (upload --show)
+            h.send("loss 0")
+            show = subprocess.run(rc.MOTECAL + ["upload", "--show", str(cal), "--port", url,
+                                                "--mote", "1"],
+                                  capture_output=True, text=True, timeout=600)
+            up["show"] = [ln for ln in (show.stdout + show.stderr).strip().splitlines()
+                          if "sending it again" not in ln]
         reader = LineReader(url)       # the samples after the upload: flagged?
         t2 = h.now()
         while h.now() < t2 + 2:
@@ -259,6 +266,8 @@ def main(argv=None) -> int:
                   f"({u['wall_s']} s by the uploader's clock), {u['messages']} messages, "
                   f"{u['repeated']} repeated, {u['serial_repeats']} serial repeats; "
                   f"last line: {u['last_line']}")
+            for ln in u.get("show", []):
+                print(f"  upload --show: {ln}")
         print(f"  host: {r['records']} records, {r.get('missing', 0)} sequence numbers missing "
               f"({r.get('missing_after_fault', 0)} from the fault on), {r.get('stale', 0)} stale "
               f"records, CRC errors {r['crc_errors']}; time to recover "

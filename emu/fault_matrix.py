@@ -90,6 +90,82 @@ class LineReader:
         return bytes(self.data)
 
 
+class Proxy:
+    """A loopback TCP port between the uploader and the BaseStation's port that
+    keeps both directions' bytes (to compare the set sent with the set read back)."""
+
+    def __init__(self, url: str):
+        host, port = url.split("//")[1].split(":")
+        self.up = socket.create_connection((host, int(port)), timeout=5)
+        self.ls = socket.socket()
+        self.ls.bind(("127.0.0.1", 0))
+        self.ls.listen(1)
+        self.url = f"socket://127.0.0.1:{self.ls.getsockname()[1]}"
+        self.to_host, self.to_mote = bytearray(), bytearray()
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self):
+        try:
+            c, _ = self.ls.accept()
+        except OSError:
+            return
+
+        def upstream():
+            while True:
+                try:
+                    d = c.recv(4096)
+                except OSError:
+                    break
+                if not d:
+                    break
+                self.to_mote.extend(d)
+                self.up.sendall(d)
+        threading.Thread(target=upstream, daemon=True).start()
+        self.up.settimeout(None)
+        while True:
+            try:
+                d = self.up.recv(65536)
+            except OSError:
+                break
+            if not d:
+                break
+            self.to_host.extend(d)
+            try:
+                c.sendall(d)
+            except OSError:
+                pass
+
+    def close(self):
+        for s_ in (self.ls, self.up):
+            try:
+                s_.close()
+            except OSError:
+                pass
+
+
+def set_diff(to_mote: bytes, to_host: bytes, version: int) -> list[str]:
+    """Bytes of the set that differ between the fragments sent (CAL_FRAG of
+    `version`) and the CAL_REPORTs of that version read back."""
+    from motecal.line import protocol as P
+    sent, back = {}, {}
+    for data, want, dst in ((to_mote, P.AM_NINEDOF_CAL_FRAG_MSG, sent),
+                            (to_host, P.AM_NINEDOF_CAL_REPORT_MSG, back)):
+        for fr in P.decode_stream(bytes(data)):
+            am = fr.am()
+            if am is None or am.am_type != want:
+                continue
+            b = am.payload
+            if want == P.AM_NINEDOF_CAL_FRAG_MSG:     # mote, version, offset, len, data
+                ver, off, n, d = int.from_bytes(b[2:4], "big"), b[4], b[5], b[6:]
+            else:                                      # mote, version, crc, offset, len, data
+                ver, off, n, d = int.from_bytes(b[2:4], "big"), b[6], b[7], b[8:]
+            if ver == version:
+                for k in range(min(n, len(d))):
+                    dst[off + k] = d[k]
+    return [f"set byte {k}: sent 0x{sent[k]:02x}, read back 0x{back[k]:02x}"
+            for k in sorted(set(sent) & set(back)) if sent[k] != back[k]]
+
+
 def analyse(data: bytes, fault_at: float, first_sample_s: float) -> dict:
     """Records per sequence number of mote 1, losses, stale records, recovery."""
     from motecal.line import protocol as P
@@ -176,8 +252,10 @@ def run_case(exe: Path, mote: Path, base: Path, name: str, faults: list[str], *,
         h.send(f"loss {upload_loss}")
         t0 = h.now()
         cal = cal_json(out / "cal-mote1.json")
-        res = subprocess.run(rc.MOTECAL + ["upload", str(cal), "--port", url, "--mote", "1"],
-                             capture_output=True, text=True, timeout=1200)
+        proxy = Proxy(url)
+        res = subprocess.run(rc.MOTECAL + ["upload", str(cal), "--port", proxy.url, "--mote",
+                                           "1"], capture_output=True, text=True, timeout=1200)
+        proxy.close()
         t1 = h.now()
         h.send("loss 0")
         text = res.stdout + res.stderr
@@ -188,6 +266,9 @@ def run_case(exe: Path, mote: Path, base: Path, name: str, faults: list[str], *,
               "serial_repeats": int(m.group(3)) if m else None,
               "tries_lines": len(re.findall(r"sending it again", text)),
               "last_line": text.strip().splitlines()[-1] if text.strip() else ""}
+        mv = re.search(r"uploading version (\d+)", text)
+        up["diff"] = set_diff(bytes(proxy.to_mote), bytes(proxy.to_host),
+                              int(mv.group(1))) if mv else []
         (out / "upload.txt").write_text(text)
         if res.returncode != 0:       # what is in force now, decoded (upload --show)
             h.send("loss 0")
@@ -266,6 +347,8 @@ def main(argv=None) -> int:
                   f"({u['wall_s']} s by the uploader's clock), {u['messages']} messages, "
                   f"{u['repeated']} repeated, {u['serial_repeats']} serial repeats; "
                   f"last line: {u['last_line']}")
+            print("  read back vs sent: " + ("; ".join(u["diff"]) or "no byte differs "
+                                             "(in the replies that arrived)"))
             for ln in u.get("show", []):
                 print(f"  upload --show: {ln}")
         print(f"  host: {r['records']} records, {r.get('missing', 0)} sequence numbers missing "

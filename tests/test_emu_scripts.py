@@ -77,3 +77,14 @@ def test_analysis_clean_stream():
     data = b"".join(_samples(s, recs[s:s + 5]) for s in range(0, 100, 5))
     r = FM.analyse(data, fault_at=1.2, first_sample_s=1.0)
     assert r["missing"] == 0 and r["stale"] == 0 and r["recover_s"] == 0
+
+
+def test_set_diff_names_the_bytes_that_changed():
+    frag = P.encode_am(P.AMPacket(1, 0, 0x22, P.AM_NINEDOF_CAL_FRAG_MSG,
+                                  bytes.fromhex("0001000314140031") + bytes(18)))
+    back = bytes.fromhex("00010003116f14140031") + bytes([0, 0, 10]) + bytes(17)
+    rep = P.encode_am(P.AMPacket(0, 1, 0x22, P.AM_NINEDOF_CAL_REPORT_MSG, back))
+    old = P.encode_am(P.AMPacket(0, 1, 0x22, P.AM_NINEDOF_CAL_REPORT_MSG,
+                                 bytes.fromhex("00010002116f1414ff") + bytes(19)))
+    assert FM.set_diff(frag, rep + old, 3) == ["set byte 24: sent 0x00, read back 0x0a"]
+    assert FM.set_diff(frag, old, 3) == []

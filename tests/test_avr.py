@@ -186,7 +186,8 @@ def test_logic_outputs_identical_and_readable_by_the_host(logic_outputs):
     assert s.records[:, 0].tolist() == [2000] * 3 and s.records[:, 1].tolist() == [-50] * 3
     st = P.MOTE_STATUS.unpack(digests[2])
     assert st == dict(seq=0x1234, version=0x25, sensors=1, reserved=0, dropped=5,
-                      send_fail=0, i2c_errors=7, late=9)
+                      send_fail=0, i2c_errors=7, late=9, i2c_nacks=3, bus_resets=0xFFFF,
+                      chip_reinits=2)
     # EEPROM: slot 0 holds generation 1 (version 0x25), slot 1 generation 2 (0x27)
     ee = digests[3]
     assert M.image_check(ee[:P.CALSET_SIZE + 6], 3) == 1

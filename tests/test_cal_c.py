@@ -428,3 +428,38 @@ def test_image_restore_and_torn_writes():
     # generation wrap-around: 0x0000 is newer than 0xFFFF
     assert boot(rx.image(0x0000), rx.image(0xFFFF))[0] == (0, 1, 1)
     assert boot(rx.image(0xFFFF), rx.image(0x0000))[0] == (1, 0, 1)
+
+
+def test_a_set_missing_any_single_byte_is_never_applied():
+    """Never a partial set: for every byte of the set, an upload that covers
+    all the others (in 1..20-byte fragments, a random order) is refused as
+    incomplete, and the set in force, its flags and the EEPROM flag stay as
+    they were; sending the missing byte then completes it."""
+    for seed in range(3):
+        rng = np.random.default_rng(100 + seed)
+        rx = M.CalReceiver(MOTE)
+        old = random_calset(rng, version=3)
+        assert upload(rx, old, 3)["status"] == OK
+        rx.mark_persisted()
+        before = (rx.active_calset(), rx.flags())
+        new = random_calset(rng, version=4)
+        crc = binascii.crc_hqx(new, 0)
+        for gap in rng.permutation(P.CALSET_SIZE)[:40]:
+            gap = int(gap)
+            r = M.CalReceiver(MOTE)
+            assert upload(r, old, 3)["status"] == OK
+            r.mark_persisted()
+            pieces = []
+            for lo, hi in ((0, gap), (gap + 1, P.CALSET_SIZE)):
+                o = lo
+                while o < hi:
+                    n = int(min(hi - o, rng.integers(1, P.NINEDOF_FRAG_DATA + 1)))
+                    pieces.append((o, new[o:o + n]))
+                    o += n
+            for i in rng.permutation(len(pieces)):
+                assert send_frag(r, 4, *pieces[i])["status"] == OK
+            ack = send_commit(r, 4, crc)
+            assert ack["status"] == E_INCOMPLETE, (seed, gap)
+            assert (r.active_calset(), r.flags(), r.dirty) == (*before, False), (seed, gap)
+            assert send_frag(r, 4, gap, new[gap:gap + 1])["status"] == OK
+            assert send_commit(r, 4, crc)["status"] == OK and r.active_calset() == new

@@ -214,9 +214,28 @@ def test_newer_schema_refused_and_old_schema_migrated(tmp_path):
     assert "cut_off" not in [r[1] for r in con.execute("PRAGMA table_info(line_stats)")]
     con.close()
     with open_store(v2) as st:
-        assert st.schema_version == SCHEMA_VERSION == 3
+        assert st.schema_version == SCHEMA_VERSION == 4
         line = st.link_stats("two")["line"]
         assert (line["frames"], line["crc_errors"], line["cut_off"]) == (7, 1, 0)
+    # version 3 (no fault counters of the mote yet) gains the columns, its rows read 0
+    v3 = str(tmp_path / "v3.db")
+    con = sqlite3.connect(v3)
+    for v in (1, 2, 3):
+        for stmt in store_mod.MIGRATIONS[v]:
+            con.execute(stmt.format(**b))
+    con.execute("INSERT INTO schema_version VALUES (3)")
+    con.execute("INSERT INTO sessions (name, kind, started, scales, chips, meta) VALUES "
+                "('three', 'free', 0, '{}', '{}', '{}')")
+    con.execute("INSERT INTO link_stats (session, mote, frames, mote_i2c_errors) "
+                "VALUES (1, 5, 11, 2)")
+    con.commit()
+    assert "mote_bus_resets" not in [r[1] for r in con.execute("PRAGMA table_info(link_stats)")]
+    con.close()
+    with open_store(v3) as st:
+        assert st.schema_version == 4
+        mote = st.link_stats("three")["motes"][5]
+        assert (mote["frames"], mote["mote_i2c_errors"]) == (11, 2)
+        assert (mote["mote_i2c_nacks"], mote["mote_bus_resets"], mote["mote_chip_reinits"]) == (0, 0, 0)
 
 
 def test_live_writer_batches_labels_stats_and_end(tmp_path):

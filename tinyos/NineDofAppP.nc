@@ -18,30 +18,36 @@
  * sent to the BaseStation (address 0) through a queue of NINEDOF_SEND_QUEUE
  * messages; when the queue is full the batch is dropped and counted.  A
  * ninedof_mote_status_msg goes out every 2 s from its own buffer, without
- * acknowledgement (the next one replaces a lost one).  Calibration messages
- * are answered by the shared receiver (ninedof_calrx_handle) from a reply
- * buffer of their own; an accepted set is written to the internal EEPROM in
- * the background, one byte per 4 ms, while sampling continues.
+ * acknowledgement (the next one replaces a lost one).  The calibration
+ * upload, the set in force and its EEPROM image are NineDofCalibrationC's
+ * (lib/calibration); this module only reads the set in force
+ * (NineDofCalibration) to correct and flag each batch.
  *
- * Sample messages and calibration replies ask for an acknowledgement and
+ * Sample messages ask for an acknowledgement and
  * are sent up to 1 + NINEDOF_RETRIES times by the radio stack's PacketLink
  * layer, which repeats a frame with its sequence number (DSN), so the
  * receiver drops a repeat whose first copy got through.  A sample message
- * or reply that ends in EBUSY (the channel was busy through all of the
+ * that ends in EBUSY (the channel was busy through all of the
  * radio stack's backoff rounds) is sent again, up to NINEDOF_RETRIES times;
  * that is a new DSN, so if an earlier try got through unacknowledged the
  * BaseStation forwards it twice (the logger drops the duplicate).  The sample, status and reply buffers take
  * turns on the radio (AMSenderC's round robin).
  *
+ * The board's watchdog (NineDofHealth.tick, ninedof_fault.h) runs on the
+ * 125 Hz alarm: a read still under way 16 ms (two periods) after it began is
+ * aborted and the bus recovered, so sampling never stops for good; a chip
+ * that was reset is found by a read-back and configured again.  NACKs,
+ * watchdog aborts and re-initialisations are counted.
+ *
  * LEDs: red    on   = sensor board not answering (retried every second);
  *              flash = a failed sensor read (on for FLASH_TICKS, then off;
  *                      a run of failures keeps it on)
  *       green  toggles every 125 samples (one second) while sampling
- *       yellow on   = a new calibration is being written to EEPROM (~0.4 s)
+ *       yellow on   = a new calibration is being written to EEPROM (~0.4 s;
+ *                     NineDofCalibrationC)
  *
  * @author motecal
  */
-#include <avr/eeprom.h>
 #include <MicaTimer.h>
 #include "NineDofApp.h"
 #include "NineDofBoard.h"
@@ -53,26 +59,20 @@ module NineDofAppP @safe()
     interface Leds;
     interface SplitControl as BoardControl;
     interface ReadNow<ninedof_raw_t> as Board;
+    interface NineDofHealth as Health;
     interface Alarm<T32khz, uint32_t> as Alarm;
     interface LocalTime<TMilli> as Crystal;
     interface Atm128Calibrate;
     interface SplitControl as RadioControl;
     interface AMSend as SampleSend;
     interface AMSend as StatusSend;
-    interface AMSend as FragAckSend;
-    interface AMSend as CommitAckSend;
-    interface AMSend as ReportSend;
-    interface Receive as FragReceive;
-    interface Receive as CommitReceive;
-    interface Receive as QueryReceive;
-    interface AMPacket;
+    interface NineDofCalibration as Calibration;
     interface PacketAcknowledgements as Acks;
     interface PacketLink;
     interface Pool<message_t> as SamplePool;
     interface Queue<message_t*> as SendQueue;
     interface Timer<TMilli> as StatusTimer;
     interface Timer<TMilli> as RetryTimer;
-    interface Timer<TMilli> as EepromTimer;
     interface Timer<TMilli> as FlashTimer;
   }
 }
@@ -83,7 +83,6 @@ implementation
     /* binary milliseconds: 2000 ms = 2048 TMilli ticks */
     STATUS_TICKS = (uint32_t)NINEDOF_STATUS_PERIOD_MS * 1024UL / 1000UL,
     RETRY_TICKS = 1024,
-    EEPROM_TICKS = 4,            /* an EEPROM byte write takes 3.3 ms */
     FLASH_TICKS = 51,            /* red flash for a failed read: 50 ms */
     /* Alarm32khz32C's counter: timer 1 (16 bits) / 2^MICA_DIVIDE_ONE_FOR_32KHZ_LOG2
      * plus an overflow count; one overflow = 2048 ticks at 8 MHz */
@@ -91,10 +90,8 @@ implementation
     PENDING = 4,                 /* samples read, not yet batched */
   };
 
-  /* calibration in force, batch being filled, EEPROM writer: tasks only */
-  ninedof_calrx_t rx;
+  /* batch being filled: tasks only */
   ninedof_batch_t batch;
-  ninedof_eewriter_t eewriter;
 
   /* the 125 Hz period: set up in startSampling() before the alarm is armed,
    * then used only in Alarm.fired(), before it re-arms the alarm */
@@ -117,10 +114,8 @@ implementation
   bool radioOn = FALSE, boardOn = FALSE, sending = FALSE;
   uint8_t attempts;
   uint16_t heartbeat;
-  message_t statusMsg, replyMsg;
-  bool statusBusy = FALSE, replyBusy = FALSE;
-  am_addr_t replyTo;
-  uint8_t replyType, replyLen, replyAttempts;
+  message_t statusMsg;
+  bool statusBusy = FALSE;
 
   task void processSamples();
   task void sendNext();
@@ -128,21 +123,13 @@ implementation
 
   /* ---------------------------------------------------------------- boot */
   event void Boot.booted() {
-    uint8_t bootImage[2][NINEDOF_IMAGE_SIZE];   /* the two EEPROM slots */
-    uint8_t slot;
-    uint16_t generation;
-
     ninedof_counters_init(&counters);
     ninedof_align_init(&align);
     ninedof_batch_init(&batch);
-    ninedof_calrx_init(&rx, TOS_NODE_ID);
-    eeprom_read_block(bootImage[0], (const void *)NINEDOF_EEPROM_SLOT0, NINEDOF_IMAGE_SIZE);
-    eeprom_read_block(bootImage[1], (const void *)NINEDOF_EEPROM_SLOT1, NINEDOF_IMAGE_SIZE);
-    ninedof_calrx_restore(&rx, bootImage[0], bootImage[1], &slot, &generation);
-    ninedof_eewriter_init(&eewriter, slot, generation);
 
     call RadioControl.start();
     call BoardControl.start();
+    call RetryTimer.startPeriodic(RETRY_TICKS);
   }
 
   /* Arm the alarm for alarmTarget relative to now, never for a time in the
@@ -167,7 +154,6 @@ implementation
       alarmTarget = call Alarm.getNow() + ninedof_clock_first(&clock);
       armAlarm();
     }
-    call StatusTimer.startPeriodic(STATUS_TICKS);
   }
 
   event void RadioControl.startDone(error_t err) {
@@ -176,6 +162,10 @@ implementation
       return;
     }
     radioOn = TRUE;
+    /* status from now on, board or not: the host tells a dead board
+     * (status messages, no samples, i2c_nacks growing) from a mote that
+     * is off (nothing) */
+    call StatusTimer.startPeriodic(STATUS_TICKS);
     startSampling();
   }
 
@@ -183,10 +173,10 @@ implementation
 
   event void BoardControl.startDone(error_t err) {
     if (err != SUCCESS) {
-      call Leds.led0On();                     /* board not answering */
-      call RetryTimer.startOneShot(RETRY_TICKS);
+      call Leds.led0On();                     /* board not answering: RetryTimer */
       return;
     }
+    call RetryTimer.stop();
     call Leds.led0Off();
     boardOn = TRUE;
     startSampling();
@@ -194,9 +184,13 @@ implementation
 
   event void BoardControl.stopDone(error_t err) { }
 
+  /* Every second until the board has started: the board's watchdog tick
+   * (a start that hangs on the bus is aborted at the first tick 16 ms or
+   * more after it began), and the start again (SUCCESS without a second
+   * start while one is under way, TEP 115). */
   event void RetryTimer.fired() {
-    if (call BoardControl.start() != SUCCESS)
-      call RetryTimer.startOneShot(RETRY_TICKS);
+    call Health.tick();
+    call BoardControl.start();
   }
 
   /* ------------------------------------------------------ 125 Hz period */
@@ -207,6 +201,7 @@ implementation
     /* next period from this one's expiry, as long as the crystal says */
     alarmTarget += ninedof_clock_next(&clock, call Crystal.get());
     armAlarm();
+    call Health.tick();                       /* a read that hangs is aborted */
     atomic {
       seq = counters.seq++;
       busy = reading;
@@ -285,7 +280,7 @@ implementation
       ninedof_batch_init(&batch);
       return;
     }
-    ninedof_batch_pack(&batch, &rx, p);
+    ninedof_batch_pack(&batch, call Calibration.inForce(), p);
     call SendQueue.enqueue(m);
     post sendNext();
   }
@@ -365,6 +360,7 @@ implementation
   event void StatusTimer.fired() {
     ninedof_mote_status_msg_t *p;
     ninedof_counters_t c;
+    ninedof_fault_counters_t faults;
     if (statusBusy)
       return;
     p = (ninedof_mote_status_msg_t *)call StatusSend.getPayload(
@@ -372,7 +368,8 @@ implementation
     if (p == NULL)
       return;
     atomic c = counters;
-    ninedof_status_pack(&c, &rx, p);
+    faults = call Health.counters();
+    ninedof_status_pack(&c, &faults, call Calibration.inForce(), p);
     call PacketLink.setRetries(&statusMsg, 0);          /* no ack: the next one follows */
     if (call StatusSend.send(BASESTATION, &statusMsg, sizeof(ninedof_mote_status_msg_t))
         == SUCCESS)
@@ -382,89 +379,4 @@ implementation
   event void StatusSend.sendDone(message_t *m, error_t err) {
     statusBusy = FALSE;
   }
-
-  /* --------------------------------------------------------- calibration */
-  void persist() {
-    if (ninedof_eewriter_poll(&eewriter, &rx)) {
-      call Leds.led2On();
-      call EepromTimer.startPeriodic(EEPROM_TICKS);
-    }
-  }
-
-  /* One EEPROM byte per tick; bytes already equal are skipped. */
-  event void EepromTimer.fired() {
-    uint16_t addr;
-    uint8_t value;
-    if (!eeprom_is_ready())
-      return;
-    while (ninedof_eewriter_next(&eewriter, &addr, &value)) {
-      if (eeprom_read_byte((const uint8_t *)addr) != value) {
-        eeprom_write_byte((uint8_t *)addr, value);   /* 3.3 ms, in hardware */
-        return;
-      }
-    }
-    call EepromTimer.stop();
-    call Leds.led2Off();
-  }
-
-  /* The reply in replyMsg, to replyTo, acknowledged and repeated. */
-  error_t sendReply() {
-    linkRetries(&replyMsg);
-    if (replyType == AM_NINEDOF_CAL_FRAG_ACK_MSG)
-      return call FragAckSend.send(replyTo, &replyMsg, replyLen);
-    if (replyType == AM_NINEDOF_CAL_COMMIT_ACK_MSG)
-      return call CommitAckSend.send(replyTo, &replyMsg, replyLen);
-    if (replyType == AM_NINEDOF_CAL_REPORT_MSG)
-      return call ReportSend.send(replyTo, &replyMsg, replyLen);
-    return FAIL;
-  }
-
-  /* Every calibration message goes to the shared receiver; its reply goes
-   * back to the sender, acknowledged and repeated like a sample message,
-   * unless the previous reply is still on its way (the host then repeats the
-   * message, which the receiver handles idempotently). */
-  void calibration(uint8_t type, message_t *m, void *payload, uint8_t len) {
-    uint8_t reply[sizeof(ninedof_cal_report_msg_t)];
-    uint8_t rtype = 0, n, *out;
-
-    n = ninedof_calrx_handle(&rx, type, (const uint8_t *)payload, len, reply, &rtype);
-    persist();
-    if (n == 0 || replyBusy)
-      return;
-    out = (uint8_t *)call FragAckSend.getPayload(&replyMsg, n);
-    if (out == NULL)
-      return;
-    memcpy(out, reply, n);
-    replyTo = call AMPacket.source(m);
-    replyType = rtype;
-    replyLen = n;
-    replyAttempts = 0;
-    replyBusy = (sendReply() == SUCCESS);
-  }
-
-  /* Sent or given up; ended by a busy channel: again (as a sample message). */
-  void replyDone(message_t *m, error_t err) {
-    if (err == EBUSY && ++replyAttempts <= NINEDOF_RETRIES && sendReply() == SUCCESS)
-      return;
-    replyBusy = FALSE;
-  }
-
-  event message_t *FragReceive.receive(message_t *m, void *payload, uint8_t len) {
-    calibration(AM_NINEDOF_CAL_FRAG_MSG, m, payload, len);
-    return m;
-  }
-
-  event message_t *CommitReceive.receive(message_t *m, void *payload, uint8_t len) {
-    calibration(AM_NINEDOF_CAL_COMMIT_MSG, m, payload, len);
-    return m;
-  }
-
-  event message_t *QueryReceive.receive(message_t *m, void *payload, uint8_t len) {
-    calibration(AM_NINEDOF_CAL_QUERY_MSG, m, payload, len);
-    return m;
-  }
-
-  event void FragAckSend.sendDone(message_t *m, error_t err) { replyDone(m, err); }
-  event void CommitAckSend.sendDone(message_t *m, error_t err) { replyDone(m, err); }
-  event void ReportSend.sendDone(message_t *m, error_t err) { replyDone(m, err); }
 }

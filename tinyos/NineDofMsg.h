@@ -183,6 +183,11 @@ typedef nx_struct ninedof_mote_status_msg {
   nx_uint16_t send_fail;     /* radio sends that failed (no ack / busy) */
   nx_uint16_t i2c_errors;    /* sensor reads that failed */
   nx_uint16_t late;          /* periods whose read had not finished in time */
+  /* Appended with the fault handling (ninedof_fault.h); a mote built before
+   * sends the message without them (14 bytes), which the host accepts. */
+  nx_uint16_t i2c_nacks;     /* I2C operations a chip did not acknowledge */
+  nx_uint16_t bus_resets;    /* hung I2C operations aborted, bus cleared */
+  nx_uint16_t chip_reinits;  /* chips found with reset registers, configured again */
 } ninedof_mote_status_msg_t;
 
 typedef nx_struct ninedof_bs_status_msg {

@@ -56,14 +56,18 @@ const ninedof_reg_write_t NINEDOF_HMC5883L_CONFIG[NINEDOF_HMC5883L_CONFIG_LEN] =
 };
 
 /* POWER_CTL: Measure=0 (standby, 0.1 uA) */
-const ninedof_reg_write_t NINEDOF_ADXL345_SLEEP = { ADXL345_POWER_CTL, 0x00 };
+#define ADXL345_SLEEP_WRITE { ADXL345_POWER_CTL, 0x00 }
 /* PWR_MGM: SLEEP=1 (low-power sleep), CLK_SEL=000 (internal oscillator) */
-const ninedof_reg_write_t NINEDOF_ITG3200_SLEEP = { ITG3200_PWR_MGM, 0x40 };
+#define ITG3200_SLEEP_WRITE { ITG3200_PWR_MGM, 0x40 }
 /* MODE: MD=11 (idle) */
-const ninedof_reg_write_t NINEDOF_HMC5883L_SLEEP = { HMC5883L_MODE, 0x03 };
-
+#define HMC5883L_SLEEP_WRITE { HMC5883L_MODE, 0x03 }
 /* MODE register (0x02) = MD 01: one single measurement */
-const uint8_t NINEDOF_HMC5883L_TRIGGER[2] = { HMC5883L_MODE, 0x01 };
+#define HMC5883L_TRIGGER_WRITE { HMC5883L_MODE, 0x01 }
+
+const ninedof_reg_write_t NINEDOF_ADXL345_SLEEP = ADXL345_SLEEP_WRITE;
+const ninedof_reg_write_t NINEDOF_ITG3200_SLEEP = ITG3200_SLEEP_WRITE;
+const ninedof_reg_write_t NINEDOF_HMC5883L_SLEEP = HMC5883L_SLEEP_WRITE;
+const uint8_t NINEDOF_HMC5883L_TRIGGER[2] = HMC5883L_TRIGGER_WRITE;
 
 uint8_t ninedof_adxl345_id_ok(uint8_t devid)
 {
@@ -117,4 +121,37 @@ void ninedof_board_record(const uint8_t acc[6], const uint8_t gyro[6],
   ninedof_adxl345_xyz(acc, rec);
   ninedof_itg3200_xyz(gyro, rec + 3);
   ninedof_hmc5883l_xyz(mag, rec + 6);
+}
+
+/* The three chips for the shared driver.  Witnesses: ADXL345 DATA_FORMAT
+ * (reset 0x00, register map table 19), ITG-3200 DLPF_FS (reset 0x00,
+ * product specification section 7), HMC5883L CRA (reset 0x10, datasheet
+ * table 3).  Each is the chip's measuring range or rate, so a chip that
+ * reset would otherwise send counts of another scale. */
+const ninedof_chip_t NINEDOF_CHIP[NINEDOF_CHIPS] = {
+  { ADXL345_ADDR, ADXL345_DEVID, 1, NINEDOF_ADXL345_CONFIG_LEN, NINEDOF_ADXL345_CONFIG,
+    ADXL345_SLEEP_WRITE, { ADXL345_DATAX0, 0 }, 1, 0, 0x00 },
+  { ITG3200_ADDR, ITG3200_WHO_AM_I, 1, NINEDOF_ITG3200_CONFIG_LEN, NINEDOF_ITG3200_CONFIG,
+    ITG3200_SLEEP_WRITE, { ITG3200_GYRO_XOUT_H, 0 }, 1, 2, 0x00 },
+  { HMC5883L_ADDR, HMC5883L_ID_A, 3, NINEDOF_HMC5883L_CONFIG_LEN, NINEDOF_HMC5883L_CONFIG,
+    HMC5883L_SLEEP_WRITE, HMC5883L_TRIGGER_WRITE, 2, 0, 0x10 },
+};
+
+uint8_t ninedof_chip_id_ok(uint8_t chip, const uint8_t *id)
+{
+  if (chip == NINEDOF_CHIP_ACCEL)
+    return ninedof_adxl345_id_ok(id[0]);
+  if (chip == NINEDOF_CHIP_GYRO)
+    return ninedof_itg3200_id_ok(id[0]);
+  return ninedof_hmc5883l_id_ok(id);
+}
+
+void ninedof_chip_xyz(uint8_t chip, const uint8_t *b, int16_t out[3])
+{
+  if (chip == NINEDOF_CHIP_ACCEL)
+    ninedof_adxl345_xyz(b, out);
+  else if (chip == NINEDOF_CHIP_GYRO)
+    ninedof_itg3200_xyz(b, out);
+  else
+    ninedof_hmc5883l_xyz(b, out);
 }

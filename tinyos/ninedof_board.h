@@ -81,6 +81,44 @@ extern const ninedof_reg_write_t NINEDOF_HMC5883L_SLEEP;
  * are one transaction. */
 extern const uint8_t NINEDOF_HMC5883L_TRIGGER[2];
 
+/* ---------------------------------------------------------------------- */
+/* One descriptor per chip: everything the shared register-table driver    */
+/* (NineDofChipP) needs to start, read, check and stop it.                 */
+/* ---------------------------------------------------------------------- */
+enum {
+  NINEDOF_CHIP_ACCEL = 0,     /* ADXL345 */
+  NINEDOF_CHIP_GYRO = 1,      /* ITG-3200 */
+  NINEDOF_CHIP_MAG = 2,       /* HMC5883L */
+  NINEDOF_CHIPS = 3,
+};
+
+typedef struct {
+  uint8_t addr;                       /* 7-bit I2C address */
+  uint8_t id_reg;                     /* identity register(s): */
+  uint8_t id_len;                     /*   bytes read there */
+  uint8_t config_len;                 /* start-up writes, in order */
+  const ninedof_reg_write_t *config;
+  ninedof_reg_write_t sleep;          /* SplitControl.stop's write */
+  /* a read: write these read_len bytes (register pointer, or the
+   * HMC5883L's trigger, which leaves its pointer on the data), repeated
+   * start, NINEDOF_CHIP_DATA bytes */
+  uint8_t read_cmd[2];
+  uint8_t read_len;
+  /* the witness: the config write whose register is read back on a
+   * schedule; it differs from its power-on reset value (witness_reset,
+   * datasheet), so a chip that lost power and came back answers with
+   * witness_reset and is configured again (ninedof_fault.h) */
+  uint8_t witness;                    /* index into config */
+  uint8_t witness_reset;
+} ninedof_chip_t;
+
+extern const ninedof_chip_t NINEDOF_CHIP[NINEDOF_CHIPS];
+
+/* 1 if the id_len bytes read from id_reg are the expected chip's */
+uint8_t ninedof_chip_id_ok(uint8_t chip, const uint8_t *id);
+/* The NINEDOF_CHIP_DATA data bytes of a read -> x, y, z counts */
+void ninedof_chip_xyz(uint8_t chip, const uint8_t *b, int16_t out[3]);
+
 /* Identity checks (1 = the expected chip answered) */
 uint8_t ninedof_adxl345_id_ok(uint8_t devid);
 uint8_t ninedof_itg3200_id_ok(uint8_t who_am_i);

@@ -9,8 +9,8 @@ void ninedof_counters_init(ninedof_counters_t *c)
   memset(c, 0, sizeof(*c));
 }
 
-void ninedof_status_pack(const ninedof_counters_t *c, const ninedof_calrx_t *rx,
-                         ninedof_mote_status_msg_t *msg)
+void ninedof_status_pack(const ninedof_counters_t *c, const ninedof_fault_counters_t *f,
+                         const ninedof_calrx_t *rx, ninedof_mote_status_msg_t *msg)
 {
   nxp_set_u16(&msg->seq, c->seq);
   nxp_set_u16(&msg->version, rx->active.version);
@@ -20,6 +20,9 @@ void ninedof_status_pack(const ninedof_counters_t *c, const ninedof_calrx_t *rx,
   nxp_set_u16(&msg->send_fail, c->send_fail);
   nxp_set_u16(&msg->i2c_errors, c->i2c_errors);
   nxp_set_u16(&msg->late, c->late);
+  nxp_set_u16(&msg->i2c_nacks, f->nacks);
+  nxp_set_u16(&msg->bus_resets, f->bus_resets);
+  nxp_set_u16(&msg->chip_reinits, f->chip_reinits);
 }
 
 void ninedof_align_lost(ninedof_align_t *a)

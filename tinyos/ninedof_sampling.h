@@ -12,6 +12,7 @@
 #include <stdint.h>
 #include "NineDofMsg.h"
 #include "ninedof_cal.h"
+#include "ninedof_fault.h"
 
 /* Where samples and status go, and how they are sent */
 #ifndef NINEDOF_BASESTATION_ADDR
@@ -38,9 +39,10 @@ typedef struct {
 
 void ninedof_counters_init(ninedof_counters_t *c);
 
-/* Fill a ninedof_mote_status_msg from the counters and the set in force. */
-void ninedof_status_pack(const ninedof_counters_t *c, const ninedof_calrx_t *rx,
-                         ninedof_mote_status_msg_t *msg);
+/* Fill a ninedof_mote_status_msg from the app's counters, the board's
+ * fault counters and the set in force. */
+void ninedof_status_pack(const ninedof_counters_t *c, const ninedof_fault_counters_t *f,
+                         const ninedof_calrx_t *rx, ninedof_mote_status_msg_t *msg);
 
 /* ---------------------------------------------------------------------- */
 /* One instant per record                                                  */

@@ -146,6 +146,15 @@ NINEDOF_TWI_FN uint8_t ninedof_twi_step(ninedof_twi_t *t, uint8_t status, uint8_
   return twi_fail(t, NINEDOF_TWI_BUS_ERROR, NINEDOF_TWCR_STOP);
 }
 
+uint8_t ninedof_twi_abort(ninedof_twi_t *t)
+{
+  t->open = 0;
+  if (t->state == NINEDOF_TWI_IDLE || t->state == NINEDOF_TWI_DONE)
+    return 0;
+  twi_fail(t, NINEDOF_TWI_ABORTED, 0);
+  return 1;
+}
+
 uint8_t ninedof_twi_release(ninedof_twi_t *t)
 {
   if (!t->open)

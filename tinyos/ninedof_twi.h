@@ -36,6 +36,8 @@
  *   BUS_ERROR   any other status (a bus error, 0x00): the TWI stops itself
  *               (TWSTO without a STOP on the bus, datasheet) (FAIL)
  *   BAD_ARGS    (begin only) nothing to do: no START, no data, no STOP (FAIL)
+ *   ABORTED     ended by ninedof_twi_abort: the operation did not end in
+ *               time (ninedof_fault.h); the bus has been cleared (ECANCEL)
  *
  * @author motecal
  */
@@ -101,6 +103,7 @@ enum {
   NINEDOF_TWI_ARB_LOST = 3,
   NINEDOF_TWI_BUS_ERROR = 4,
   NINEDOF_TWI_BAD_ARGS = 5,
+  NINEDOF_TWI_ABORTED = 6,   /* ended by ninedof_twi_abort (the watchdog) */
 };
 
 /* The commands (TWCR values) the machine returns */
@@ -147,6 +150,23 @@ typedef struct {
     : : "i" (fn) : "memory")
 #endif
 
+/* A STOP goes out within one SCL period, then the TWI clears TWSTO; a
+ * slave holding SCL low can delay it for ever.  Every wait for it reads
+ * TWCR at most NINEDOF_TWI_STOP_SPINS times (about 6 cycles each: 0.2 ms
+ * at 8 MHz, 70 SCL periods at 364 kHz, 10 at the stock 55 kHz) and
+ * reports whether the STOP went out; the caller then resets the TWI
+ * instead of waiting on, interrupts off. */
+enum { NINEDOF_TWI_STOP_SPINS = 255 };
+
+static inline uint8_t ninedof_twi_wait_stop(volatile uint8_t *twcr)
+{
+  uint8_t n = NINEDOF_TWI_STOP_SPINS;
+  while (*twcr & NINEDOF_TWSTO)
+    if (--n == 0)
+      return 0;
+  return 1;
+}
+
 /* Power-up: no operation, no transfer open. */
 void ninedof_twi_init(ninedof_twi_t *t);
 
@@ -161,6 +181,11 @@ NINEDOF_TWI_FN uint8_t ninedof_twi_begin(ninedof_twi_t *t, uint8_t read, uint8_t
 /* One TWI interrupt: status = TWSR & 0xF8, data = TWDR.  Returns the next
  * TWCR command (.out for TWDR); state DONE when the operation has ended. */
 NINEDOF_TWI_FN uint8_t ninedof_twi_step(ninedof_twi_t *t, uint8_t status, uint8_t data);
+
+/* The watchdog gave up on the operation under way (the TWI is reset and
+ * the bus cleared by the caller): state DONE, result ABORTED, no transfer
+ * open.  Returns 1 if there was an operation to end. */
+uint8_t ninedof_twi_abort(ninedof_twi_t *t);
 
 /* The bus is released (Resource.release): the command that ends a transfer
  * left open (STOP), or 0 when there is nothing to end. */

@@ -537,6 +537,7 @@ static void test_align(void)
 static void test_status(void)
 {
   ninedof_counters_t c;
+  ninedof_fault_counters_t f = { 3, 0xFFFF, 2 };
   ninedof_mote_status_msg_t st;
 
   ninedof_counters_init(&c);
@@ -546,11 +547,13 @@ static void test_status(void)
   c.send_fail++;                                /* counters wrap */
   c.i2c_errors = 7;
   c.late = 9;
-  ninedof_status_pack(&c, &rx, &st);
+  ninedof_status_pack(&c, &f, &rx, &st);
   CHECK(nxp_get_u16(&st.seq) == 0x1234 && nxp_get_u16(&st.version) == 0x25);
   CHECK(nxp_get_u8(&st.sensors) == 1 && nxp_get_u16(&st.dropped) == 5);
   CHECK(nxp_get_u16(&st.send_fail) == 0 && nxp_get_u16(&st.i2c_errors) == 7 &&
         nxp_get_u16(&st.late) == 9);
+  CHECK(sizeof(st) == 20 && nxp_get_u16(&st.i2c_nacks) == 3 &&
+        nxp_get_u16(&st.bus_resets) == 0xFFFF && nxp_get_u16(&st.chip_reinits) == 2);
   out_c('D');
   out_hex((const uint8_t *)&st, sizeof(st));
   out_c(';');

@@ -420,6 +420,39 @@ static void test_commands(void)
   CHECK(d[0] == 1 && d[1] == 2 && d[2] == 3 && twi.state == NINEDOF_TWI_DONE);
 }
 
+static void test_abort_and_stop_wait(void)
+{
+  /* the watchdog aborts an operation whose interrupt never comes (a slave
+   * holds SCL low after the address byte): DONE / ABORTED, nothing left
+   * open, and the next operation runs as usual */
+  uint8_t d[6], ptr = 0x02;
+  volatile uint8_t twcr;
+  bus_reset(0x53);
+  ninedof_twi_init(&twi);
+  (void)ninedof_twi_begin(&twi, 0, NINEDOF_I2C_START, 0x53, 1, &ptr);
+  (void)ninedof_twi_step(&twi, NINEDOF_TW_START, 0);     /* address sent, then nothing */
+  CHECK(twi.state == NINEDOF_TWI_ADDR);
+  CHECK(ninedof_twi_abort(&twi) == 1);
+  CHECK(twi.state == NINEDOF_TWI_DONE && twi.result == NINEDOF_TWI_ABORTED && !twi.open);
+  twi.state = NINEDOF_TWI_IDLE;                           /* signalled */
+  CHECK(ninedof_twi_abort(&twi) == 0);                    /* nothing under way */
+  CHECK(ninedof_twi_release(&twi) == 0);                  /* no STOP owed */
+  CHECK(op(1, NINEDOF_I2C_START | NINEDOF_I2C_STOP, 0x53, 6, d) == NINEDOF_TWI_OK);
+  /* a transfer left open (no STOP) and then aborted owes no STOP either:
+   * the bus clear ended it */
+  CHECK(op(0, NINEDOF_I2C_START, 0x53, 1, &ptr) == NINEDOF_TWI_OK && twi.open);
+  CHECK(ninedof_twi_abort(&twi) == 0 && !twi.open && ninedof_twi_release(&twi) == 0);
+  /* the bounded STOP wait: returns when TWSTO clears, and gives up when
+   * it never does (SCL held low) */
+  twcr = NINEDOF_TWEN;
+  CHECK(ninedof_twi_wait_stop(&twcr) == 1);
+  twcr = NINEDOF_TWEN | NINEDOF_TWSTO;
+  CHECK(ninedof_twi_wait_stop(&twcr) == 0);
+  out_s("Tabort:");
+  out_u16(NINEDOF_TWI_ABORTED);
+  out_s(":-;");
+}
+
 int main(void)
 {
   out_init();
@@ -433,6 +466,7 @@ int main(void)
   test_arbitration();
   test_bus_error();
   test_commands();
+  test_abort_and_stop_wait();
   check_summary();
   out_end();
   return 0;

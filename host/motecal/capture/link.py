@@ -220,6 +220,9 @@ class MoteLink:
         c["mote_late"] = msg["late"]
         c["cal_version"] = msg["version"]
         c["cal_sensors"] = msg["sensors"]
+        for k in P.MOTE_STATUS_FAULTS:       # absent from an older mote's message
+            if k in msg:
+                c["mote_" + k] = msg[k]
 
 
 @dataclass

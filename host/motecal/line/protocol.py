@@ -194,7 +194,14 @@ CAL_REPORT = MessageSpec("ninedof_cal_report_msg", AM_NINEDOF_CAL_REPORT_MSG, (
     _f("len", U8), _f("data", U8, NINEDOF_FRAG_DATA)))
 MOTE_STATUS = MessageSpec("ninedof_mote_status_msg", AM_NINEDOF_MOTE_STATUS_MSG, (
     _f("seq", U16), _f("version", U16), _f("sensors", U8), _f("reserved", U8),
-    _f("dropped", U16), _f("send_fail", U16), _f("i2c_errors", U16), _f("late", U16)))
+    _f("dropped", U16), _f("send_fail", U16), _f("i2c_errors", U16), _f("late", U16),
+    _f("i2c_nacks", U16), _f("bus_resets", U16), _f("chip_reinits", U16)))
+# The three fault counters were appended (firmware with the board's fault
+# handling); a mote built before sends the message without them, which
+# decode_message accepts: its dict has no such keys.
+MOTE_STATUS_FAULTS = ("i2c_nacks", "bus_resets", "chip_reinits")
+MOTE_STATUS_V1 = MessageSpec("ninedof_mote_status_msg", AM_NINEDOF_MOTE_STATUS_MSG,
+                             MOTE_STATUS.fields[:-len(MOTE_STATUS_FAULTS)])
 BS_STATUS = MessageSpec("ninedof_bs_status_msg", AM_NINEDOF_BS_STATUS_MSG, (
     _f("radio_rx", U16), _f("radio_drops", U16), _f("serial_rx", U16),
     _f("serial_drops", U16), _f("radio_fail", U16), _f("serial_fail", U16)))
@@ -452,6 +459,8 @@ def decode_message(am: AMPacket):
     if am.am_type == AM_NINEDOF_SAMPLES_MSG:
         return unpack_samples(am.payload)
     spec = FIXED_MESSAGES.get(am.am_type)
+    if spec is MOTE_STATUS and len(am.payload) == MOTE_STATUS_V1.size:
+        spec = MOTE_STATUS_V1              # a mote built before the fault counters
     if spec is None or len(am.payload) != spec.size:
         return None
     return spec.unpack(am.payload)

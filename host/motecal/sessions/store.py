@@ -32,7 +32,7 @@ from ..errors import UserError
 from .session import (COLUMNS, NOMINAL_CHIPS, NOMINAL_SCALES, SessionData, label_from_text,
                       label_to_text)
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 
 SAMPLE_COLUMNS = ("session", "mote", "seq", "t", "label", "flags") + COLUMNS
 
@@ -55,6 +55,9 @@ LINK_COUNTERS = {
     "mote_late": "mote counter: periods whose read was late",
     "cal_version": "calibration version in force on the mote",
     "cal_sensors": "sensors corrected on the mote (bit mask)",
+    "mote_i2c_nacks": "mote counter: I2C operations a chip did not acknowledge",
+    "mote_bus_resets": "mote counter: hung I2C operations aborted, bus cleared",
+    "mote_chip_reinits": "mote counter: chips found with reset registers, configured again",
 }
 LINE_COUNTERS = {
     "frames": "good serial frames",
@@ -99,6 +102,7 @@ def _counter_cols(names, real=("gap_s",)):
 
 
 _LINE_COUNTERS_V3 = ("cut_off",)      # line counters that schema version 3 added
+_LINK_COUNTERS_V4 = ("mote_i2c_nacks", "mote_bus_resets", "mote_chip_reinits")  # version 4
 
 MIGRATIONS = {
     1: [
@@ -138,7 +142,7 @@ MIGRATIONS = {
         f"""CREATE TABLE link_stats (
              session BIGINT NOT NULL,
              mote INTEGER NOT NULL,
-             {_counter_cols(LINK_COUNTERS)},
+             {_counter_cols(k for k in LINK_COUNTERS if k not in _LINK_COUNTERS_V4)},
              updated {{real}},
              PRIMARY KEY (session, mote))""",
         f"""CREATE TABLE line_stats (
@@ -154,6 +158,7 @@ MIGRATIONS = {
         "CREATE INDEX events_session ON events (session, t)",
     ],
     3: [f"ALTER TABLE line_stats ADD COLUMN {_counter_cols([k])}" for k in _LINE_COUNTERS_V3],
+    4: [f"ALTER TABLE link_stats ADD COLUMN {_counter_cols([k])}" for k in _LINK_COUNTERS_V4],
 }
 
 

@@ -292,7 +292,7 @@ class SimMote:
         payload = P.MOTE_STATUS.pack(
             seq=self.generated() & 0xFFFF, version=version & 0xFFFF, sensors=sensors,
             dropped=self.dropped & 0xFFFF, send_fail=self.send_fail & 0xFFFF,
-            i2c_errors=0, late=0)
+            i2c_errors=0, late=0, i2c_nacks=0, bus_resets=0, chip_reinits=0)
         if self.status_msg is not None:               # the last one is still on its way
             self.status_dropped += 1
         else:

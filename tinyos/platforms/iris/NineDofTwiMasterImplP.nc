@@ -9,6 +9,11 @@
  * When an operation ends, readDone / writeDone are signalled from the
  * interrupt, as the stock master does.
  *
+ * Recovery (NineDofI2CRecover, used by the board's watchdog): the TWI
+ * off, the bus cleared (NineDofBusClearP), the TWI on again, and the
+ * operation under way ended with ECANCEL.  Every wait for a STOP is
+ * bounded (ninedof_twi_wait_stop): no unbounded loop with interrupts off.
+ *
  * Differences from the stock master: an address NACK reports ENOACK (the
  * stock EOFF) and sends the STOP at once; a written byte that is not ACKed
  * ends the operation with FAIL and a STOP (the stock writes on); an
@@ -25,7 +30,9 @@ module NineDofTwiMasterImplP @safe()
   provides interface Resource[uint8_t client];
   provides interface I2CPacket<TI2CBasicAddr>[uint8_t client];
   provides interface AsyncStdControl;
+  provides interface NineDofI2CRecover;
   uses interface Resource as SubResource[uint8_t client];
+  uses interface NineDofBusClear;
 }
 implementation
 {
@@ -41,16 +48,20 @@ implementation
   norace bool powered;
 
   /* ---- power (AsyncPowerManagerP) ---- */
+  void twiOn() {
+    DDRD &= ~((1 << 0) | (1 << 1));       /* SCL PD0, SDA PD1: inputs, no pull-ups */
+    PORTD &= ~((1 << 0) | (1 << 1));
+    TWSR = 0;                             /* prescaler 1 */
+    TWBR = TWBR_FAST;
+    TWAR = 0;
+    TWCR = NINEDOF_TWCR_IDLE;
+  }
+
   async command error_t AsyncStdControl.start() {
     atomic {
       if (powered)
         return FAIL;
-      DDRD &= ~((1 << 0) | (1 << 1));     /* SCL PD0, SDA PD1: inputs, no pull-ups */
-      PORTD &= ~((1 << 0) | (1 << 1));
-      TWSR = 0;                           /* prescaler 1 */
-      TWBR = TWBR_FAST;
-      TWAR = 0;
-      TWCR = NINEDOF_TWCR_IDLE;
+      twiOn();
       ninedof_twi_init(&twi);
       powered = TRUE;
     }
@@ -61,8 +72,7 @@ implementation
     atomic {
       if (!powered || (twi.state != NINEDOF_TWI_IDLE))
         return FAIL;
-      while (TWCR & (1 << TWSTO))           /* let the last STOP go out */
-        ;
+      (void)ninedof_twi_wait_stop(&TWCR);   /* the last STOP, bounded: off anyway */
       TWCR = 0;
       PORTD &= ~((1 << 0) | (1 << 1));
       powered = FALSE;
@@ -110,7 +120,8 @@ implementation
     error_t err;
     twi.state = NINEDOF_TWI_IDLE;
     err = twi.result == NINEDOF_TWI_OK ? SUCCESS
-        : twi.result == NINEDOF_TWI_ADDR_NACK ? ENOACK : FAIL;
+        : twi.result == NINEDOF_TWI_ADDR_NACK ? ENOACK
+        : twi.result == NINEDOF_TWI_ABORTED ? ECANCEL : FAIL;
     if (twi.sla & 1)
       signal I2CPacket.readDone[client](err, twi.sla >> 1, twi.len, twi.buf);
     else
@@ -145,8 +156,13 @@ implementation
         return SUCCESS;
       }
       if (cmd & NINEDOF_TWSTA) {
-        while (TWCR & (1 << TWSTO))         /* a STOP still going out (one SCL period) */
-          ;
+        /* a STOP still going out (one SCL period); bounded: if a slave
+         * holds SCL, the TWI is reset and the START waits for a free bus
+         * (the board's watchdog takes over if it never is) */
+        if (!ninedof_twi_wait_stop(&TWCR)) {
+          TWCR = 0;
+          twiOn();
+        }
       } else {
         TWDR = twi.out;                     /* continuing: TWINT is set */
       }
@@ -163,6 +179,21 @@ implementation
   async command error_t I2CPacket.write[uint8_t id](i2c_flags_t flags, uint16_t addr,
                                                     uint8_t len, uint8_t *data) {
     return begin(id, 0, flags, addr, len, data);
+  }
+
+  /* ---- recovery (the board's watchdog): TWI off, bus clear, TWI on,
+   * the operation under way ends with ECANCEL from a task ---- */
+  async command uint8_t NineDofI2CRecover.recover() {
+    uint8_t r;
+    atomic TWCR = 0;                        /* TWI off: the pins are ours */
+    r = call NineDofBusClear.clear();
+    atomic {
+      if (powered)
+        twiOn();
+      if (ninedof_twi_abort(&twi))
+        post doneTask();
+    }
+    return r;
   }
 
   /* ---- the TWI interrupt: one step, the command at once ---- */

@@ -5,8 +5,8 @@
  * board.  The board (NineDofBoardP) holds it for a whole operation through
  * Hold: one arbitration, one bus power-up and one bit-rate setting for the
  * three reads of a sample, instead of one per chip.  While the board holds
- * the bus, the chip logic modules (Adxl345LogicP, Itg3200LogicP,
- * Hmc5883lLogicP, unchanged: I2CPacket + Resource) take turns on it through
+ * the bus, the three chip drivers (NineDofChipP, the same module a chip
+ * on its own uses: I2CPacket + Resource) take turns on it through
  * Share[chip] and I2CPacket[chip]: a chip gets its share at once if no other
  * chip has it, its transfers go to the bus, their completion events come
  * back to it (as Atm128I2CMasterImplP does for the bus's own clients), and

@@ -1,0 +1,58 @@
+"""The mote status message's fault counters (tinyos/NineDofMsg.h: i2c_nacks,
+bus_resets, chip_reinits, appended; tinyos/ninedof_fault.h counts them) on
+the host: the new message decodes with them, a mote built before them sends
+the shorter message and is still understood, and the simulated mote sends the
+firmware's layout."""
+from motecal.capture.link import MoteLink
+from motecal.line import protocol as P
+
+from test_sim_network import make_net, run_all
+
+
+def _am(payload):
+    return P.AMPacket(0, 7, P.DEFAULT_GROUP, P.AM_NINEDOF_MOTE_STATUS_MSG, payload)
+
+
+def test_new_status_message_carries_the_fault_counters():
+    payload = P.MOTE_STATUS.pack(seq=9, late=2, i2c_nacks=60, bus_resets=0xFFFF,
+                                 chip_reinits=3)
+    assert len(payload) == 20
+    msg = P.decode_message(_am(payload))
+    assert (msg["i2c_nacks"], msg["bus_resets"], msg["chip_reinits"]) == (60, 0xFFFF, 3)
+    assert msg["seq"] == 9 and msg["late"] == 2
+
+
+def test_status_message_of_an_older_mote_is_accepted():
+    old = P.MOTE_STATUS.pack(seq=5, dropped=1, i2c_errors=4, late=2)[:14]
+    assert P.MOTE_STATUS_V1.size == 14
+    msg = P.decode_message(_am(old))
+    assert msg == dict(seq=5, version=0, sensors=0, reserved=0, dropped=1, send_fail=0,
+                       i2c_errors=4, late=2)
+    assert not set(P.MOTE_STATUS_FAULTS) & set(msg)
+    for n in (13, 15, 19, 21):                       # any other length is refused
+        assert P.decode_message(_am(P.MOTE_STATUS.pack()[:n] + b"\0" * max(0, n - 20))) is None
+
+
+def test_simulated_mote_sends_the_firmware_layout():
+    net = make_net(1, duration=4.5)
+    frames = P.decode_stream(run_all(net))
+    status = [f.am() for f in frames
+              if f.am() and f.am().am_type == P.AM_NINEDOF_MOTE_STATUS_MSG]
+    assert len(status) == 2
+    for am in status:
+        assert len(am.payload) == P.MOTE_STATUS.size == 20
+        msg = P.decode_message(am)
+        assert [msg[k] for k in P.MOTE_STATUS_FAULTS] == [0, 0, 0]   # no bus faults simulated
+
+
+def test_the_link_keeps_the_fault_counters_of_new_and_old_motes():
+    link = MoteLink(7)
+    new = P.decode_message(_am(P.MOTE_STATUS.pack(late=1, i2c_nacks=4, bus_resets=5,
+                                                  chip_reinits=6)))
+    link.status(new)
+    assert [link.c[k] for k in ("mote_late", "mote_i2c_nacks", "mote_bus_resets",
+                                "mote_chip_reinits")] == [1, 4, 5, 6]
+    old = P.decode_message(_am(P.MOTE_STATUS.pack(late=2)[:14]))
+    link.status(old)                               # an older mote: the rest stays as it was
+    assert link.c["mote_late"] == 2 and link.c["status_msgs"] == 2
+    assert link.c["mote_bus_resets"] == 5

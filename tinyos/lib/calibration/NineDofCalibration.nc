@@ -1,0 +1,16 @@
+/*
+ * NineDofCalibration -- the calibration set in force, as the sampling app
+ * needs it: the receiver state of ninedof_cal.h, read only, for
+ * ninedof_batch_pack (correction and flags of a sample message) and
+ * ninedof_status_pack (version and sensors of the status message).  Read
+ * it from tasks: NineDofCalibrationC changes it only in tasks, so a batch
+ * is never corrected with half of one set and half of another.
+ *
+ * @author motecal
+ */
+#include "ninedof_cal.h"
+
+interface NineDofCalibration
+{
+  command const ninedof_calrx_t *inForce();
+}

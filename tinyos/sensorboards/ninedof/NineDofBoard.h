@@ -1,0 +1,24 @@
+/*
+ * NineDofBoard.h -- nesC side of the 9DOF board drivers.
+ *
+ * nesC has no separate C compilation units, so the board's plain C
+ * (ninedof_fault.c: watchdog, bus clear, configuration check, tested on
+ * the host and in simavr) is compiled in here, once for the whole
+ * application; the chips' (ninedof_board.c) comes with NineDofChip.h.
+ */
+#ifndef NINEDOF_BOARD_NESC_H
+#define NINEDOF_BOARD_NESC_H
+
+#include "NineDofChip.h"
+#include "ninedof_fault.h"
+#include "ninedof_fault.c"
+
+/* Nine axes of one sample: ax ay az gx gy gz mx my mz */
+typedef struct {
+  int16_t axis[9];
+} ninedof_raw_t;
+
+/* The chips' shares of the board's bus (NineDofBusP), in reading order:
+ * NINEDOF_CHIP_ACCEL, _GYRO, _MAG (ninedof_board.h) */
+
+#endif

@@ -19,6 +19,7 @@ harness saw on the bus.
   unread:T:3             the host does not read the serial line for 3 s
   upload, loss 0.3       `motecal upload` of a calibration with 30 % of the radio frames
                          lost (the channel's loss rate, both directions), then loss 0
+  upload --reset         the same with `motecal upload --reset` (a commit of the raw set)
 
     python3 emu/fault_matrix.py [--src CHECKOUT] [--cflags ...] [--mote-elf E --base-elf E]
 """
@@ -233,7 +234,8 @@ def cal_json(path: Path) -> Path:
 
 
 def run_case(exe: Path, mote: Path, base: Path, name: str, faults: list[str], *, seconds: float,
-             fault_at: float, out: Path, upload_loss: float | None = None) -> dict:
+             fault_at: float, out: Path, upload_loss: float | None = None,
+             raw_set: bool = False) -> dict:
     args = ["--mote", f"{mote},id=1", "--base", f"{base},id=0", "--serial", "tcp:0",
             "--seconds", "3600", "--settle", "3"]       # stopped at `seconds` below
     for f in faults:
@@ -253,7 +255,8 @@ def run_case(exe: Path, mote: Path, base: Path, name: str, faults: list[str], *,
         t0 = h.now()
         cal = cal_json(out / "cal-mote1.json")
         proxy = Proxy(url)
-        res = subprocess.run(rc.MOTECAL + ["upload", str(cal), "--port", proxy.url, "--mote",
+        what = ["--reset"] if raw_set else [str(cal)]       # --reset: a commit of the raw set
+        res = subprocess.run(rc.MOTECAL + ["upload", *what, "--port", proxy.url, "--mote",
                                            "1"], capture_output=True, text=True, timeout=1200)
         proxy.close()
         t1 = h.now()
@@ -267,6 +270,8 @@ def run_case(exe: Path, mote: Path, base: Path, name: str, faults: list[str], *,
               "tries_lines": len(re.findall(r"sending it again", text)),
               "last_line": text.strip().splitlines()[-1] if text.strip() else ""}
         mv = re.search(r"uploading version (\d+)", text)
+        if raw_set:
+            mv = None
         up["diff"] = set_diff(bytes(proxy.to_mote), bytes(proxy.to_host),
                               int(mv.group(1))) if mv else []
         (out / "upload.txt").write_text(text)
@@ -331,14 +336,15 @@ def main(argv=None) -> int:
     T = a.fault_at
     print(f"one sensor mote (id 1, 8 MHz) + BaseStation, {a.seconds:g} s emulated, fault at "
           f"{T:g} s; the host reads the BaseStation on TCP (motecal's decoder)", flush=True)
-    cases = [(n, [f.format(T=T) for f in fs], None) for n, fs in CASES]
-    cases.append((f"upload, radio loss {a.loss:g}", [], a.loss))
-    for name, faults, loss in cases:
+    cases = [(n, [f.format(T=T) for f in fs], None, False) for n, fs in CASES]
+    cases.append((f"upload, radio loss {a.loss:g}", [], a.loss, False))
+    cases.append((f"upload --reset (raw set), radio loss {a.loss:g}", [], a.loss, True))
+    for name, faults, loss, raw in cases:
         if a.only and a.only not in name:
             continue
         t0 = time.monotonic()
         r = run_case(exe, mote, base, name, faults, seconds=a.seconds, fault_at=T, out=out,
-                     upload_loss=loss)
+                     upload_loss=loss, raw_set=raw)
         st = r.get("status") or {}
         print(f"\n== {name}  ({' '.join(faults) or 'no --fault'}; {time.monotonic() - t0:.0f} s wall)")
         if r.get("upload"):

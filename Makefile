@@ -8,13 +8,17 @@
 SHELL := /bin/bash
 VENV ?= .venv
 PY := $(VENV)/bin/python
-STAMP := $(VENV)/.installed-$(shell cat host/requirements.txt host/pyproject.toml | md5sum | cut -c1-8)
+REQUIREMENTS := host/requirements.txt host/requirements-test.txt host/pyproject.toml
+STAMP := $(VENV)/.installed-$(shell cat $(REQUIREMENTS) | md5sum | cut -c1-8)
 # Debian packages: the demo needs a C compiler (the simulated motes run the
 # firmware's C code); the tests also need avr-gcc + simavr, libsimavr-dev +
-# libelf-dev + pkg-config (the emulator harness, emu/) and a PostgreSQL
-# server (the store's server test).  Installed with apt-get when missing.
+# libelf-dev + pkg-config (the emulator harness, emu/), a PostgreSQL server
+# and a MariaDB server (the store's server tests, which start their own in a
+# temporary folder: the server core packages, so no system service is set up
+# or started).  Installed with apt-get when missing.
 DEMO_PACKAGES := gcc libc6-dev
-TEST_PACKAGES := $(DEMO_PACKAGES) gcc-avr avr-libc simavr libsimavr-dev libelf-dev pkg-config postgresql
+TEST_PACKAGES := $(DEMO_PACKAGES) gcc-avr avr-libc simavr libsimavr-dev libelf-dev pkg-config \
+  postgresql mariadb-server-core mariadb-client-core
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 DEMO_DIR ?= demo-out
@@ -24,12 +28,12 @@ DEMO_DIR ?= demo-out
 all: test
 
 # --- set-up -------------------------------------------------------------
-$(STAMP): host/requirements.txt host/pyproject.toml
+$(STAMP): $(REQUIREMENTS)
 	@command -v python3 >/dev/null && python3 -c 'import sys; sys.exit(sys.version_info < (3, 10))' \
 	  || $(call apt_install,python3 python3-venv)
 	rm -rf $(VENV)
 	python3 -m venv $(VENV) || { rm -rf $(VENV); $(call apt_install,python3-venv) && python3 -m venv $(VENV); }
-	$(VENV)/bin/pip install -q --disable-pip-version-check -r host/requirements.txt
+	$(VENV)/bin/pip install -q --disable-pip-version-check -r host/requirements-test.txt
 	$(VENV)/bin/pip install -q --disable-pip-version-check --no-deps -e host
 	touch $@
 

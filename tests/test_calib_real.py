@@ -12,12 +12,11 @@ from motecal.sessions import importer
 
 
 @pytest.fixture(scope="module")
-def sweep_board(request):
-    from conftest import MEASURED
-    d = importer.read_razor_float(MEASURED / "sensorstick-mag-sweep" / "magnetom.float")
+def sweep_board(measured):
+    d = importer.read_razor_float(measured / "sensorstick-mag-sweep" / "magnetom.float")
     b = calibrate_board(d, seed=0)
     gate.decide(b)
-    return b, json.loads((MEASURED / "sensorstick-mag-sweep" /
+    return b, json.loads((measured / "sensorstick-mag-sweep" /
                           "published_calibration.json").read_text())["magnetom.float"]
 
 
@@ -127,3 +126,18 @@ def test_razor_board_calibrate_command_accepts_it(measured, tmp_path, capsys):
     assert "gate: accepted" in text and "warning: mag: not calibrated" in text
     cal = json.loads(out.read_text())
     assert cal["accel"] and cal["gyro"] and cal["mag"] is None
+
+
+@pytest.mark.parametrize("board", ["razor1", "razor2"])
+def test_razor_gyro_hold_calibrates_the_gyro_bias_alone(board):
+    """The Razor ``*_gyr_xyz.raw`` files are still holds recorded for the gyro
+    bias: calibrated (gate accepted), the accelerometer and magnetometer
+    reported skipped, not refused."""
+    from conftest import MEASURED
+    d = importer.read_any([str(MEASURED / "sensorstick-boards" / board / f"{board}_gyr_xyz.raw")])
+    b = calibrate_board(d, seed=1, kfold=0)
+    dec = gate.decide(b)
+    assert dec.accepted and b.gyro is not None and b.accel is None and b.mag is None, dec
+    assert any(w.startswith("accel: not calibrated: a still hold") for w in dec.warnings)
+    assert any(w.startswith("mag: not calibrated") for w in dec.warnings)
+    assert np.all(np.abs([p.value for p in b.gyro.params[:3]]) < 5.0)

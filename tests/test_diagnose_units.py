@@ -73,13 +73,13 @@ def test_f_test_detects_a_term_and_not_noise():
     assert p < 1e-10 and Fv > 100
 
 
-def test_levenberg_marquardt_solves_a_curve_fit():
+def test_least_squares_fit_solves_a_curve_fit():
     t = np.linspace(0, 1, 50)
     y = 2.0 * np.exp(-3.0 * t) + 0.5
     f = lambda p: p[0] * np.exp(-p[1] * t) + p[2] - y                         # noqa: E731
     j = lambda p: np.column_stack([np.exp(-p[1] * t), -p[0] * t * np.exp(-p[1] * t),  # noqa: E731
                                    np.ones_like(t)])
-    p = F.levenberg_marquardt(f, j, np.array([1.0, 1.0, 0.0]))
+    p = F.least_squares_fit(f, j, np.array([1.0, 1.0, 0.0]))
     assert np.allclose(p, [2.0, 3.0, 0.5], atol=1e-6)
 
 

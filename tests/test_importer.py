@@ -38,11 +38,8 @@ def razor_static(measured_dir):
 
 
 @pytest.fixture(scope="module")
-def measured_dir():
-    from conftest import MEASURED
-    if not MEASURED.is_dir():
-        pytest.fail(f"measured data not found at {MEASURED}")
-    return MEASURED
+def measured_dir(measured):
+    return measured
 
 
 @pytest.fixture(scope="module")

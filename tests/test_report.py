@@ -92,11 +92,10 @@ def sim(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def measured_db(tmp_path_factory):
-    from conftest import MEASURED
-    razor = read_razor_text(sorted((MEASURED / "sensorstick-boards" / "razor1")
+def measured_db(tmp_path_factory, measured):
+    razor = read_razor_text(sorted((measured / "sensorstick-boards" / "razor1")
                                    .glob("razor1_acc_*.raw")))
-    sweep = read_razor_float(MEASURED / "sensorstick-mag-sweep" / "magnetom.float")
+    sweep = read_razor_float(measured / "sensorstick-mag-sweep" / "magnetom.float")
     both = _concat("razor_sweep", [razor, sweep], motes=[1, 2])
     db = tmp_path_factory.mktemp("measured") / "m.db"
     with open_store(str(db), create=True) as st:

@@ -165,7 +165,7 @@ def test_open_errors_are_one_line_user_errors(tmp_path):
         (str(tmp_path / "nofolder" / "x.db"), True, "does not exist"),
         (str(text / "x.db"), True, "does not exist"),
         (str(tmp_path), True, "is a directory"),
-        ("mysql://host/db", True, "unsupported database URL"),
+        ("ftp://host/db", True, "unsupported database URL"),
         ("", True, "no database given"),
     ]
     for target, create, msg in cases:
@@ -340,63 +340,10 @@ def test_export_and_sessions_commands(tmp_path):
 
 
 # --------------------------------------------------------------------------
-# PostgreSQL: a real server (Debian's postgresql package), started here in a
-# temporary folder, reachable only through its unix socket.
+# PostgreSQL: a real server (Debian's postgresql package), started in a
+# temporary folder, reachable only through its unix socket (fixture pg_url,
+# conftest.py / dbservers.py).
 # --------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def pg_url():
-    import glob
-    import pwd
-    import shutil
-    import time
-    bins = sorted(glob.glob("/usr/lib/postgresql/*/bin/initdb"))
-    if not bins:
-        pytest.fail("PostgreSQL server not installed (Debian package postgresql; make sysdeps)")
-    bindir = os.path.dirname(bins[-1])
-    import pathlib
-    import tempfile
-    # not under pytest's private (0700) folders: the server's user must reach it
-    root = pathlib.Path(tempfile.mkdtemp(prefix="motecal-pg-"))
-    user = None
-    if os.geteuid() == 0:                      # initdb refuses to run as root
-        user = "postgres" if _has_user("postgres") else "nobody"
-        os.chown(root, pwd.getpwnam(user).pw_uid, pwd.getpwnam(user).pw_gid)
-    data = root / "data"
-    subprocess.run([f"{bindir}/initdb", "-D", str(data), "-U", "motecal", "--auth=trust",
-                    "-E", "UTF8", "--no-sync"], check=True, capture_output=True, user=user,
-                   cwd=root)
-    server = subprocess.Popen([f"{bindir}/postgres", "-D", str(data), "-k", str(root),
-                               "-c", "listen_addresses=", "-c", "fsync=off"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, user=user,
-                              cwd=root)
-    import psycopg
-    base = f"postgresql://motecal@/postgres?host={root}"
-    deadline = time.monotonic() + 30
-    while True:
-        try:
-            with psycopg.connect(base, autocommit=True) as con:
-                con.execute("CREATE DATABASE motecal")
-            break
-        except psycopg.OperationalError:
-            if time.monotonic() > deadline or server.poll() is not None:
-                server.kill()
-                pytest.fail("PostgreSQL server did not start")
-            time.sleep(0.1)
-    yield f"postgresql://motecal@/motecal?host={root}"
-    server.terminate()
-    server.wait(20)
-    shutil.rmtree(root, ignore_errors=True)
-
-
-def _has_user(name):
-    import pwd
-    try:
-        pwd.getpwnam(name)
-        return True
-    except KeyError:
-        return False
-
-
 def test_postgres_sessions_calibrations_atomic(pg_url, monkeypatch):
     data = _session("pg1", n=3000, motes=(1, 2, 3))
     with open_store(pg_url) as st:

@@ -35,6 +35,7 @@ from ..sessions.session import (HMC5883L_OVERFLOW, LABEL_NONE, LABEL_ROT, NOMINA
                                 SessionData)
 from ..sessions.still import StillThresholds
 from . import fit as _fit
+from .content import poses_from_stillness
 from . import gate as _gate
 from . import gyro as _gyro
 from . import rotations as _rotations
@@ -67,6 +68,7 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
     motes = data.motes
     if len(motes) != 1:
         raise UserError(f"session {data.name} holds motes {motes}: calibrate one mote at a time")
+    data, found = poses_from_stillness(data)
     seed, (s_acc, s_gyr, s_mag) = _seeds(seed)
     created = created or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
     board = BoardCalibration(mote=motes[0], session=data.name, created=created,
@@ -75,6 +77,8 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
                       "seed": seed, "gauge": gauge, "field_gauss": field,
                       "gyro_matrix": bool(gyro_matrix), "kfold": kfold,
                       "skipped": {}, "insufficient": {}}
+    if found:
+        board.settings["poses_found"] = found
     chips = dict(NOMINAL_CHIPS)
     chips.update(data.chips or {})
 
@@ -85,8 +89,11 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
     elif not acc_rows.any():
         board.settings["skipped"]["accel"] = "no static poses in the session"
     elif len(np.unique(data.label[acc_rows])) < 2:
-        board.settings["insufficient"]["accel"] = ("too few distinct orientations: a single "
-                                                   "static pose")
+        # a still hold (one orientation) is what a gyroscope bias is recorded
+        # with: it determines the gyro, not the accelerometer -- left out
+        board.settings["skipped"]["accel"] = ("a still hold in one orientation: it determines "
+                                              "the gyroscope bias, not the accelerometer "
+                                              "(that needs several orientations)")
     else:
         mdl = make_model("accel", model, groups)
         board.accel = _magnitude_sensor(

@@ -177,8 +177,43 @@ class GateDecision:
         return "refused: " + "; ".join(self.reasons)
 
 
+def residual_reason(sensor: str, rms_rel, lim: GateLimits = LIMITS) -> str | None:
+    """The one decision whether what is left after a calibration is small
+    enough to calibrate through: rms magnitude error relative to the target
+    (1 g, or the field) above ``max_rms_rel``.  Used by the gate and by
+    ``diagnose`` (a field disturbance that leaves more is "not calibratable"
+    in both)."""
+    if rms_rel is None or sensor not in lim.max_rms_rel or not rms_rel > lim.max_rms_rel[sensor]:
+        return None
+    what = "the field is not constant (disturbed place or moving magnets?)" \
+        if sensor == "mag" else "the board was not still or the model does not fit"
+    return (f"residual too large: rms magnitude error {100 * rms_rel:.1f}% of the target "
+            f"after calibration (limit {100 * lim.max_rms_rel[sensor]:.0f}%): {what}")
+
+
+EARTH_FIELD_GAUSS = (0.25, 0.65)   # the total field anywhere on the Earth's surface
+
+
+def field_plausibility(field_gauss, chip: str | None = None) -> str | None:
+    """Why a fitted field magnitude (gauss) is not one the Earth gives, with
+    the likely causes, or None when it is.  Shared by calibrate's gate and
+    diagnose."""
+    lo, hi = EARTH_FIELD_GAUSS
+    if field_gauss is None or not np.isfinite(field_gauss) or lo <= field_gauss <= hi:
+        return None
+    side = "below" if field_gauss < lo else "above"
+    return (f"field {field_gauss:.3g} gauss is {side} what the Earth gives ({lo:g}-{hi:g} "
+            f"gauss): a wrong gain setting or chip (counts per gauss{' of ' + chip if chip else ''}"
+            f" not what the import assumed; see --chip), or a disturbed place (iron, magnets, "
+            f"currents nearby)")
+
+
 def _check_sensor(name, sc, lim: GateLimits, reasons, warnings):
     q = sc.quality or {}
+    if name == "mag" and sc.gauge != "field":
+        why = field_plausibility(sc.field_gauss, getattr(sc, "chip", None))
+        if why:
+            warnings.append(f"mag: {why}")
     unit_ = sc.unit
     need = max(lim.min_orientations, int(q.get("identifiable_params", 0)))
     reasons += [f"{name}: {r}" for r in coverage_reasons(q, need, lim, model=sc.model)]
@@ -187,12 +222,9 @@ def _check_sensor(name, sc, lim: GateLimits, reasons, warnings):
         lab = ", ".join(str(p) for p in list(bad)[:8]) + (" ..." if len(bad) > 8 else "")
         reasons.append(f"{name}: non-still data in static poses {lab} (per-axis sd above "
                        f"{q.get('still_limit')} {unit_}; re-log those poses)")
-    if "rms_rel" in q and name in lim.max_rms_rel and q["rms_rel"] > lim.max_rms_rel[name]:
-        what = "the field is not constant (disturbed place or moving magnets?)" \
-            if name == "mag" else "the board was not still or the model does not fit"
-        reasons.append(f"{name}: residual too large: rms magnitude error "
-                       f"{100 * q['rms_rel']:.1f}% of the target after calibration "
-                       f"(limit {100 * lim.max_rms_rel[name]:.0f}%): {what}")
+    why = residual_reason(name, q.get("rms_rel"), lim)
+    if why:
+        reasons.append(f"{name}: {why}")
     for p in sc.params:
         if not p.identifiable or not np.isfinite(p.std):
             continue

@@ -28,6 +28,7 @@ from ..calib.board import calibrate_board
 from ..calib.gate import decide
 from ..calib.models import MODEL_FAMILIES, parse_groups
 from ..calib.result import BoardCalibration
+from ..calib.terms import apply_diagnosis, load_diagnosis
 from ..errors import QualityError, UserError
 from .args import description, int_range, mote_id, positive, seed
 
@@ -56,6 +57,11 @@ def register(subparsers):
                    help="gyroscope bias only (no scale/misalignment from the moves)")
     p.add_argument("--kfold", type=int_range("number of folds", 0, MAX_KFOLD), default=5,
                    help=f"held-out validation folds: 0 (off) or 2..{MAX_KFOLD} (default 5)")
+    p.add_argument("--diagnosis", metavar="FILE",
+                   help="a diagnosis of this session (motecal diagnose --json): leave out the "
+                        "readings its findings make wrong (repeats, clipping, outliers) and "
+                        "refuse a magnetometer it found not calibratable; the terms used are "
+                        "printed and kept in cal.json")
     p.add_argument("--force", action="store_true",
                    help="save boards the quality gate refuses (the reasons stay in cal.json)")
     from .upload import add_calibrate_options
@@ -116,6 +122,12 @@ def summary(board: BoardCalibration) -> str:
                      + (f" +- {sd:.1e}" if sd else " (given)") + " gauss"
                      + "".join(f"; set {k}: {v['field_gauss']:.4f}"
                                for k, v in board.mag_sets.items() if not v.get("used")))
+    if s.get("diagnosis"):
+        dg = s["diagnosis"]
+        lines.append(f"  diagnosis {dg['file']}: used: " + ("; ".join(dg["used"]) or "nothing")
+                     + ("; not used: " + "; ".join(dg["not_used"]) if dg["not_used"] else ""))
+    if s.get("poses_found"):
+        lines.append(f"  session: {s['poses_found']}")
     for name, sc in board.sensors():
         for n in sc.notes:
             lines.append(f"  {name}: {n}")
@@ -142,8 +154,18 @@ def run(args) -> int:
             raise UserError(f"session {args.session!r} has no samples")
         several = len(motes) > 1
         refused = []
+        diag = load_diagnosis(args.diagnosis) if getattr(args, "diagnosis", None) else None
         for m in motes:
-            board = calibrate(data.for_mote(m), args)
+            dm = data.for_mote(m)
+            if diag is not None:
+                dm, used, unused, refuse = apply_diagnosis(dm, diag)
+            board = calibrate(dm, args)
+            if diag is not None:
+                board.settings["diagnosis"] = {"file": str(args.diagnosis), "used": used,
+                                               "not_used": unused}
+                if "mag" in refuse and board.mag is not None:
+                    board.mag, board.mag_sets = None, {}
+                    board.settings["insufficient"]["mag"] = refuse["mag"]
             decision = decide(board, force=args.force)
             print(summary(board))
             if not decision.accepted and not args.force:

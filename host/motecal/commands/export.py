@@ -69,7 +69,8 @@ def register(sub) -> None:
     p = sub.add_parser("export", help="write a session as the project CSV",
                        description="Write a stored session as CSV: mote,seq,t,label,ax,ay,az,"
                                    "gx,gy,gz,mx,my,mz (empty cells where a sensor is missing).")
-    p.add_argument("--db", required=True, help="database: sqlite file or postgresql:// URL")
+    p.add_argument("--db", required=True,
+                   help="database: sqlite file, postgresql:// or mysql:// URL")
     p.add_argument("--session", required=True)
     p.add_argument("--csv", required=True, metavar="OUT", help="CSV file to write")
     p.add_argument("--mote", type=mote_id, help="only this mote")

@@ -42,7 +42,8 @@ def register(sub) -> None:
                                   "serial@DEV:BAUD, sf@HOST:PORT or a recorded file; "
                                   "default: $MOTECOM")
     p.add_argument("--baud", type=baud_rate, help="baud rate (default 250000)")
-    p.add_argument("--db", required=True, help="database: sqlite file or postgresql:// URL")
+    p.add_argument("--db", required=True,
+                   help="database: sqlite file, postgresql:// or mysql:// URL")
     p.add_argument("--session", required=True, type=session_name, help="session name")
     p.add_argument("--append", action="store_true", help="add to an existing session")
     p.add_argument("--guided", choices=("static80", "rotation"), help="guide a person")

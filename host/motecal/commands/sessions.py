@@ -31,6 +31,7 @@ def list_sessions(args) -> int:
 
 def register(sub) -> None:
     p = sub.add_parser("sessions", help="list the sessions in a database")
-    p.add_argument("--db", required=True, help="database: sqlite file or postgresql:// URL")
+    p.add_argument("--db", required=True,
+                   help="database: sqlite file, postgresql:// or mysql:// URL")
     p.add_argument("--json", action="store_true", help="JSON with link statistics")
     p.set_defaults(func=list_sessions)

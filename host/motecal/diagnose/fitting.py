@@ -156,43 +156,20 @@ class FieldExtra(Extra):
 # ---------------------------------------------------------------------------
 # least squares
 # ---------------------------------------------------------------------------
-def levenberg_marquardt(fun, jac, x0, *, max_iter: int = 100, rtol: float = 1e-10):
-    """Levenberg-Marquardt with Marquardt's diagonal scaling on the normal
-    equations (p is small, n may be thousands: a p x p solve per step instead
-    of an SVD of the n x p Jacobian)."""
-    x = np.asarray(x0, float).copy()
-    r = fun(x)
-    cost = float(r @ r)
-    lam = 1e-3
-    for _ in range(max_iter):
-        J = jac(x)
-        A = J.T @ J
-        g = J.T @ r
-        d = np.diag(A).copy()
-        d[d <= 0] = 1.0
-        improved = False
-        for _ in range(30):
-            try:
-                dx = -np.linalg.solve(A + lam * np.diag(d), g)
-            except np.linalg.LinAlgError:
-                lam *= 10.0
-                continue
-            xn = x + dx
-            rn = fun(xn)
-            cn = float(rn @ rn)
-            if np.isfinite(cn) and cn <= cost:
-                improved = True
-                break
-            lam *= 4.0
-        if not improved:
-            break
-        rel = (cost - cn) / max(cost, 1e-300)
-        small_step = np.all(np.abs(dx) <= 1e-9 * (np.abs(x) + 1e-9))
-        x, r, cost = xn, rn, cn
-        lam = max(lam / 3.0, 1e-12)
-        if rel < rtol or small_step:
-            break
-    return x
+def least_squares_fit(fun, jac, x0, *, max_nfev: int = 100) -> np.ndarray:
+    """scipy's ``least_squares`` (trust-region reflective, Jacobian-scaled
+    variables, the analytic Jacobian): the minimiser of sum(fun(x)^2) from x0.
+    (The diagnosis used to carry its own Levenberg-Marquardt; scipy's is the
+    one the rest of the code uses.)  Unlike MINPACK's LM it is well defined
+    on a singular Jacobian, and ``max_nfev`` bounds the work of the held-out
+    refits that start at the full fit."""
+    from scipy.optimize import least_squares
+    x0 = np.asarray(x0, float)
+    if not np.all(np.isfinite(fun(x0))):
+        return x0
+    sol = least_squares(fun, x0, jac=jac, method="trf", x_scale="jac", max_nfev=max_nfev,
+                        ftol=1e-10, xtol=1e-10, gtol=1e-10)
+    return sol.x
 
 
 # ---------------------------------------------------------------------------
@@ -375,7 +352,7 @@ def fit_magnitude(sensor: str, K: float, x, t, w, *, family="paper", extras=(),
     if not extras and family == "paper" and polish_base is False:
         theta = theta0
     else:
-        theta = levenberg_marquardt(res, jac, theta0, max_iter=max_nfev or 100)
+        theta = least_squares_fit(res, jac, theta0, max_nfev=max_nfev or 100)
     fit.theta = np.asarray(theta, float)
     rr = res(fit.theta)
     fit.rss = float(rr @ rr)

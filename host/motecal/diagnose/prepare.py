@@ -3,7 +3,7 @@ time blocks and noise level.  Pure functions on a ``SessionData``.
 
 * A **segment** is one still orientation: a static pose (label >= 1) or, in
   data without pose labels, a still stretch found by ``motecal.sessions.still`` on
-  every sensor at once (as the importer labels poses), with ``TRIM_S`` left
+  every sensor at once (``calib.content.still_stretches``), with 0.2 s left
   out at both ends: the slow start and end of a smooth move pass the
   stillness thresholds of one 0.4 s window but are not still (judged per
   sensor and untrimmed, they made the motion screen name ``motion`` on 12 of
@@ -27,14 +27,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..calib.content import recording_parts, still_stretches
 from ..sessions.session import HMC5883L_OVERFLOW, LABEL_ROT, SessionData
-from ..sessions.still import segment_recording
 
 SENSORS = ("accel", "gyro", "mag")
 BLOCK_S = 2.0              # time block length (s)
 MIN_SEG_SAMPLES = 20       # shorter still stretches are not used
-TRIM_S = 0.2               # left out at both ends of a still stretch found in unlabelled data
 N_BATCH = 8                # batches for the variance of a segment mean
+QUANT_SIGMA = 1.0 / np.sqrt(12.0)   # rounding to whole counts: the least noise a reading has
 # chips whose value at that code means "overflow" (all three axes)
 OVERFLOW_CODES = {"mag": HMC5883L_OVERFLOW}
 
@@ -88,17 +88,6 @@ class SensorObs:
         return self.sigma_eff[None, :] ** 2 / np.asarray(n, float)[:, None]
 
 
-def recording_parts(data: SessionData) -> np.ndarray:
-    """Per row, the recording (file) it came from: rows of different files are
-    never differenced or joined into one segment."""
-    part = np.zeros(len(data), np.int64)
-    for i, f in enumerate((data.meta or {}).get("files") or []):
-        rows = f.get("rows") if isinstance(f, dict) else None
-        if rows and len(rows) == 2:
-            part[int(rows[0]):int(rows[1])] = i + 1
-    return part
-
-
 def sample_times(data: SessionData) -> np.ndarray:
     """Per row, when the sample was taken (SessionData.sample_times)."""
     return data.sample_times()
@@ -124,19 +113,10 @@ def _table(obs: SensorObs, groups: list[np.ndarray], seg_of: list[int]) -> Table
 
 def still_labels(data: SessionData) -> np.ndarray:
     """Per row, the still stretch 1..K it is in (0: moving) for data without
-    pose labels: ``still.segment_recording`` over every sensor of each
-    recording, ``TRIM_S`` trimmed at both ends (see the module doc)."""
-    lab = np.zeros(len(data), np.int32)
-    if not len(data):
-        return lab
-    part = recording_parts(data)
-    t = sample_times(data)
-    for p in np.unique(part):
-        m = np.flatnonzero(part == p)
-        sub = segment_recording(data.raw[m], t[m], data.rate(), data.scales, trim_s=TRIM_S)
-        sub[sub > 0] += lab.max()
-        lab[m] = sub
-    return lab
+    pose labels: the one judgement ``calibrate`` uses too
+    (``calib.content.still_stretches``: every sensor at once, trimmed at both
+    ends and while the gyroscope still turns)."""
+    return still_stretches(data)
 
 
 def _segments(obs: SensorObs, data_label: np.ndarray, still: np.ndarray) -> tuple[list, bool]:
@@ -279,6 +259,9 @@ def sensor_obs(data: SessionData, sensor: str, dedup: bool = False,
     obs.sigma_eff = effective_sigma(obs, _blocks(obs, groups)[0] if groups else [])
     if not np.all(np.isfinite(obs.sigma_eff)):
         obs.sigma_eff = obs.sigma.copy()
+    # a reading is an integer count: even a stuck (constant) axis is known no
+    # better than its rounding (1/sqrt(12) counts), so no weight is infinite
+    obs.sigma = np.fmax(obs.sigma, QUANT_SIGMA)
     # a mean can never be better known than white noise says
     obs.sigma_eff = np.fmax(obs.sigma_eff, obs.sigma)
     moving = np.ones(obs.n, bool)

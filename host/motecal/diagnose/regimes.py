@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..calib.gate import hull_depth
+from ..calib.gate import LIMITS as GATE_LIMITS, coverage_reasons, set_metrics
 from ..maths.sphere import distinct_directions
 from . import structure as ST
 from .prepare import SensorObs
@@ -29,18 +29,23 @@ def regime(obs: SensorObs) -> str | None:
     return None
 
 
-MIN_SWEEP_HULL = 0.2    # a sweep's directions must surround its centre this deep
+def sweep_reasons(obs: SensorObs) -> list:
+    """Why the readings cannot determine a magnetometer model as a sweep, by
+    the very rule ``calibrate`` and its gate apply (``gate.set_metrics`` +
+    ``gate.coverage_reasons``: directions from the best-fitting sphere's
+    centre must surround it, hull depth >= 0.3, and fill >= 80 % of the
+    sphere's equal-area cells); empty when they can.  A turn about one axis
+    (a circle), a cap, or a few poses' worth of readings cannot: no
+    calibration term is then tested or claimed."""
+    x = obs.x[~obs.overflow]
+    if len(x) < 10:
+        return ["fewer than 10 readings"]
+    x = x[:: max(1, len(x) // 4000)] / obs.K
+    return coverage_reasons(set_metrics(x, None), 0, GATE_LIMITS)
 
 
 def sweep_surrounds(obs: SensorObs) -> bool:
-    """Do the readings' directions (from the mid-range centre) surround it?
-    A turn about one axis draws a circle: offsets and scales along that axis
-    are then not identifiable and no calibration term can be tested."""
-    x = obs.x[~obs.overflow]
-    if len(x) < 10:
-        return False
-    c = 0.5 * (np.percentile(x, 1, axis=0) + np.percentile(x, 99, axis=0))
-    return hull_depth((x - c)[:: max(1, len(x) // 2000)]) >= MIN_SWEEP_HULL
+    return not sweep_reasons(obs)
 
 
 def shared_rows(a: SensorObs | None, b: SensorObs | None) -> bool:

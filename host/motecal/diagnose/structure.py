@@ -508,6 +508,14 @@ def _fit_subset(pts, spec, trange, keep):
     return F.fit_linear(X[keep], pts["Y"][keep], pts["W"][keep], names, groups), X
 
 
+def _nanmean(x) -> float:
+    """Mean of the finite values; NaN (quietly) when there are none (a fold
+    whose blocks all lie in orientations with no training block)."""
+    x = np.asarray(x, float)
+    ok = np.isfinite(x)
+    return float(x[ok].mean()) if ok.any() else float("nan")
+
+
 def _heldout_linear(st: Structure, obs: SensorObs, fit_fn):
     pts = st.points
     fold = pts["fold"]
@@ -525,12 +533,13 @@ def _heldout_linear(st: Structure, obs: SensorObs, fit_fn):
                 if not np.any((pts["cgroup"] == g) & ~te):
                     usable &= pts["cgroup"] != g
             r[usable] = pts["Y"][usable] - X[usable] @ fk.beta
-        out[spec] = float(np.sqrt(np.nanmean(r * r))) / obs.K
-        folds[spec] = np.array([np.nanmean(r[fold == f] ** 2) for f in np.unique(fold)])
+        out[spec] = float(np.sqrt(_nanmean(r * r))) / obs.K
+        folds[spec] = np.array([_nanmean(r[fold == f] ** 2) for f in np.unique(fold)])
     for c in st.accepted:
         st.heldout[cause_of(c)] = (out[full - {c}], out[full])
         st.fold_wins[cause_of(c)] = int(np.sum(folds[full] < folds[full - {c}]))
     st.heldout_total = (out[frozenset()], out[full])
+    st.fold_ms = folds
 
 
 # ---------------------------------------------------------------------------
@@ -552,6 +561,9 @@ def censored_residuals(fit: F.MagnitudeFit, X, T, clip: list) -> np.ndarray:
         rk = fit.residuals(Xk, np.full(len(grid), T[k]))
         r[k] = 0.0 if rk.min() <= 0.0 <= rk.max() else rk[np.argmin(np.abs(rk))]
     return r
+
+
+FULLY_CLIPPED = 0.97      # a pose clipped in this share of its readings is censored
 
 
 def saturation_gain(st: Structure, obs: SensorObs, clip_rows: np.ndarray, limits: list):
@@ -580,6 +592,22 @@ def saturation_gain(st: Structure, obs: SensorObs, clip_rows: np.ndarray, limits
     isclip = np.array([c is not None for c in clip])
     if not isclip.any():
         return None
+    # a pose only partly clipped (noise around the limit) has a known true
+    # mean: with white noise sigma, the clipped share f = P(beyond L) gives
+    # mu = L - side sigma Phi^-1(1 - f) (a Tobit estimate); only poses
+    # clipped (nearly) throughout are censored
+    from scipy.stats import norm
+    Xa = X.copy()
+    for k, c in enumerate(clip):
+        if c is None:
+            continue
+        a, side, L = c
+        rows = obs.segs.rows[pts["group"][k]]
+        f = float(np.mean(obs.x[rows, a] == L))
+        if 0.0 < f < FULLY_CLIPPED:
+            Xa[k, a] = L - side * obs.sigma[a] * norm.ppf(1.0 - f)
+            clip[k] = None
+    isclip = np.array([c is not None for c in clip])
     spec = frozenset(st.accepted)
     V = residual_variance(st.fit, X, T, pts["var"])
     W = 1.0 / np.sqrt(V)
@@ -592,8 +620,9 @@ def saturation_gain(st: Structure, obs: SensorObs, clip_rows: np.ndarray, limits
         fb = _spec_fit(st.sensor, obs.K, X[tr], T[tr], W[tr], spec, trange, Jf, start=st.fit)
         rb[te] = fb.residuals(X[te], T[te])
         tra = tr & ~isclip
-        fa = _spec_fit(st.sensor, obs.K, X[tra], T[tra], W[tra], spec, trange, Jf, start=st.fit)
-        ra[te] = censored_residuals(fa, X[te], T[te], [c for c, m in zip(clip, te) if m])
+        fa = _spec_fit(st.sensor, obs.K, Xa[tra], T[tra], W[tra], spec, trange, Jf,
+                       start=st.fit)
+        ra[te] = censored_residuals(fa, Xa[te], T[te], [c for c, m in zip(clip, te) if m])
     b = float(np.sqrt(np.nanmean(rb ** 2)))
     a = float(np.sqrt(np.nanmean(ra ** 2)))
     return (b / a if a > 0 else float("inf")), b, a
@@ -618,6 +647,7 @@ def random_walk(st: Structure, obs: SensorObs) -> dict | None:
     from scipy.optimize import minimize_scalar
     sig = np.zeros(3)
     chi2 = 0.0
+    lr = 0.0
     for a in range(3):
         y = pts["Y"][:, a]
         D = np.diag(1.0 / pts["W"][:, a] ** 2)
@@ -640,8 +670,10 @@ def random_walk(st: Structure, obs: SensorObs) -> dict | None:
         lo, hi = np.log(base * 1e-6), np.log(base * 1e4)
         res = minimize_scalar(nll, bounds=(lo, hi), method="bounded")
         s2 = float(np.exp(res.x))
-        if nll(lo) <= res.fun + 1e-9:
+        nll0 = nll(lo)
+        if nll0 <= res.fun + 1e-9:
             s2 = 0.0
+        lr += 2.0 * max(0.0, nll0 - float(res.fun))
         S = D + s2 * B
         L = np.linalg.cholesky(S)
         Xw = np.linalg.solve(L, Xd)
@@ -652,4 +684,60 @@ def random_walk(st: Structure, obs: SensorObs) -> dict | None:
         sig[a] = np.sqrt(s2)
     dof = 3 * (k - p) - 3
     return {"sigma_counts_per_sqrt_s": sig, "chi2": chi2, "dof": dof,
-            "excess": F.chi2_excess(chi2, dof)}
+            "excess": F.chi2_excess(chi2, dof), "lr": lr, "lr_p": variance_lr_p(lr, 3)}
+
+
+def variance_lr_p(lr: float, m: int) -> float:
+    """p-value of a restricted likelihood-ratio statistic summed over ``m``
+    independent variance components tested at the boundary (each 50:50
+    chi-square 0 / 1 under the null: the sum is a binomial mixture)."""
+    from math import comb
+
+    from scipy import stats as _st
+    if lr <= 0:
+        return 1.0
+    return float(sum(comb(m, j) / 2.0 ** m * _st.chi2.sf(lr, j) for j in range(1, m + 1)))
+
+
+def heldout_random_walk(st: Structure, obs: SensorObs, sigma) -> tuple | None:
+    """Held-out rms (sensor unit) of the final linear model *with* a random
+    walk of intensity ``sigma`` (counts/sqrt(s) per axis) on top: per fold,
+    the design's coefficients by generalised least squares on the other
+    blocks (covariance D + s^2 min(t, t')), and each held-out block predicted
+    by the design plus the walk's conditional mean given the other blocks
+    (kriging; the best prediction a random-walk model can make).  Returns
+    (rms, per-fold mean squares) or None."""
+    pts = st.points
+    Xd, _, _ = _design(pts, frozenset(st.accepted), pts["trange"])
+    T = pts["T"] - pts["T"].min()
+    B = np.minimum(T[:, None], T[None, :])
+    fold = pts["fold"]
+    sigma = np.broadcast_to(np.asarray(sigma, float), (3,))
+    r = np.full(pts["Y"].shape, np.nan)
+    for f in np.unique(fold):
+        te = fold == f
+        tr = ~te
+        usable = te.copy()
+        for g in pts["const_groups"]:
+            if not np.any((pts["cgroup"] == g) & tr):
+                usable &= pts["cgroup"] != g
+        cols = np.any(Xd[tr] != 0, axis=0)
+        for a in range(3):
+            y = pts["Y"][:, a]
+            D = 1.0 / pts["W"][:, a] ** 2
+            S = np.diag(D[tr]) + sigma[a] ** 2 * B[np.ix_(tr, tr)]
+            try:
+                L = np.linalg.cholesky(S)
+            except np.linalg.LinAlgError:
+                return None
+            Xw = np.linalg.solve(L, Xd[tr][:, cols])
+            yw = np.linalg.solve(L, y[tr])
+            beta = np.linalg.lstsq(Xw, yw, rcond=None)[0]
+            e = y[tr] - Xd[tr][:, cols] @ beta
+            w = np.linalg.solve(L.T, np.linalg.solve(L, e))
+            pred = Xd[usable][:, cols] @ beta + sigma[a] ** 2 * B[np.ix_(usable, tr)] @ w
+            r[usable, a] = y[usable] - pred
+    if not np.isfinite(r).any():
+        return None
+    ms = np.array([np.nanmean(r[fold == f] ** 2) for f in np.unique(fold)])
+    return float(np.sqrt(np.nanmean(r * r))) / obs.K, ms

@@ -9,7 +9,8 @@ corrects exactly as the firmware does, bit for bit.
 
 Environment: ``CC`` picks the compiler (default ``cc``, then ``gcc``/``clang``),
 ``MOTECAL_CACHE`` the cache directory (default ``~/.cache/motecal``),
-``MOTECAL_TINYOS`` the source directory (default ``<repo>/tinyos``).
+``MOTECAL_TINYOS`` the source directory (default ``firmware/csrc``: a link to
+the repository's ``tinyos/``, copied into the package by ``pip install``).
 """
 from __future__ import annotations
 
@@ -29,8 +30,8 @@ import numpy as np
 from ..errors import UserError
 from ..line import protocol as P
 
-# host/motecal/firmware/mote_c.py -> the repository's tinyos/
-SRC_DIR = Path(os.environ.get("MOTECAL_TINYOS", Path(__file__).resolve().parents[3] / "tinyos"))
+# host/motecal/firmware/csrc -> the repository's tinyos/ (in a wheel: its C files)
+SRC_DIR = Path(os.environ.get("MOTECAL_TINYOS", Path(__file__).resolve().parent / "csrc"))
 CFLAGS = ("-std=c99", "-O2", "-shared", "-fPIC", "-Wall", "-Wextra")
 E_FORMAT = next(c for c, (n, _) in P.CAL_REASONS.items() if n == "NINEDOF_CAL_E_FORMAT")
 REPLY_MAX = 32          # >= the largest reply (ninedof_cal_report_msg, 28 bytes)

@@ -1,8 +1,9 @@
 """The motecal database: sessions, samples, link statistics and calibrations.
 
 ``open_store(target)`` opens a sqlite file (the default) or, with a
-``postgresql://`` URL, a PostgreSQL server.  Both hold the same schema,
-versioned in the ``schema_version`` table and migrated forward on open.
+``postgresql://`` URL, a PostgreSQL server, or with a ``mysql://`` URL a MySQL
+or MariaDB server (store_mysql.py).  All hold the same schema, versioned in
+the ``schema_version`` table and migrated forward on open.
 
 Samples are one row each: session, mote, unwrapped sequence number, host time
 ``t`` (seconds since the session started, NULL if unknown), label (text as in
@@ -258,7 +259,7 @@ class _PostgresBackend:
             import psycopg
         except ImportError:
             raise UserError("a postgresql:// database needs the psycopg package "
-                            "(pip install -r host/requirements.txt)") from None
+                            "(pip install './host[postgres]')") from None
         self.psycopg = psycopg
         self.errors = (psycopg.Error,)
         self.display = _hide_password(url)
@@ -313,12 +314,15 @@ def _hide_password(url: str) -> str:
 def _backend_for(target: str, create: bool):
     if target.startswith(("postgresql://", "postgres://")):
         return _PostgresBackend(target, create)
+    if target.startswith(("mysql://", "mariadb://")):
+        from .store_mysql import MysqlBackend        # its driver only when asked for
+        return MysqlBackend(target, create)
     if target.startswith("sqlite:///"):
         target = target[len("sqlite:///") - 1:] if target.startswith("sqlite:////") \
             else target[len("sqlite:///"):]
     elif "://" in target:
-        raise UserError(f"unsupported database URL {target} (use a sqlite file path "
-                        "or postgresql://...)")
+        raise UserError(f"unsupported database URL {target} (use a sqlite file path, "
+                        "postgresql://... or mysql://...)")
     return _SqliteBackend(target, create)
 
 
@@ -822,15 +826,15 @@ class SessionWriter:
 
 
 def open_store(target: str, *, create: bool = False) -> Store:
-    """Open a motecal database: a sqlite file path (or ``sqlite:///path``) or a
-    ``postgresql://`` URL.  ``create`` makes a new sqlite file if there is none.
+    """Open a motecal database: a sqlite file path (or ``sqlite:///path``), a
+    ``postgresql://`` or a ``mysql://`` URL.  ``create`` makes a new sqlite file if there is none.
     Problems (missing, unwritable, not a motecal database, newer schema) raise
     UserError with one line."""
     if not target:
         raise UserError("no database given (--db FILE)")
     backend = _backend_for(str(target), create)
     try:
-        return Store(backend, create=create or backend.name == "postgresql")
+        return Store(backend, create=create or backend.name != "sqlite")
     except BaseException:
         backend.close()
         raise

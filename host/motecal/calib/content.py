@@ -1,0 +1,127 @@
+"""What a session's rows contain, judged once for ``calibrate``, its gate and
+``diagnose`` (issue 13): the still stretches and how many distinct
+orientations they cover, whatever the labels say.
+
+A recording's labels come from how it was made (the guided logger's poses)
+or from the importer's still-fraction rule, which calls a recording a
+rotation when most rows move.  People holding a board by hand take longer to
+move between poses than to hold each (the paper's 1.6 s holds): such a
+session is mostly moving, yet its still stretches are poses.  So the kind is
+decided from the data: still stretches found on every sensor at once
+(``still.segment_recording``), trimmed at both ends, and trimmed further
+while the gyroscope still turns (the slow tail of a long, smooth move passes
+a stillness test on the spread of readings); when they cover at least
+``MIN_POSE_ORIENTATIONS`` distinct orientations, the session holds poses --
+and it may hold a sweep too (the rows between them, judged by the gate's
+coverage rule).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..maths.sphere import distinct_directions
+from ..sessions.session import LABEL_ROT, SessionData
+from ..sessions.still import StillThresholds, segment_recording
+
+TRIM_S = 0.2               # left out at both ends of a still stretch
+MIN_STILL_S = 0.6          # shortest still stretch kept (hand-held poses of 1.6 s, trimmed)
+MIN_SEG_SAMPLES = 20       # and at least this many rows
+TURN_AVG_S = 0.5           # the gyro rate averaged over this long at a stretch's ends ...
+TURN_DPS = 0.5             # ... must be within this of its median: else still turning
+MIN_POSE_ORIENTATIONS = 6  # still stretches covering this many orientations are poses
+
+
+def recording_parts(data: SessionData) -> np.ndarray:
+    """Per row, the recording (file) it came from: rows of different files are
+    never joined into one stretch."""
+    part = np.zeros(len(data), np.int64)
+    for i, f in enumerate((data.meta or {}).get("files") or []):
+        rows = f.get("rows") if isinstance(f, dict) else None
+        if rows and len(rows) == 2:
+            part[int(rows[0]):int(rows[1])] = i + 1
+    return part
+
+
+def still_stretches(data: SessionData) -> np.ndarray:
+    """Per row, the still stretch 1..K it is in (0: moving), see the module doc."""
+    lab = np.zeros(len(data), np.int32)
+    if not len(data):
+        return lab
+    part = recording_parts(data)
+    t = data.sample_times()
+    th = StillThresholds(min_still_s=MIN_STILL_S)
+    for p in np.unique(part):
+        m = np.flatnonzero(part == p)
+        sub = segment_recording(data.raw[m], t[m], data.rate(), data.scales, th, trim_s=TRIM_S)
+        sub = trim_turning(sub, data.raw[m], data.rate(), data.scales)
+        sub[sub > 0] += lab.max()
+        lab[m] = sub
+    return lab
+
+
+def trim_turning(lab: np.ndarray, raw: np.ndarray, rate: float, scales) -> np.ndarray:
+    """Trim each stretch's ends while the gyroscope still turns: the rate,
+    averaged over ``TURN_AVG_S``, must be within ``TURN_DPS`` of the
+    stretch's own median (its bias).  Stretches left shorter than
+    ``MIN_SEG_SAMPLES`` are dropped; numbers stay 1..K."""
+    g = raw[:, 3:6]
+    if np.isnan(g).all() or not (lab > 0).any():
+        return lab
+    K = float((scales or {}).get("gyro", 14.375))
+    w = max(1, int(round(TURN_AVG_S * rate)))
+    out = np.zeros_like(lab)
+    k = 0
+    for s in np.unique(lab[lab > 0]):
+        idx = np.flatnonzero(lab == s)
+        x = g[idx] / K
+        if np.isnan(x).any() or len(idx) < 2 * w:
+            keep = idx
+        else:
+            q = len(idx) // 4
+            med = np.median(x[q:len(idx) - q] if len(idx) - 2 * q >= w else x, axis=0)
+            c = np.cumsum(np.vstack([np.zeros(3), x - med]), axis=0)
+            lo = np.clip(np.arange(len(idx)) - w // 2, 0, len(idx) - w)
+            ok = np.linalg.norm((c[lo + w] - c[lo]) / w, axis=1) <= TURN_DPS
+            if not ok.any():
+                continue
+            a, b = int(np.argmax(ok)), len(ok) - int(np.argmax(ok[::-1]))
+            keep = idx[a:b]
+        if len(keep) >= MIN_SEG_SAMPLES:
+            k += 1
+            out[keep] = k
+    return out
+
+
+def stretch_orientations(data: SessionData, lab: np.ndarray) -> int:
+    """Distinct orientations (gravity directions >= 10 deg apart) that the
+    stretches ``lab`` cover; 0 without an accelerometer."""
+    acc = data.has("accel")
+    ks = [k for k in np.unique(lab[lab > 0]) if (acc & (lab == k)).any()]
+    if not ks:
+        return 0
+    x = data.sensor("accel")
+    means = np.array([x[acc & (lab == k)].mean(axis=0) for k in ks])
+    return int(distinct_directions(means))
+
+
+def poses_from_stillness(data: SessionData) -> tuple[SessionData, str | None]:
+    """A session without pose labels whose still stretches cover at least
+    ``MIN_POSE_ORIENTATIONS`` distinct orientations holds static poses: a
+    copy with those stretches labelled 1..K (rows labelled a rotation keep
+    that label between them, so a recording can be both), and a note saying
+    so.  Anything else is returned as it is, with None."""
+    if not len(data) or (data.label >= 1).any():
+        return data, None
+    lab = still_stretches(data)
+    n = stretch_orientations(data, lab)
+    if n < MIN_POSE_ORIENTATIONS:
+        return data, None
+    label = data.label.copy()
+    label[lab > 0] = lab[lab > 0]
+    was = "a rotation" if (data.label == LABEL_ROT).any() else "unlabelled"
+    note = (f"static poses found in the data: {int(lab.max())} still stretches covering {n} "
+            f"distinct orientations (the recording was labelled {was}); the rows between "
+            f"them stay {'the sweep' if was == 'a rotation' else 'unlabelled'}")
+    return dataclasses.replace(data, label=label), note

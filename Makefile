@@ -24,7 +24,7 @@ SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 DEMO_DIR ?= demo-out
 
-.PHONY: all venv sysdeps demodeps test demo bench emulate clean
+.PHONY: all venv sysdeps demodeps test demo bench emulate release-check fault-matrix clean
 
 all: test
 
@@ -72,6 +72,16 @@ bench: venv sysdeps
 EMULATE_ARGS ?=
 emulate: venv sysdeps
 	TINYOS_ROOT_DIR="$(TINYOS_ROOT_DIR)" $(PY) emu/emulate.py $(EMULATE_ARGS)
+
+# the release check (outside CI): 3 motes + BaseStation emulated, guided static80 log,
+# calibrate --upload, reset, corrected samples; and the fault cases (docs/emulation.md)
+RELEASE_ARGS ?=
+release-check: venv sysdeps
+	TINYOS_ROOT_DIR="$(TINYOS_ROOT_DIR)" $(PY) emu/release_check.py $(RELEASE_ARGS)
+
+FAULT_ARGS ?=
+fault-matrix: venv sysdeps
+	TINYOS_ROOT_DIR="$(TINYOS_ROOT_DIR)" $(PY) emu/fault_matrix.py $(FAULT_ARGS)
 
 clean:
 	rm -rf $(VENV) $(DEMO_DIR) build .pytest_cache emu/build

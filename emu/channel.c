@@ -46,6 +46,11 @@ static uint64_t rng_next(emu_channel_t *ch)
     return z ^ (z >> 31);
 }
 
+void channel_set_loss(emu_channel_t *ch, double loss_rate)
+{
+    ch->loss = loss_rate < 0 ? 0 : loss_rate > 1 ? 1 : loss_rate;
+}
+
 double channel_random(emu_channel_t *ch)
 {
     return (double)(rng_next(ch) >> 11) * (1.0 / 9007199254740992.0);

@@ -21,6 +21,8 @@
 typedef struct emu_channel emu_channel_t;
 
 emu_channel_t *channel_new(double loss_rate, uint32_t seed);
+/* change the loss rate from now on (the harness's `loss P` control command) */
+void channel_set_loss(emu_channel_t *ch, double loss_rate);
 void channel_step(emu_channel_t *ch, uint64_t now_ns);
 void channel_free(emu_channel_t *ch);
 /* one line: frames sent, collided, deliveries, losses (all radios) */

@@ -44,6 +44,7 @@ typedef struct emu_node {
     uint64_t span_open;            /* cycle FROM was entered, 0: none */
     uint64_t span_n, span_settle_cycle;
     double   span_sum, span_min, span_max;   /* us */
+    uint32_t resets;       /* node_reset calls */
 } emu_node_t;
 
 /* emulated time of a node in nanoseconds: avr->cycle * 1e9 / avr->frequency */

@@ -5,6 +5,7 @@
 
 #include "faults.h"
 #include "twi.h"
+#include "uart.h"
 
 static int chip_index(const char *name)
 {
@@ -35,6 +36,8 @@ int fault_apply(const char *spec, emu_node_t **nodes, int n)
     int c = -1;
     if (sscanf(buf, "hang:%lf:%lf", &t0, &d) == 2) {
         strcpy(kind, "hang");
+    } else if (sscanf(buf, "unread:%lf:%lf", &t0, &d) == 2) {
+        strcpy(kind, "unread");
     } else if (sscanf(buf, "%15[a-z]:%15[a-z0-9]:%lf:%lf", kind, chip, &t0, &d) == 4
                && (!strcmp(kind, "nack") || !strcmp(kind, "power"))) {
         c = chip_index(chip);
@@ -46,6 +49,19 @@ int fault_apply(const char *spec, emu_node_t **nodes, int n)
     if (!(t0 >= 0) || !(d > 0))
         goto bad;
     uint64_t from = (uint64_t)(t0 * 1e9), until = (uint64_t)((t0 + d) * 1e9);
+    if (!strcmp(kind, "unread")) {    /* the host stops reading the serial line */
+        int any = 0;
+        for (int i = 0; i < n; i++)
+            if (nodes[i]->uart && (only < 0 || i == only)) {
+                uart_set_unread(nodes[i], from, until);
+                any = 1;
+            }
+        if (!any) {
+            fprintf(stderr, "ninedof-emu: --fault '%s': no node has a serial port (--serial)\n", spec);
+            return -1;
+        }
+        return 0;
+    }
     for (int i = 0; i < n; i++) {
         emu_twi_t *t = nodes[i]->twi;
         if (!t || (only >= 0 && i != only))
@@ -60,7 +76,7 @@ int fault_apply(const char *spec, emu_node_t **nodes, int n)
     }
     return 0;
 bad:
-    fprintf(stderr, "ninedof-emu: bad --fault '%s' (nack:CHIP:T:D, power:CHIP:T:D or hang:T:D, "
+    fprintf(stderr, "ninedof-emu: bad --fault '%s' (nack:CHIP:T:D, power:CHIP:T:D, hang:T:D or unread:T:D, "
             "seconds, optional @NODE; CHIP adxl345|itg3200|hmc5883l)\n", spec);
     return -1;
 }

@@ -10,6 +10,8 @@
  *   power:CHIP:T:D    CHIP loses power at T, back after D with its reset
  *                     register values (NACKs everything meanwhile)
  *   hang:T:D          SDA held low from T for D seconds (bus hang)
+ *   unread:T:D        the host does not read the serial line (--serial) from T
+ *                     for D seconds: what the MCU sends meanwhile is dropped
  * Returns 0, or -1 with a message on stderr. */
 int fault_apply(const char *spec, emu_node_t **nodes, int n);
 

@@ -4,7 +4,16 @@
  *   ninedof-emu --mote ELF[,id=N,mhz=F,xtal_ppm=P,board=FILE] ... [--base ELF[,...]]
  *               [--serial pty|tcp:PORT|null] [--loss P] [--seed N] [--seconds S]
  *               [--fault SPEC] ... [--settle S] [--twi-log FILE] [--console FILE]
- *               [--report json|text]
+ *               [--reset T[@I]] ... [--control] [--report json|text]
+ *
+ * --reset T[@I]: reset sensor mote index I (every sensor mote without @I)
+ * at T s of emulated time, keeping its EEPROM (node_reset).
+ * --control: read commands from stdin while running, one a line:
+ *   reset I|motes [D]   reset node index I (or every sensor mote) D emulated s from now
+ *   loss P              the radio channel's loss rate from now on
+ *   time                print "time T" (emulated seconds) on stdout
+ *   stop                end the run (the report follows)
+ * Each reset prints "reset node I (id N) at T s" on stdout.
  *
  * Every node runs on Debian's libsimavr (ATmega1281) with the harness's
  * TWI model and chip models (sensor motes), the 32768 Hz crystal on
@@ -12,6 +21,9 @@
  * time) and its own RC clock (mhz=).  docs/emulation.md.
  */
 #include <errno.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <unistd.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,6 +34,7 @@
 #include "board.h"
 #include "faults.h"
 #include "radio_api.h"
+#include "channel.h"
 
 #define MAX_NODES 32
 
@@ -39,7 +52,7 @@ static void usage(void)
             "       [--base ELF[,id=N,mhz=F,xtal_ppm=P]]\n"
             "       [--serial pty|tcp:PORT|null] [--loss P] [--seed N] [--seconds S]\n"
             "       [--fault SPEC] ... [--settle S] [--twi-log FILE] [--console FILE]\n"
-            "       [--span FROM:TO] [--report json|text]\n");
+            "       [--span FROM:TO] [--reset T[@I]] ... [--control] [--report json|text]\n");
 }
 
 static int bad(const char *what, const char *arg)
@@ -107,6 +120,83 @@ static const char *state_name(int st)
     }
 }
 
+/* resets to do: at time at_ns, node index (or -1: every sensor mote) */
+typedef struct { uint64_t at_ns; int node; int done; } reset_t;
+#define MAX_RESETS 256
+static reset_t g_resets[MAX_RESETS];
+static int g_nresets;
+
+static int add_reset(uint64_t at_ns, int node)
+{
+    if (g_nresets == MAX_RESETS)
+        return -1;
+    g_resets[g_nresets++] = (reset_t){ at_ns, node, 0 };
+    return 0;
+}
+
+static int pending_resets(void)
+{
+    for (int r = 0; r < g_nresets; r++)
+        if (!g_resets[r].done)
+            return 1;
+    return 0;
+}
+
+/* one command line from --control (stdin); 1 when it asks to stop */
+static int control_line(char *line, int nspec, emu_channel_t *ch)
+{
+    char what[16] = "";
+    double a = 0;
+    if (sscanf(line, "reset %15s %lf", what, &a) >= 1) {
+        char *end;
+        long i = strtol(what, &end, 10);
+        int node = !strcmp(what, "motes") ? -1 : (*end || i < 0 || i >= nspec) ? -2 : (int)i;
+        if (node == -2 || !(a >= 0) || add_reset(g_now_ns + (uint64_t)(a * 1e9), node) < 0)
+            fprintf(stdout, "error: bad control command: %s\n", line);
+    } else if (sscanf(line, "loss %lf", &a) == 1 && a >= 0 && a <= 1 && ch) {
+        channel_set_loss(ch, a);
+        fprintf(stdout, "loss %g at %.6f s\n", a, g_now_ns / 1e9);
+    } else if (!strncmp(line, "time", 4)) {
+        fprintf(stdout, "time %.6f\n", g_now_ns / 1e9);
+    } else if (!strncmp(line, "stop", 4)) {
+        return 1;
+    } else if (line[0]) {
+        fprintf(stdout, "error: bad control command: %s\n", line);
+    }
+    fflush(stdout);
+    return 0;
+}
+
+/* poll stdin without blocking; 1 when a command asked to stop */
+static int control_poll(int *open_, int nspec, emu_channel_t *ch)
+{
+    static char buf[1024];
+    static size_t have;
+    struct pollfd p = { .fd = 0, .events = POLLIN };
+    while (*open_ && poll(&p, 1, 0) > 0) {
+        ssize_t got = read(0, buf + have, sizeof buf - 1 - have);
+        if (got <= 0) {
+            *open_ = 0;          /* stdin closed: keep running to --seconds */
+            break;
+        }
+        have += (size_t)got;
+        buf[have] = 0;
+        char *nl;
+        while ((nl = strchr(buf, '\n'))) {
+            *nl = 0;
+            int stop = control_line(buf, nspec, ch);
+            size_t used = (size_t)(nl + 1 - buf);
+            memmove(buf, nl + 1, have - used + 1);
+            have -= used;
+            if (stop)
+                return 1;
+        }
+        if (have == sizeof buf - 1)
+            have = 0;
+    }
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     node_spec_t specs[MAX_NODES];
@@ -117,6 +207,9 @@ int main(int argc, char **argv)
     int nfault = 0;
     double loss = 0, seconds = 10, settle = -1;
     unsigned long seed = 1;
+    int control = 0;
+    const char *reset_args[MAX_RESETS];
+    int nreset_args = 0;
 
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
@@ -125,6 +218,10 @@ int main(int argc, char **argv)
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
             usage();
             return 0;
+        }
+        if (!strcmp(a, "--control")) {
+            control = 1;
+            continue;
         }
         if (!v) {
             usage();
@@ -176,6 +273,10 @@ int main(int argc, char **argv)
             memcpy(span_from, v, (size_t)(colon - v));
             span_from[colon - v] = 0;
             strcpy(span_to, colon + 1);
+        } else if (!strcmp(a, "--reset")) {
+            if (nreset_args == MAX_RESETS)
+                return bad("--reset count", v);
+            reset_args[nreset_args++] = v;
         } else if (!strcmp(a, "--twi-log")) {
             twi_log = v;
         } else if (!strcmp(a, "--console")) {
@@ -235,6 +336,23 @@ int main(int argc, char **argv)
     for (int f = 0; f < nfault; f++)
         if (fault_apply(faults[f], nodes, nspec) < 0)
             return 2;
+    for (int r = 0; r < nreset_args; r++) {
+        const char *v = reset_args[r];
+        char *end;
+        double t = strtod(v, &end);
+        long node = -1;
+        if (*end == '@')
+            node = end[1] >= '0' && end[1] <= '9' ? strtol(end + 1, &end, 10) : -2;
+        if (end == v || *end || !(t >= 0) || node < -1 || node >= nspec
+            || (node >= 0 && node == base))
+            return bad("--reset (T or T@I: seconds, a sensor mote's node index)", v);
+        add_reset((uint64_t)(t * 1e9), (int)node);
+    }
+    int stdin_open = control;
+    if (control) {
+        setvbuf(stdout, NULL, _IOLBF, 0);
+        fcntl(0, F_SETFL, fcntl(0, F_GETFL) | O_NONBLOCK);
+    }
 
     /* lockstep: every node runs to the end of each quantum, then the channel */
     uint64_t end_ns = (uint64_t)(seconds * 1e9);
@@ -243,9 +361,27 @@ int main(int argc, char **argv)
     int settled = 0, state[MAX_NODES];
     for (int i = 0; i < nspec; i++)
         state[i] = cpu_Running;
+    uint64_t quanta = 0;
     while (g_now_ns < end_ns) {
         uint64_t q = g_now_ns + EMU_QUANTUM_NS;
         int live = 0;
+        if (control && ++quanta % 250 == 0 && control_poll(&stdin_open, nspec, ch))
+            break;            /* every 1 ms of emulated time */
+        for (int r = 0; r < g_nresets; r++) {
+            reset_t *rs = &g_resets[r];
+            if (rs->done || rs->at_ns > g_now_ns)
+                continue;
+            rs->done = 1;
+            for (int i = 0; i < nspec; i++) {
+                if ((rs->node >= 0 && i != rs->node) || (rs->node < 0 && i == base))
+                    continue;
+                node_reset(nodes[i]);
+                state[i] = nodes[i]->avr->state;
+                fprintf(stdout, "reset node %d (id %u) at %.6f s\n", i, nodes[i]->am_addr,
+                        g_now_ns / 1e9);
+                fflush(stdout);
+            }
+        }
         for (int i = 0; i < nspec; i++) {
             if (state[i] == cpu_Done || state[i] == cpu_Crashed)
                 continue;
@@ -270,7 +406,7 @@ int main(int argc, char **argv)
                 sleep0[i] = nodes[i]->sleep_cycles;
             }
         }
-        if (!live)
+        if (!live && !pending_resets() && !stdin_open)
             break;
     }
     for (int i = 0; i < nspec; i++)
@@ -300,10 +436,10 @@ int main(int argc, char **argv)
         if (json) {
             fprintf(out, "%s\n {\"index\": %d, \"id\": %u, \"role\": \"%s\", \"elf\": \"%s\", "
                     "\"mhz\": %.4f, \"rom\": %u, \"ram\": %u, \"state\": \"%s\", \"cycles\": %llu, "
-                    "\"cpu_load\": %.5f, \"radio\": %s",
+                    "\"cpu_load\": %.5f, \"resets\": %u, \"radio\": %s",
                     i ? "," : "", i, n->am_addr, n->is_base ? "base" : "mote", n->elf,
                     n->freq_hz / 1e6, n->rom_bytes, n->ram_bytes, state_name(state[i]),
-                    (unsigned long long)n->avr->cycle, load, n->rf ? "true" : "false");
+                    (unsigned long long)n->avr->cycle, load, n->resets, n->rf ? "true" : "false");
             if (t) {
                 fprintf(out, ", \"samples\": %llu, \"samples_after_settle\": %llu, "
                         "\"reads_per_s\": %.4f, \"first_sample_s\": %.6f, "

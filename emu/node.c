@@ -11,6 +11,9 @@
 #include "sim_core.h"
 #include "avr_uart.h"
 #include "avr_timer.h"
+#include "avr_eeprom.h"
+
+#include "twi.h"
 
 #include "node.h"
 
@@ -259,4 +262,24 @@ int node_run_until(emu_node_t *n, uint64_t end_ns)
             return st;
     }
     return avr->state;
+}
+
+int node_reset(emu_node_t *n)
+{
+    /* the ATmega1281's EEPROM keeps its bytes through a reset; simavr 1.6's
+     * avr_reset leaves its EEPROM alone too, but the harness saves and
+     * restores the 4 KB anyway, so a later simavr cannot change that */
+    static uint8_t ee[4096];
+    avr_eeprom_desc_t d = { .ee = ee, .offset = 0, .size = sizeof ee };
+    int saved = avr_ioctl(n->avr, AVR_IOCTL_EEPROM_GET, &d) == 0;
+    avr_reset(n->avr);            /* I/O registers, SP, PC, SREG, interrupts, timers */
+    if (saved) {
+        d.ee = ee;
+        avr_ioctl(n->avr, AVR_IOCTL_EEPROM_SET, &d);
+    }
+    if (n->twi)
+        twi_reset(n->twi);
+    n->span_open = 0;
+    n->resets++;
+    return saved ? 0 : -1;
 }

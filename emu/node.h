@@ -29,6 +29,14 @@ uint32_t node_symbol(const emu_node_t *n, const char *name);
  * message when the image lacks one of them. */
 int node_span(emu_node_t *n, const char *from, const char *to, uint64_t settle_ns);
 
+/* Reset the MCU as its RESET pin would (simavr's avr_reset: registers,
+ * PC 0, interrupts and cycle timers cleared; RAM as it was; the program's
+ * start-up code runs again), keeping its EEPROM and the time.  The TWI
+ * model cuts a transfer in progress; the board's chips and the radio
+ * (reset by the firmware's RSTN) are not reset.  0, or -1 if the EEPROM
+ * could not be saved (it is then what simavr left). */
+int node_reset(emu_node_t *n);
+
 /* cycles at the node's clock for a time in ns, and back */
 uint64_t node_ns_to_cycles(const emu_node_t *n, uint64_t ns);
 

@@ -245,6 +245,18 @@ static avr_cycle_count_t twi_event(avr_t *avr, avr_cycle_count_t when, void *par
 }
 
 /* ---- register writes ----------------------------------------------------- */
+static void twi_disable(emu_twi_t *t);
+
+void twi_reset(emu_twi_t *t)
+{
+    twi_disable(t);       /* the MCU's reset: a transfer is cut off, no STOP */
+    burst_close(t);
+    t->node->avr->data[R_TWSR] = 0xF8;
+    t->node->avr->data[R_TWBR] = 0;
+    t->node->avr->data[R_TWCR] = 0;
+    t->node->avr->data[R_TWDR] = 0xFF;
+}
+
 static void twi_disable(emu_twi_t *t)
 {
     avr_t *avr = t->node->avr;

@@ -65,6 +65,10 @@ typedef struct emu_twi {
 emu_twi_t *twi_attach(emu_node_t *n, emu_board_t *board, FILE *log);
 /* Close the last burst (end of the run). */
 void twi_finish(emu_twi_t *t);
+/* the MCU was reset: a transfer in progress is cut off (the slave sees no
+ * STOP), the TWI registers hold their reset values; the chips keep theirs
+ * (the sensor board is not reset with the MCU) */
+void twi_reset(emu_twi_t *t);
 /* SCL period in CPU cycles for the current TWBR / TWPS */
 uint32_t twi_period_cycles(const emu_twi_t *t);
 

@@ -64,7 +64,8 @@ def run(exe: Path, args: list[str], *, timeout: float = 300) -> dict:
                          text=True, timeout=timeout)
     if res.returncode != 0:
         raise RuntimeError(f"ninedof-emu {' '.join(args)}: exit {res.returncode}\n{res.stderr}")
-    return json.loads(res.stdout)
+    out = res.stdout
+    return json.loads(out[out.index('{"seconds"'):])     # lines before it: resets
 
 
 def read_log(path: Path) -> list[tuple[int, int, str]]:

@@ -1,0 +1,90 @@
+"""The release check and the fault matrix (emu/release_check.py,
+emu/fault_matrix.py) run the real images outside CI; here, without nesC:
+bad input gives one line and exit 2, and the fault matrix's analysis of
+what the host received (losses, stale records, time to recover, status
+counters) on a planted stream."""
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import emusim
+from motecal.line import protocol as P
+
+sys.path.insert(0, str(emusim.EMU))
+import fault_matrix as FM  # noqa: E402
+
+
+def _run(script, *args, env_root=None):
+    env = {k: v for k, v in os.environ.items() if k != "TINYOS_ROOT_DIR"}
+    if env_root:
+        env["TINYOS_ROOT_DIR"] = env_root
+    return subprocess.run([sys.executable, str(emusim.EMU / script), *args], capture_output=True,
+                          text=True, env=env, timeout=60)
+
+
+@pytest.mark.parametrize("script,args,needle", [
+    ("release_check.py", [], "TINYOS_ROOT_DIR is not set"),
+    ("release_check.py", ["--mote-elf", "x", "--base-elf", "y", "--loss", "2"], "--loss"),
+    ("fault_matrix.py", [], "TINYOS_ROOT_DIR is not set"),
+    ("fault_matrix.py", ["--mote-elf", "x", "--base-elf", "y", "--fault-at", "1"], "--fault-at"),
+])
+def test_bad_input_one_line(script, args, needle, tmp_path):
+    res = _run(script, *args)
+    assert res.returncode == 2, res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1 and needle in res.stderr
+    assert "Traceback" not in res.stderr
+
+
+def _samples(seq, recs):
+    return P.encode_am(P.AMPacket(0xFFFF, 1, 0x22, P.AM_NINEDOF_SAMPLES_MSG,
+                                  P.pack_samples(seq, 0, np.asarray(recs))))
+
+
+def _status(vals):
+    payload = (vals[0].to_bytes(2, "big") + vals[1].to_bytes(2, "big") + bytes((vals[2], 0))
+               + b"".join(v.to_bytes(2, "big") for v in vals[3:]))
+    return P.encode_am(P.AMPacket(0xFFFF, 1, 0x22, P.AM_NINEDOF_MOTE_STATUS_MSG, payload))
+
+
+def test_analysis_of_a_planted_stream():
+    # 400 samples from t = 1 s at 8 ms; samples 250..254 lost (t 3.0-3.04 s),
+    # the accelerometer stale for samples 260..269; the rest change every sample
+    recs = np.arange(400 * 9).reshape(400, 9) % 3000
+    recs[260:270, 0:3] = recs[259, 0:3]
+    data = b""
+    for s in range(0, 400, 5):
+        if 250 <= s < 255:
+            continue
+        data += _samples(s, recs[s:s + 5])
+    data += _status([400, 0, 0, 1, 2, 3, 4, 5, 6, 7])
+    r = FM.analyse(data, fault_at=3.0, first_sample_s=1.0)
+    assert r["records"] == 395 and r["missing"] == 5 and r["stale"] == 10
+    # last bad sample 269 at 1 + 269 * 0.008 = 3.152 s; recovered at its end
+    assert r["recover_s"] == pytest.approx(3.152 + 0.008 - 3.0)
+    assert r["status"] == {"seq": 400, "version": 0, "sensors": 0, "dropped": 1, "send_fail": 2,
+                           "i2c_errors": 3, "late": 4, "i2c_nacks": 5, "bus_resets": 6,
+                           "chip_reinits": 7}
+    # a 14-byte status (firmware without the fault counters) has only the first four
+    assert set(FM.decode_status(bytes(14))) == {"seq", "version", "sensors", "dropped",
+                                                "send_fail", "i2c_errors", "late"}
+
+
+def test_analysis_clean_stream():
+    recs = np.arange(100 * 9).reshape(100, 9)
+    data = b"".join(_samples(s, recs[s:s + 5]) for s in range(0, 100, 5))
+    r = FM.analyse(data, fault_at=1.2, first_sample_s=1.0)
+    assert r["missing"] == 0 and r["stale"] == 0 and r["recover_s"] == 0
+
+
+def test_set_diff_names_the_bytes_that_changed():
+    frag = P.encode_am(P.AMPacket(1, 0, 0x22, P.AM_NINEDOF_CAL_FRAG_MSG,
+                                  bytes.fromhex("0001000314140031") + bytes(18)))
+    back = bytes.fromhex("00010003116f14140031") + bytes([0, 0, 10]) + bytes(17)
+    rep = P.encode_am(P.AMPacket(0, 1, 0x22, P.AM_NINEDOF_CAL_REPORT_MSG, back))
+    old = P.encode_am(P.AMPacket(0, 1, 0x22, P.AM_NINEDOF_CAL_REPORT_MSG,
+                                 bytes.fromhex("00010002116f1414ff") + bytes(19)))
+    assert FM.set_diff(frag, rep + old, 3) == ["set byte 24: sent 0x00, read back 0x0a"]
+    assert FM.set_diff(frag, old, 3) == []

@@ -13,6 +13,13 @@
 #include "ninedof_cal.c"
 static struct { int16_t rec[5][9]; int16_t canary[9]; } buf;
 static ninedof_cal_t cal;
+/* the mote's call (ninedof_batch_pack -> ninedof_calrx_correct_block ->
+ * ninedof_correct_block), inlined whole as in the image (TinyOS builds with
+ * -finline-limit=100000): flatten does that here */
+__attribute__((flatten)) static void correct_in_place(void)
+{
+  ninedof_correct_block(&cal, &buf.rec[0][0], &buf.rec[0][0], 5);
+}
 static void out_i16(int16_t v) { if (v < 0) { out_c('-'); v = (int16_t)-v; } out_u16((uint16_t)v); }
 int main(void)
 {
@@ -27,12 +34,7 @@ int main(void)
   }
   for (r = 0; r < 5; r++) for (k = 0; k < 9; k++) buf.rec[r][k] = (int16_t)(100 * r + k);
   for (k = 0; k < 9; k++) buf.canary[k] = 0x5A5A;
-  for (r = 0; r < 5; r++) {
-    int16_t *p = buf.rec[r];
-    correct_sensor(&cal, 0, p, p);
-    correct_sensor(&cal, 1, p + 3, p + 3);
-    correct_sensor(&cal, 2, p + 6, p + 6);
-  }
+  correct_in_place();
   for (r = 0; r < 5; r++) for (k = 0; k < 9; k++) { out_i16(buf.rec[r][k]); out_c(' '); }
   out_c('|');
   for (k = 0; k < 9; k++) { out_i16(buf.canary[k]); out_c(' '); }

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from .options import option_parts
 from .session import LABEL_ROT, SENSOR_SLICES, UNITS
 
 G0 = 9.80665                 # standard gravity, m/s^2 per g
@@ -53,67 +54,43 @@ def _sensor(name: str, what: str) -> str:
 def parse_units(units) -> dict:
     """``"si"``, ``"counts"`` or ``"gyro=deg/s,accel=m/s^2"`` (a list of such, or a
     dict) -> ``{sensor: unit}``; ``counts`` maps every sensor to ``"counts"``."""
-    if units is None:
-        return {}
-    if isinstance(units, dict):
-        items = [f"{k}={v}" for k, v in units.items()]
-    elif isinstance(units, str):
-        items = [units]
-    else:
-        items = list(units)
     out = {}
-    for item in items:
-        for part in str(item).split(","):
-            part = part.strip()
-            if not part:
-                continue
-            if part.lower() in ("si", "counts"):
-                for s in SENSORS:
-                    out.setdefault(s, SI_UNITS[s] if part.lower() == "si" else "counts")
-                continue
-            if "=" not in part:
-                raise UserError(f"--units {part}: expected si, counts or SENSOR=UNIT "
-                                f"(units: {', '.join(sorted(UNIT_FACTORS))}, counts)")
-            s, _, u = part.partition("=")
-            s = _sensor(s, "--units")
-            u = u.strip()
-            if u.lower() != "counts" and u.lower() not in UNIT_FACTORS:
-                raise UserError(f"--units {part}: unknown unit {u!r} "
-                                f"(known: {', '.join(sorted(UNIT_FACTORS))}, counts)")
-            if u.lower() != "counts" and UNIT_FACTORS[u.lower()][0] != s:
-                raise UserError(f"--units {part}: {u} is not a unit of the {s}")
-            out[s] = u if u.lower() == "counts" else u.lower().replace("m/s2", "m/s^2")
+    for part in option_parts(units):
+        if part.lower() in ("si", "counts"):
+            for s in SENSORS:
+                out.setdefault(s, SI_UNITS[s] if part.lower() == "si" else "counts")
+            continue
+        if "=" not in part:
+            raise UserError(f"--units {part}: expected si, counts or SENSOR=UNIT "
+                            f"(units: {', '.join(sorted(UNIT_FACTORS))}, counts)")
+        s, _, u = part.partition("=")
+        s = _sensor(s, "--units")
+        u = u.strip()
+        if u.lower() != "counts" and u.lower() not in UNIT_FACTORS:
+            raise UserError(f"--units {part}: unknown unit {u!r} "
+                            f"(known: {', '.join(sorted(UNIT_FACTORS))}, counts)")
+        if u.lower() != "counts" and UNIT_FACTORS[u.lower()][0] != s:
+            raise UserError(f"--units {part}: {u} is not a unit of the {s}")
+        out[s] = u if u.lower() == "counts" else u.lower().replace("m/s2", "m/s^2")
     return out
 
 
 def parse_scales(scales) -> dict:
     """``["accel=2048", "gyro=14.375"]`` (LSB per g, deg/s, gauss) -> ``{sensor: float}``."""
-    if scales is None:
-        return {}
-    if isinstance(scales, dict):
-        items = [f"{k}={v}" for k, v in scales.items()]
-    elif isinstance(scales, str):
-        items = [scales]
-    else:
-        items = list(scales)
     out = {}
-    for item in items:
-        for part in str(item).split(","):
-            part = part.strip()
-            if not part:
-                continue
-            s, eq, v = part.partition("=")
-            if not eq:
-                raise UserError(f"--scale {part}: expected SENSOR=LSB_PER_UNIT, e.g. accel=2048")
-            s = _sensor(s, "--scale")
-            try:
-                val = float(v)
-            except ValueError:
-                val = float("nan")
-            if not np.isfinite(val) or val <= 0:
-                raise UserError(f"--scale {part}: the scale must be a positive number of LSB per "
-                                f"{UNITS[s]}")
-            out[s] = val
+    for part in option_parts(scales):
+        s, eq, v = part.partition("=")
+        if not eq:
+            raise UserError(f"--scale {part}: expected SENSOR=LSB_PER_UNIT, e.g. accel=2048")
+        s = _sensor(s, "--scale")
+        try:
+            val = float(v)
+        except ValueError:
+            val = float("nan")
+        if not np.isfinite(val) or val <= 0:
+            raise UserError(f"--scale {part}: the scale must be a positive number of LSB per "
+                            f"{UNITS[s]}")
+        out[s] = val
     return out
 
 

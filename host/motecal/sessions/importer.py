@@ -29,6 +29,7 @@ import numpy as np
 from ..errors import UserError
 from ..inputs import check_input_file, read_input_bytes
 from ..line.protocol import NINEDOF_RATE_HZ
+from .options import option_parts
 from .session import (ADXL345_LSB_PER_G, COLUMNS, HMC5883L_LSB_PER_GAUSS, HMC5883L_OVERFLOW,
                       ITG3200_LSB_PER_DPS, LABEL_MAX, LABEL_NONE, LABEL_ROT, NOMINAL_CHIPS, NOMINAL_SCALES,
                       SENSOR_SLICES, UNITS, SessionData, batch_times, label_from_text,
@@ -76,50 +77,38 @@ def parse_chip_overrides(chip) -> dict:
     """``{"mag": "hmc5843"}``, ``"mag=hmc5843"``, ``["mag=hmc5843", "gyro=itg3205"]``
     or ``"mag=mychip:1234"`` (explicit LSB per unit) -> ``{sensor: (CHIP, scale)}``.
     A bare chip name (``"hmc5843"``) applies to the sensor it belongs to."""
-    if chip is None:
-        return {}
-    if isinstance(chip, dict):
-        items = [f"{k}={v}" for k, v in chip.items()]
-    elif isinstance(chip, str):
-        items = [chip]
-    else:
-        items = list(chip)
     out = {}
-    for item in items:
-        for part in str(item).split(","):
-            part = part.strip()
-            if not part:
-                continue
-            if "=" in part:
-                sensor, _, name = part.partition("=")
-                sensor = SENSOR_ALIASES.get(sensor.strip().lower())
-                if sensor is None:
-                    raise UserError(f"--chip {part}: sensor must be accel, gyro or mag")
-            else:
-                sensor, name = None, part
-            name, _, scale_text = name.partition(":")
-            chipname = normalise_chip(name)
-            if scale_text:
-                try:
-                    scale = float(scale_text)
-                except ValueError:
-                    scale = float("nan")
-                if not np.isfinite(scale) or scale <= 0:
-                    raise UserError(f"--chip {part}: scale must be a positive number of LSB per unit")
-                if sensor is None:
-                    raise UserError(f"--chip {part}: give the sensor, e.g. mag={name}:{scale_text}")
-                out[sensor] = (chipname, scale)
-                continue
-            owners = [s for s, chips in CHIP_SCALES.items() if chipname in chips]
+    for part in option_parts(chip):
+        if "=" in part:
+            sensor, _, name = part.partition("=")
+            sensor = SENSOR_ALIASES.get(sensor.strip().lower())
             if sensor is None:
-                if len(owners) != 1:
-                    raise UserError(f"--chip {part}: say which sensor, e.g. mag={name}")
-                sensor = owners[0]
-            if chipname not in CHIP_SCALES[sensor]:
-                known = ", ".join(c.lower() for c in CHIP_SCALES[sensor])
-                raise UserError(f"--chip {part}: unknown {sensor} chip (known: {known}; "
-                                f"or give the scale: {sensor}={name}:LSB_PER_UNIT)")
-            out[sensor] = (chipname, CHIP_SCALES[sensor][chipname])
+                raise UserError(f"--chip {part}: sensor must be accel, gyro or mag")
+        else:
+            sensor, name = None, part
+        name, _, scale_text = name.partition(":")
+        chipname = normalise_chip(name)
+        if scale_text:
+            try:
+                scale = float(scale_text)
+            except ValueError:
+                scale = float("nan")
+            if not np.isfinite(scale) or scale <= 0:
+                raise UserError(f"--chip {part}: scale must be a positive number of LSB per unit")
+            if sensor is None:
+                raise UserError(f"--chip {part}: give the sensor, e.g. mag={name}:{scale_text}")
+            out[sensor] = (chipname, scale)
+            continue
+        owners = [s for s, chips in CHIP_SCALES.items() if chipname in chips]
+        if sensor is None:
+            if len(owners) != 1:
+                raise UserError(f"--chip {part}: say which sensor, e.g. mag={name}")
+            sensor = owners[0]
+        if chipname not in CHIP_SCALES[sensor]:
+            known = ", ".join(c.lower() for c in CHIP_SCALES[sensor])
+            raise UserError(f"--chip {part}: unknown {sensor} chip (known: {known}; "
+                            f"or give the scale: {sensor}={name}:LSB_PER_UNIT)")
+        out[sensor] = (chipname, CHIP_SCALES[sensor][chipname])
     return out
 
 

@@ -93,15 +93,15 @@ def imucal_example():
     print(f"   |a| - 1 g on the six faces: motecal rms {np.sqrt(np.mean(mine**2))*1e3:.2f} mg, "
           f"imucal's published rms {np.sqrt(np.mean(theirs**2))*1e3:.2f} mg")
     record("imucal example: accelerometer bias, motecal - imucal", "beside imucal's, "
-           "differences explained (#17)", float(np.abs(b_a - pub["b_a"]).max()), "counts max",
+           "differences explained (context, issue 17)", float(np.abs(b_a - pub["b_a"]).max()), "counts max",
            None, "six faces; imucal's R_a assumes exact faces (docs/interop.md)")
     record("imucal example: gyroscope scale K_g, motecal / imucal - 1", "beside imucal's, "
-           "differences explained (#17)", float(np.abs(K_g / Kgp - 1).max() * 100), "% max",
+           "differences explained (context, issue 17)", float(np.abs(K_g / Kgp - 1).max() * 100), "% max",
            None, f"motecal's std from the turns {np.max(np.diag(rf.std)) * 100:.2f} %")
-    record("imucal example: gyroscope bias, motecal - imucal", "beside imucal's (#17)",
+    record("imucal example: gyroscope bias, motecal - imucal", "beside imucal's (context, issue 17)",
            float(np.abs(b_g - pub["b_g"]).max()), "counts max", None)
     record("imucal example: R_g with imucal's axis assumption, motecal - imucal",
-           "beside imucal's (#17)", float(np.abs(-R_gn - Rgp).max()), "max", None,
+           "beside imucal's (context, issue 17)", float(np.abs(-R_gn - Rgp).max()), "max", None,
            "the rest is imucal's g-sensitivity K_ga, not modelled")
     print("   why: biases and scales agree to 0.5 count / 0.03 %; imucal's R_a assumes the six faces "
           "are exact (a fixture), which magnitudes alone cannot tell, so motecal fits no "

@@ -26,9 +26,11 @@ REPO = Path(__file__).resolve().parent.parent
 EMU = REPO / "emu"
 MHZ_DEFAULT = "8.0"
 # read() to readDone in the firmware: the entry of the board's bus request
-# (the first call in NineDofBoardP's ReadNow.read) to the entry of the app's
-# Board.readDone (nesC's C names of the two functions)
-SPAN = "NineDofBusP__Share__immediateRequest:NineDofAppP__Board__readDone"
+# (the first call in NineDofBoardP's ReadNow.read) to the entry of the board's
+# readEnd, which releases the bus and signals ReadNow.readDone (nesC's C names
+# of the two functions; the app's Board.readDone is inlined since the driver
+# became sensorboards/ninedof, so it has no symbol of its own)
+SPAN = "NineDofBusP__Share__immediateRequest:NineDofBoardP__readEnd"
 
 
 class Unavailable(Exception):

@@ -30,7 +30,7 @@ import numpy as np
 from . import floatlog as F
 from ..errors import UserError
 from ..inputs import check_input_file, read_input_text
-from .importer import _fail, _finish, _read_text_lines, _session, add_note
+from .importer import _fail, _finish, _read_text_lines, _session, add_note, input_paths
 from .session import LABEL_ROT, SENSOR_SLICES, UNITS
 from .still import segment_recording
 
@@ -554,14 +554,7 @@ def read_session(paths, fmt: str = "auto", chip=None, kind: str = "auto", **opts
     and the foreign ones, detected from content; options of float inputs
     (``FLOAT_OPTIONS``) are refused for formats that do not take them."""
     from .importer import FORMATS as NATIVE, read_any as read_native
-    if isinstance(paths, (str, Path)):
-        paths = [paths]
-    paths = [Path(p) for p in paths]
-    if not paths:
-        raise UserError("no input file given")
-    for p in paths:
-        if not p.exists():
-            raise UserError(f"{p}: no such file or directory")
+    paths = input_paths(paths)
     given = {k: v for k, v in opts.items() if v not in (None, [], ())}
     if fmt == "auto":
         found = {p: detect(p) for p in paths}

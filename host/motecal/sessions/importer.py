@@ -778,13 +778,9 @@ READERS = {"csv": read_csv, "razor-text": read_razor_text, "razor-float": read_r
            "timestamped-csv": read_timestamped}
 
 
-def read_any(paths, fmt: str = "auto", chip=None, kind: str = "auto") -> SessionData:
-    """Read one session from ``paths`` (files, or a timestamped run directory).
-
-    ``fmt`` is ``auto`` (detected from content) or one of ``FORMATS``; every file
-    of a session must be in the same format.  ``chip`` overrides chips/scales
-    (see :func:`parse_chip_overrides`); ``kind`` as in :func:`assign_labels`.
-    """
+def input_paths(paths) -> list[Path]:
+    """The input files of an import (one path or several) as Paths, each of
+    which must exist; one line (UserError) otherwise."""
     if isinstance(paths, (str, Path)):
         paths = [paths]
     paths = [Path(p) for p in paths]
@@ -793,6 +789,17 @@ def read_any(paths, fmt: str = "auto", chip=None, kind: str = "auto") -> Session
     for p in paths:
         if not p.exists():
             raise UserError(f"{p}: no such file or directory")
+    return paths
+
+
+def read_any(paths, fmt: str = "auto", chip=None, kind: str = "auto") -> SessionData:
+    """Read one session from ``paths`` (files, or a timestamped run directory).
+
+    ``fmt`` is ``auto`` (detected from content) or one of ``FORMATS``; every file
+    of a session must be in the same format.  ``chip`` overrides chips/scales
+    (see :func:`parse_chip_overrides`); ``kind`` as in :func:`assign_labels`.
+    """
+    paths = input_paths(paths)
     if fmt not in ("auto",) + FORMATS:
         raise UserError(f"unknown format {fmt!r} (auto, {', '.join(FORMATS)})")
     if kind not in KINDS:

@@ -65,7 +65,7 @@ def test_calset_layout(hdr):
 
 def test_constants_match_header(hdr):
     for name in ("NINEDOF_RATE_HZ", "NINEDOF_RECORD_SIZE", "NINEDOF_FRAG_DATA",
-                 "NINEDOF_STATUS_PERIOD_MS"):
+                 "NINEDOF_STATUS_PERIOD_MS", "NINEDOF_TEMP_PERIOD_MS"):
         assert hdr.constants[name] == getattr(P, name)
     assert hdr.constants["NINEDOF_FLAG_CORRECTED"] == P.FLAG_CORRECTED
     assert hdr.constants["NINEDOF_FLAG_VERSION_SHIFT"] == P.FLAG_VERSION_SHIFT

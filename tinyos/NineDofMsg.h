@@ -30,6 +30,7 @@ enum {
   AM_NINEDOF_CAL_REPORT_MSG = 0x66,   /* mote -> PC: that part */
   AM_NINEDOF_MOTE_STATUS_MSG = 0x67,  /* mote -> PC: counters, every NINEDOF_STATUS_PERIOD */
   AM_NINEDOF_BS_STATUS_MSG = 0x68,    /* BaseStation -> PC: its counters */
+  AM_NINEDOF_MOTE_TEMP_MSG = 0x69,    /* mote -> PC: board temperature, every NINEDOF_TEMP_PERIOD */
 };
 
 /* The issue text calls the sample message type AM_NINEDOF_SAMPLES. */
@@ -50,6 +51,7 @@ enum {
   NINEDOF_RECORD_SIZE = 18,           /* 9 x int16 */
   NINEDOF_FRAG_DATA = 20,             /* calibration bytes per fragment/report */
   NINEDOF_STATUS_PERIOD_MS = 2000,
+  NINEDOF_TEMP_PERIOD_MS = 1000,
 };
 
 /* Sample message flags */
@@ -198,5 +200,22 @@ typedef nx_struct ninedof_bs_status_msg {
   nx_uint16_t radio_fail;    /* radio sends that failed */
   nx_uint16_t serial_fail;   /* serial sends that failed */
 } ninedof_bs_status_msg_t;
+
+/* ---------------------------------------------------------------------- */
+/* Board temperature (mote -> PC)                                          */
+/* ---------------------------------------------------------------------- */
+/* The ITG3200's TEMP_OUT (0x1B-0x1C) is read in the same burst as the
+ * rates.  It goes in a message of its own, not in the sample header or the
+ * status message, so that hosts built before it keep decoding samples and
+ * status unchanged (they ignore an AM type they do not know) and hosts
+ * built after it work with images that never send it.  Temperature moves
+ * over minutes; one message a second per mote adds about 1 % to the link.
+ * Degrees C = 35 + (temp_sum / count + 13200) / 280 (ITG-3200 datasheet). */
+typedef nx_struct ninedof_mote_temp_msg {
+  nx_uint16_t seq;           /* sequence number of the newest sample averaged */
+  nx_uint8_t count;          /* readings summed in temp_sum (0: no reading) */
+  nx_uint8_t reserved;       /* 0 */
+  nx_int32_t temp_sum;       /* sum of the raw TEMP_OUT readings of the period */
+} ninedof_mote_temp_msg_t;
 
 #endif /* NINEDOF_MSG_H */

@@ -48,6 +48,7 @@ AM_NINEDOF_CAL_QUERY_MSG = 0x65
 AM_NINEDOF_CAL_REPORT_MSG = 0x66
 AM_NINEDOF_MOTE_STATUS_MSG = 0x67
 AM_NINEDOF_BS_STATUS_MSG = 0x68
+AM_NINEDOF_MOTE_TEMP_MSG = 0x69
 AM_NINEDOF_SAMPLES = AM_NINEDOF_SAMPLES_MSG
 
 NINEDOF_BATCH = 5           # default records per sample message (build-time)
@@ -55,6 +56,7 @@ NINEDOF_RATE_HZ = 125
 NINEDOF_RECORD_SIZE = 18
 NINEDOF_FRAG_DATA = 20
 NINEDOF_STATUS_PERIOD_MS = 2000
+NINEDOF_TEMP_PERIOD_MS = 1000
 
 FLAG_CORRECTED = 0x01
 FLAG_VERSION_SHIFT = 4
@@ -206,9 +208,31 @@ BS_STATUS = MessageSpec("ninedof_bs_status_msg", AM_NINEDOF_BS_STATUS_MSG, (
     _f("radio_rx", U16), _f("radio_drops", U16), _f("serial_rx", U16),
     _f("serial_drops", U16), _f("radio_fail", U16), _f("serial_fail", U16)))
 
+# Board temperature: the ITG3200's raw TEMP_OUT summed over a period (see the
+# header); temp_c() turns it into degrees C.
+MOTE_TEMP = MessageSpec("ninedof_mote_temp_msg", AM_NINEDOF_MOTE_TEMP_MSG, (
+    _f("seq", U16), _f("count", U8), _f("reserved", U8), _f("temp_sum", I32)))
+
+ITG3200_TEMP_OFFSET = -13200     # raw TEMP_OUT at 35 degrees C (datasheet)
+ITG3200_TEMP_LSB_PER_C = 280.0
+ITG3200_TEMP_AT_OFFSET_C = 35.0
+
+
+def temp_c(raw):
+    """Degrees C from the ITG3200's raw TEMP_OUT (a mean of readings is fine)."""
+    return ITG3200_TEMP_AT_OFFSET_C + (np.asarray(raw, float) - ITG3200_TEMP_OFFSET) \
+        / ITG3200_TEMP_LSB_PER_C
+
+
+def temp_raw(celsius):
+    """The raw TEMP_OUT an ITG3200 gives at ``celsius`` (inverse of temp_c, not rounded)."""
+    return ITG3200_TEMP_OFFSET + (np.asarray(celsius, float) - ITG3200_TEMP_AT_OFFSET_C) \
+        * ITG3200_TEMP_LSB_PER_C
+
+
 FIXED_MESSAGES = {m.am_type: m for m in (
     CAL_FRAG, CAL_FRAG_ACK, CAL_COMMIT, CAL_COMMIT_ACK, CAL_QUERY, CAL_REPORT,
-    MOTE_STATUS, BS_STATUS)}
+    MOTE_STATUS, BS_STATUS, MOTE_TEMP)}
 ALL_SPECS = (RECORD, SAMPLES_HEADER, CAL_SENSOR, CALSET_HEADER) + tuple(FIXED_MESSAGES.values())
 
 RECORD_DTYPE = np.dtype(">i2")

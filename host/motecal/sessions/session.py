@@ -11,6 +11,11 @@ Conventions
   In CSV and in the database the same labels are written ``"1".."80"``,
   ``"rot"`` and ``""`` (see ``label_to_text`` / ``label_from_text``).
 * ``t`` is seconds from the session start (NaN where unknown).
+* ``temp`` is the board temperature in degrees C per row (NaN where
+  unknown), or None when the session carries no temperature at all (images
+  and imports without it).  Loggers get it from the mote's temperature
+  messages (interpolated to sample times), importers from a temperature
+  column.
 * ``scales`` gives LSB per unit for each sensor: accel in LSB/g, gyro in
   LSB/(deg/s), mag in LSB/gauss.  Defaults are the 9DOF board's nominal
   datasheet values.
@@ -105,9 +110,14 @@ class SessionData:
     scales: dict = field(default_factory=lambda: dict(NOMINAL_SCALES))
     chips: dict = field(default_factory=lambda: dict(NOMINAL_CHIPS))
     meta: dict = field(default_factory=dict)   # source, rate_hz, notes, ...
+    temp: np.ndarray | None = None       # (n,) float64 degrees C, NaN = unknown; None = no temperature
 
     def __post_init__(self):
         n = len(self.raw)
+        if self.temp is not None:
+            self.temp = np.asarray(self.temp, dtype=np.float64).reshape(-1)
+            if self.temp.shape != (n,):
+                raise ValueError(f"temp must have shape ({n},), not {self.temp.shape}")
         self.raw = np.asarray(self.raw, dtype=np.float64).reshape(n, 9)
         for name, dt in (("mote", np.int32), ("seq", np.int64), ("t", np.float64),
                          ("label", np.int32), ("flags", np.uint8)):
@@ -183,10 +193,16 @@ class SessionData:
         mask = np.asarray(mask)
         return SessionData(self.name, self.raw[mask], self.mote[mask], self.seq[mask],
                            self.t[mask], self.label[mask], self.flags[mask], self.kind,
-                           dict(self.scales), dict(self.chips), dict(self.meta))
+                           dict(self.scales), dict(self.chips), dict(self.meta),
+                           None if self.temp is None else self.temp[mask])
 
     def for_mote(self, mote: int) -> "SessionData":
         return self.select(self.mote == mote)
+
+    @property
+    def has_temp(self) -> bool:
+        """The session carries a temperature for at least one row."""
+        return self.temp is not None and bool(np.isfinite(self.temp).any())
 
     def poses(self) -> list[int]:
         """Static pose labels present, sorted."""

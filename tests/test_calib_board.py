@@ -336,3 +336,28 @@ def test_gyro_matrix_from_a_logged_session_with_batch_receive_times(board_sessio
                          d.scales, d.chips, {**d.meta, "rate_hz": 125.0})
     b = calibrate_board(logged, seed=4, kfold=0)
     assert b.gyro.model == "bias+matrix", b.gyro.quality
+
+
+def test_temperature_model_round_trip_and_clamp():
+    import numpy as np
+    from motecal.calib.result import BoardCalibration, SensorCalibration, TempModel
+    tm = TempModel(30.0, (25.0, 40.0), [0.01, -0.02, 0.0], [1e-3] * 3,
+                   scale_per_c=[1e-4, 0, 0])
+    sc = SensorCalibration("gyro", "deg/s", "ITG3200", 14.375, "bias", [],
+                           np.eye(3), np.zeros(3), 1, 1, 1, 1, 1, 1, temperature=tm)
+    raw = np.array([[1.0, 1.0, 1.0]] * 4)
+    out = sc.apply(raw, [20.0, 35.0, 50.0, np.nan])
+    # 20 clamps to 25 (dT -5), 50 clamps to 40 (dT +10), NaN stays at the reference
+    assert np.allclose(out[0], [1 - 5e-4 - 0.05, 1 + 0.1, 1])
+    assert np.allclose(out[1], [1 + 5e-4 + 0.05, 1 - 0.1, 1])
+    assert np.allclose(out[2], [1 + 1e-3 + 0.1, 1 - 0.2, 1])
+    assert np.allclose(out[3], [1, 1, 1])
+    assert np.allclose(sc.apply(raw), raw)
+    board = BoardCalibration(1, "s", "2026-11-25T00:00:00Z", gyro=sc)
+    d = board.to_json()
+    assert d["format_version"] == 2
+    back = BoardCalibration.loads(board.dumps())
+    assert np.allclose(back.gyro.apply(raw, 35.0), out[1])
+    assert back.gyro.temperature.range_c == (25.0, 40.0)
+    sc.temperature = None
+    assert board.to_json()["format_version"] == 1

@@ -2,7 +2,10 @@
 ``BoardCalibration`` per board (mote), and their JSON form (``cal.json``).
 
 For every sensor ``calibrated = A @ raw_counts + c`` in the sensor's unit
-(g, deg/s, gauss).  Everything else (parameters with names, standard
+(g, deg/s, gauss).  A sensor calibrated against temperature also carries a
+``TempModel`` (format_version 2): with ``dT = clip(T, lo, hi) - t_ref``,
+``calibrated = (1 + scale_per_c * dT) * (A @ raw_counts) + c + offset_per_c * dT``
+(element-wise per axis; the scale term is zero where it was not identifiable).  Everything else (parameters with names, standard
 deviations and units, errors before/after, magnitude ranges, validation, GA
 trace, quality metrics) documents how that map was obtained.
 """
@@ -17,7 +20,7 @@ import numpy as np
 from ..errors import UserError
 from ..jsonable import finite as _num, jsonable as _jsonable
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2      # 2: optional per-sensor temperature model (1 files still read)
 SENSORS = ("accel", "gyro", "mag")
 
 
@@ -41,6 +44,55 @@ class Param:
     def from_json(cls, d):
         return cls(d["name"], _unnum(d["value"]), _unnum(d.get("std")), d.get("unit", ""),
                    bool(d.get("identifiable", True)))
+
+
+@dataclass
+class TempModel:
+    """How a sensor's calibrated output moves with the board temperature.
+
+    ``offset_per_c`` (sensor unit per degree C) and ``scale_per_c`` (relative
+    gain change per degree C), per axis, around ``t_ref_c``; only valid over
+    ``range_c`` (the temperatures the fit saw): outside it the temperature is
+    clamped to the range, never extrapolated."""
+    t_ref_c: float
+    range_c: tuple                      # (lo, hi) degrees C covered by the data
+    offset_per_c: np.ndarray            # (3,) unit/degC
+    offset_per_c_std: np.ndarray        # (3,) NaN when not identifiable
+    scale_per_c: np.ndarray = field(default_factory=lambda: np.zeros(3))       # (3,) 1/degC
+    scale_per_c_std: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    notes: list = field(default_factory=list)
+    extra: dict = field(default_factory=dict)    # fit details (samples, span, residual, ...)
+
+    def __post_init__(self):
+        lo, hi = (float(v) for v in self.range_c)
+        if not lo <= self.t_ref_c <= hi:
+            raise ValueError(f"t_ref_c {self.t_ref_c} outside range_c {lo}..{hi}")
+        self.range_c = (lo, hi)
+        for name in ("offset_per_c", "offset_per_c_std", "scale_per_c", "scale_per_c_std"):
+            setattr(self, name, np.asarray(getattr(self, name), float).reshape(3))
+
+    def dt(self, temp_c) -> np.ndarray:
+        """Clamped temperature minus the reference; 0 where ``temp_c`` is NaN."""
+        t = np.asarray(temp_c, float)
+        d = np.clip(t, *self.range_c) - self.t_ref_c
+        return np.where(np.isfinite(d), d, 0.0)
+
+    def to_json(self) -> dict:
+        return {"t_ref_c": _num(self.t_ref_c), "range_c": [_num(v) for v in self.range_c],
+                "offset_per_c": [_num(v) for v in self.offset_per_c],
+                "offset_per_c_std": [_num(v) for v in self.offset_per_c_std],
+                "scale_per_c": [_num(v) for v in self.scale_per_c],
+                "scale_per_c_std": [_num(v) for v in self.scale_per_c_std],
+                "notes": list(self.notes), "extra": _jsonable(self.extra)}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "TempModel":
+        return cls(t_ref_c=float(d["t_ref_c"]), range_c=tuple(float(v) for v in d["range_c"]),
+                   offset_per_c=[_unnum(v) for v in d["offset_per_c"]],
+                   offset_per_c_std=[_unnum(v) for v in d.get("offset_per_c_std", [None] * 3)],
+                   scale_per_c=[_unnum(v) for v in d.get("scale_per_c", [0, 0, 0])],
+                   scale_per_c_std=[_unnum(v) for v in d.get("scale_per_c_std", [None] * 3)],
+                   notes=list(d.get("notes", [])), extra=d.get("extra", {}))
 
 
 @dataclass
@@ -71,6 +123,7 @@ class SensorCalibration:
     field_std: float | None = None
     gauge: str | None = None
     extra: dict = field(default_factory=dict)
+    temperature: TempModel | None = None        # format 2: the output against board temperature
     # covariance (12, 12) of (A row-major, c) from the fit, for what builds on
     # this calibration (the gyroscope's G on the accelerometer's gravity
     # directions); not written to cal.json
@@ -81,9 +134,16 @@ class SensorCalibration:
         self.c = np.asarray(self.c, float).reshape(3)
 
     # -- use --------------------------------------------------------------------
-    def apply(self, raw_counts) -> np.ndarray:
-        """Calibrated vectors (n, 3) in ``unit`` from raw counts (n, 3)."""
-        return np.asarray(raw_counts, float) @ self.A.T + self.c
+    def apply(self, raw_counts, temp_c=None) -> np.ndarray:
+        """Calibrated vectors (n, 3) in ``unit`` from raw counts (n, 3); with a
+        temperature model and ``temp_c`` (per row, or one value), corrected
+        for temperature (rows with NaN temperature at the reference)."""
+        y = np.asarray(raw_counts, float) @ self.A.T
+        if self.temperature is None or temp_c is None:
+            return y + self.c
+        tm = self.temperature
+        dt = np.broadcast_to(tm.dt(temp_c), y.shape[:-1])[..., None]
+        return y * (1.0 + tm.scale_per_c * dt) + self.c + tm.offset_per_c * dt
 
     def param(self, name: str) -> Param:
         for p in self.params:
@@ -114,6 +174,8 @@ class SensorCalibration:
             d["gauge"] = self.gauge
         if self.extra:
             d["extra"] = _jsonable(self.extra)
+        if self.temperature is not None:
+            d["temperature"] = self.temperature.to_json()
         return d
 
     @classmethod
@@ -130,7 +192,9 @@ class SensorCalibration:
                    notes=list(d.get("notes", [])), validation=d.get("validation", {}),
                    quality=d.get("quality", {}), ga=d.get("ga", {}),
                    field_gauss=d.get("field_gauss"), field_std=d.get("field_std"),
-                   gauge=d.get("gauge"), extra=d.get("extra", {}))
+                   gauge=d.get("gauge"), extra=d.get("extra", {}),
+                   temperature=TempModel.from_json(d["temperature"])
+                   if d.get("temperature") else None)
 
 
 @dataclass
@@ -151,7 +215,9 @@ class BoardCalibration:
         return [(s, getattr(self, s)) for s in SENSORS if getattr(self, s) is not None]
 
     def to_json(self) -> dict:
-        d = {"format_version": self.format_version, "mote": int(self.mote),
+        # a file without a temperature model stays format 1, which older readers take
+        temp = any(v.temperature is not None for _, v in self.sensors())
+        d = {"format_version": FORMAT_VERSION if temp else 1, "mote": int(self.mote),
              "session": self.session, "created": self.created, "tool": self.tool,
              "settings": _jsonable(self.settings)}
         for s in SENSORS:

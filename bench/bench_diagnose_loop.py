@@ -47,13 +47,20 @@ import numpy as np  # noqa: E402
 
 import plant as P  # noqa: E402
 from motecal.calib.board import calibrate_board  # noqa: E402
+from motecal.calib.extra_terms import apply_nonlinearity, gyro_rate_bias  # noqa: E402
+from motecal.calib.loop import calibrate_with_diagnosis  # noqa: E402
 from motecal.calib.terms import apply_diagnosis  # noqa: E402
+from motecal.diagnose.causes import THRESHOLDS  # noqa: E402
 from motecal.diagnose.engine import diagnose  # noqa: E402
 from results import record  # noqa: E402
-from synthetic import true_affine, vector_error  # noqa: E402
+from synthetic import true_affine  # noqa: E402
 
 BASE = "general"
-CAUSES = ["saturation-accel", "stale_samples-accel", "outliers-mag"]
+CAUSES = ["saturation-accel", "stale_samples-accel", "nonlinearity-accel", "outliers-mag",
+          "spans-mag", "field_disturbance-mag-rotation", "g_sensitivity-gyro", "bias_drift-gyro"]
+TERMS = ("nonlinearity", "g_sensitivity", "bias_drift")     # model terms: the reference is
+                                                            # that term fitted (oracle)
+UNITS = {"accel": "mg", "mag": "mgauss", "gyro": "deg/s"}
 
 
 def _spikes(ses, seed, frac=0.005):
@@ -71,55 +78,143 @@ def _spikes(ses, seed, frac=0.005):
     return out
 
 
+def _disturbed_spans(ses, seed, pt):
+    """Two spans of 2-4 s of the sweep in a field 3-8 % stronger or weaker (a
+    magnet or a steel object passing): the readings' true field scaled about
+    the true hard-iron offset."""
+    rng = np.random.default_rng([seed, 0x5C])
+    raw = ses.raw.copy()
+    t = ses.sample_times()
+    b = np.asarray(pt["mag"]["b"], float)
+    for k in range(2):
+        t0 = rng.uniform(t[0] + 2 + 18 * k, t[0] + 14 + 18 * k)
+        m = (t >= t0) & (t < t0 + rng.uniform(2.0, 4.0))
+        f = 1.0 + rng.choice([-1.0, 1.0]) * rng.uniform(0.03, 0.08)
+        raw[m, 6:9] = np.round(b + (raw[m, 6:9] - b) * f)
+    out = ses.select(np.ones(len(raw), bool))
+    out.raw = raw
+    return out
+
+
+def _dirs():
+    d = np.random.default_rng(12345).standard_normal((2000, 3))
+    return d / np.linalg.norm(d, axis=1)[:, None]
+
+
+def _raw_of(pt, sensor, u, nl=None):
+    """Noise-free counts of true vectors u, through the planted nonlinearity
+    (the simulator's term, after the affine map) when given."""
+    A_t, c_t = true_affine(pt, sensor)
+    raw = np.linalg.solve(A_t, (u - c_t).T).T
+    if nl:
+        K = float(pt[sensor]["K"])
+        q, c3, a = (np.asarray(nl.get(k, [0.0] * 3), float) for k in ("q", "c3", "a"))
+        r = raw / K
+        raw = raw + K * (q * r * r + c3 * r * r * r)
+        raw = raw * (1.0 + a * np.sign(raw))
+    return raw
+
+
+def _accel_error(sc, pt, dirs, nl):
+    """Vector error (g) on fresh directions of 1 g, after the best rotation
+    (a magnitude fitness determines the map up to one)."""
+    from scipy.spatial.transform import Rotation
+    v = apply_nonlinearity(sc, _raw_of(pt, "accel", dirs, nl))
+    R, _ = Rotation.align_vectors(dirs, v)
+    e = R.apply(v) - dirs
+    return float(np.sqrt(np.mean(np.sum(e * e, axis=1))))
+
+
 def _mag_error(sc, pt, dirs):
     """Vector error of a magnetometer calibration in gauss on fresh field
     directions, its magnitude scaled to the true field (the det gauge fixes
     the scale only as well as the datasheet gain)."""
-    A_t, c_t = true_affine(pt, "mag")
+    from scipy.spatial.transform import Rotation
     B = 0.48
     u = B * dirs
-    raw = np.linalg.solve(A_t, (u - c_t).T).T
-    v = sc.apply(raw) * (B / sc.field_gauss)
-    from scipy.spatial.transform import Rotation
+    v = sc.apply(_raw_of(pt, "mag", u)) * (B / sc.field_gauss)
     R, _ = Rotation.align_vectors(u, v)
     e = R.apply(v) - u
+    return float(np.sqrt(np.mean(np.sum(e * e, axis=1))))
+
+
+def _gyro_error(board, pt, dirs, drift, t_end):
+    """The still rate the calibration predicts (its bias, with a
+    g-sensitivity for the orientation) against the true one, at the end of
+    the session (after the warm-up), rms over fresh orientations (deg/s)."""
+    sc = board.gyro
+    K = float(pt["gyro"]["K"])
+    true = (np.asarray(pt["gyro"]["b"], float) / K
+            + dirs @ np.asarray(pt["gyro"].get("G", np.zeros((3, 3))), float).T)
+    if drift:
+        amp = np.asarray(drift.get("amplitude", [0.0] * 3), float)
+        slope = np.asarray(drift.get("slope", [0.0] * 3), float)
+        true = true + (amp * (1 - np.exp(-t_end / float(drift.get("tau_s", 300.0))))
+                       + slope * t_end) / K
+    a_cal = board.accel.apply(_raw_of(pt, "accel", dirs)) if board.accel is not None else dirs
+    e = gyro_rate_bias(sc, a_cal) - true
     return float(np.sqrt(np.mean(np.sum(e * e, axis=1))))
 
 
 def run_case(case):
     cause, seed = case
     rng = np.random.default_rng([seed, 31])
-    if cause == "outliers-mag":
+    c, key = cause.split("-", 1)
+    sensor = key.split("-")[0]
+    if c in ("outliers", "spans"):
         plants, kind = [], "rotation"
     else:
-        c, s = cause.split("-")
-        plants, kind = [P.make_plant(c, s, rng)], "static80"
+        plants = [P.make_plant(c, key, rng)]
+        kind = THRESHOLDS[(c, key)][0]
+        kind = "static80" if kind == "idle" else kind
     ses = P.simulate(plants, kind, seed, base=BASE)
     twin = P.simulate([], kind, seed, base=BASE)
-    if cause == "outliers-mag":
+    pt = P.planted_model(plants, BASE).board(1, seed).physical_truth()
+    pt0 = P.planted_model([], BASE).board(1, seed).physical_truth()
+    if c == "outliers":
         ses = _spikes(ses, seed)
-    pt = P.planted_model([], BASE).board(1, seed).physical_truth()
+    elif c == "spans":
+        ses = _disturbed_spans(ses, seed, pt)
     d = diagnose(ses, simulate=False)
-    fixed, used, unused, refuse = apply_diagnosis(ses, d.to_json())
-    sensor = cause.split("-")[1]
     kw = dict(seed=1, kfold=0, gyro_matrix=False)
+
+    def cal(x):
+        return calibrate_board(x, **kw)
+    full_diag, rep = calibrate_with_diagnosis(ses, d.to_json(), cal)
+    everything = calibrate_board(apply_diagnosis(ses, d.to_json())[0], **kw)
+    if c in TERMS:      # the true model: the planted term's family fitted, no held-out check
+        true, _ = calibrate_with_diagnosis(ses, {"findings": [{"sensor": sensor, "cause": c}]},
+                                           cal, z_accept=-np.inf)
+    else:               # the same session without the planted readings
+        true = cal(twin)
     cals = {"paper": calibrate_board(ses, model="paper", groups=("offsets", "scales"), **kw),
-            "full": calibrate_board(ses, **kw),
-            "full + diagnosis": calibrate_board(fixed, **kw),
-            "true": calibrate_board(twin, **kw)}
-    dirs = np.random.default_rng(12345).standard_normal((2000, 3))
-    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+            "full": cal(ses),
+            "full + diagnosis": full_diag,
+            "every treatment": everything,
+            "true": true,
+            "no effect": cal(twin)}
+    dirs = _dirs()
+    term = plants[0].term if plants else {}
+    lab = np.flatnonzero(ses.label >= 1)
+    t = ses.sample_times()
+    t_end = float(t[ses.label == ses.label[lab[-1]]].mean() - t[0]) if len(lab) else 0.0
     err = {}
     for k, b in cals.items():
         sc = getattr(b, sensor)
+        clean = k == "no effect" or (k == "true" and c not in TERMS)
+        truth = pt0 if clean else pt
         if sc is None:
             err[k] = np.nan
         elif sensor == "accel":
-            err[k] = vector_error(sc, pt, dirs=dirs, align="rotation") * 1e3     # mg
+            nl = term if (c == "nonlinearity" and not clean) else None
+            err[k] = _accel_error(sc, truth, dirs, nl) * 1e3                  # mg
+        elif sensor == "mag":
+            err[k] = _mag_error(sc, truth, dirs) * 1e3                        # mgauss
         else:
-            err[k] = _mag_error(sc, pt, dirs) * 1e3                              # mgauss
-    return {"cause": cause, "seed": seed, "err": err, "used": used,
-            "named": sorted(d.causes())}
+            drift = term if (c == "bias_drift" and not clean) else None
+            err[k] = _gyro_error(b, truth, dirs, drift, t_end)                # deg/s
+    return {"cause": cause, "seed": seed, "err": err, "used": rep["used"],
+            "not_used": rep["not_used"], "named": sorted(d.causes())}
 
 
 def measured_section():

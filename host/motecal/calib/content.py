@@ -24,6 +24,7 @@ import numpy as np
 from ..maths.sphere import distinct_directions
 from ..sessions.session import LABEL_ROT, SessionData
 from ..sessions.still import StillThresholds, segment_recording
+from .gate import LIMITS, hull_depth
 
 TRIM_S = 0.2               # left out at both ends of a still stretch
 MIN_STILL_S = 0.6          # shortest still stretch kept (hand-held poses of 1.6 s, trimmed)
@@ -125,3 +126,38 @@ def poses_from_stillness(data: SessionData) -> tuple[SessionData, str | None]:
             f"distinct orientations (the recording was labelled {was}); the rows between "
             f"them stay {'the sweep' if was == 'a rotation' else 'unlabelled'}")
     return dataclasses.replace(data, label=label), note
+
+
+# What a session's static poses can determine beyond the affine map (issue
+# 13, the terms a diagnosis asks calibrate to fit): one judgement, used by
+# calib.loop before any such term is fitted.
+MIN_ORIENTATIONS_TERM = {"g_sensitivity": 6, "nonlinearity": 24}
+MIN_DRIFT_POSES = 6
+MIN_DRIFT_SPAN_S = 60.0
+
+
+def term_support(term: str, directions: np.ndarray, times: np.ndarray | None = None) -> str | None:
+    """Why the static poses (their mean gravity ``directions``, and mid-times
+    ``times`` in s) cannot determine ``term``, or None when they can:
+    ``g_sensitivity`` needs the gravity directions to surround the origin
+    with at least 6 distinct orientations (3 x 3 coefficients besides the
+    bias); ``nonlinearity`` at least 24 distinct orientations (9 terms on
+    top of the 9 of the full model, with room to hold poses out);
+    ``bias_drift`` at least 6 poses spread over at least 60 s."""
+    d = np.asarray(directions, float)
+    n = int(distinct_directions(d)) if len(d) else 0
+    if term in MIN_ORIENTATIONS_TERM:
+        need = MIN_ORIENTATIONS_TERM[term]
+        if n < need:
+            return f"too few distinct orientations: {n} (at least {need} for {term})"
+        if term == "g_sensitivity" and hull_depth(d) < LIMITS.min_hull_depth:
+            return "the poses' gravity directions do not surround the origin"
+        return None
+    if term == "bias_drift":
+        if times is None or len(times) < MIN_DRIFT_POSES:
+            return f"fewer than {MIN_DRIFT_POSES} still poses"
+        span = float(np.ptp(times))
+        if span < MIN_DRIFT_SPAN_S:
+            return f"the poses span {span:.0f} s (at least {MIN_DRIFT_SPAN_S:g} s for a drift)"
+        return None
+    return f"no {term} term in the calibration"

@@ -214,7 +214,7 @@ def test_newer_schema_refused_and_old_schema_migrated(tmp_path):
     assert "cut_off" not in [r[1] for r in con.execute("PRAGMA table_info(line_stats)")]
     con.close()
     with open_store(v2) as st:
-        assert st.schema_version == SCHEMA_VERSION == 5
+        assert st.schema_version == SCHEMA_VERSION == 6
         line = st.link_stats("two")["line"]
         assert (line["frames"], line["crc_errors"], line["cut_off"]) == (7, 1, 0)
     # version 3 (no fault counters of the mote yet) gains the columns, its rows read 0
@@ -236,6 +236,43 @@ def test_newer_schema_refused_and_old_schema_migrated(tmp_path):
         mote = st.link_stats("three")["motes"][5]
         assert (mote["frames"], mote["mote_i2c_errors"]) == (11, 2)
         assert (mote["mote_i2c_nacks"], mote["mote_bus_resets"], mote["mote_chip_reinits"]) == (0, 0, 0)
+
+
+def _old_db(path, version: int):
+    """A sqlite database made by the migrations up to ``version``, with one session."""
+    con = sqlite3.connect(path)
+    for v in range(1, version + 1):
+        for stmt in store_mod.MIGRATIONS[v]:
+            con.execute(stmt.format(**store_mod._SqliteBackend.types))
+    con.execute("INSERT INTO schema_version VALUES (?)", (version,))
+    con.execute("INSERT INTO sessions (name, kind, started, scales, chips, meta) VALUES "
+                "('five', 'free', 0, '{}', '{}', '{}')")
+    con.execute("INSERT INTO samples (session, mote, seq, ax, ay, az) VALUES (1, 4, 9, 1, 2, 3)")
+    con.commit()
+    con.close()
+
+
+def test_schema_5_migrates_to_6_with_the_temperature_table(tmp_path):
+    """Version 5 (no temperature yet) gains the temps table; its sessions load
+    with temp None."""
+    v5 = str(tmp_path / "v5.db")
+    _old_db(v5, 5)
+    con = sqlite3.connect(v5)
+    assert "temps" not in {r[0] for r in con.execute(
+        "SELECT name FROM sqlite_master WHERE type = 'table'")}
+    con.close()
+    # read-only: read as it is (no temps table), temp None
+    with open_store(v5, readonly=True) as st:
+        assert st.schema_version == 5
+        assert st.load_session("five").temp is None
+    with open_store(v5) as st:
+        assert st.schema_version == SCHEMA_VERSION == 6
+        d = st.load_session("five")
+        assert d.temp is None and d.raw[0, :3].tolist() == [1, 2, 3]
+    con = sqlite3.connect(v5)
+    cols = [r[1] for r in con.execute("PRAGMA table_info(temps)")]
+    assert cols == ["session", "mote", "seq", "t", "temp_c", "count"]
+    con.close()
 
 
 def test_live_writer_batches_labels_stats_and_end(tmp_path):

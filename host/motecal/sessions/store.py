@@ -36,7 +36,7 @@ from ..errors import UserError
 from .session import (COLUMNS, NOMINAL_CHIPS, NOMINAL_SCALES, SessionData, label_from_text,
                       label_to_text)
 
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 
 SAMPLE_COLUMNS = ("session", "mote", "seq", "t", "label", "flags") + COLUMNS
 
@@ -96,7 +96,8 @@ SIGNATURE = {
                 "gz", "mx", "my", "mz"},
     "calibrations": {"id", "session", "mote", "created", "cal"},
 }
-SIGNATURE_SINCE = {2: ("link_stats", "line_stats", "events"), 5: ("writers", "sample_conflicts")}
+SIGNATURE_SINCE = {2: ("link_stats", "line_stats", "events"), 5: ("writers", "sample_conflicts"),
+                   6: ("temps",)}
 _NULL = 1 << 40                    # a stored NULL, when samples are compared
 
 # A live session waits this long for a write lock another process holds,
@@ -235,6 +236,22 @@ MIGRATIONS = {
              writer TEXT NOT NULL,
              found {real} NOT NULL)""",
         "CREATE INDEX sample_conflicts_key ON sample_conflicts (session, mote, seq)",
+    ],
+    # 6: the board temperature (issue 16).  One row per reading: a mote's
+    # temperature message (seq = unwrapped sequence number of the newest
+    # sample in its sum, count = readings averaged, t = host time it came)
+    # or an imported row's temperature (count 1, the row's seq); temp_c is
+    # the mean in degrees C.  SessionData.temp is interpolated from these
+    # when a session is loaded (sessions/temperature.py).
+    6: [
+        """CREATE TABLE temps (
+             session BIGINT NOT NULL,
+             mote INTEGER NOT NULL,
+             seq BIGINT NOT NULL,
+             t {real},
+             temp_c {real} NOT NULL,
+             count INTEGER NOT NULL DEFAULT 1,
+             PRIMARY KEY (session, mote, seq)){wr}""",
     ],
 }
 
@@ -715,7 +732,7 @@ class Store:
 
     def _delete_session(self, cur, sid: int):
         for table in ("samples", "calibrations", "link_stats", "line_stats", "events",
-                      "writers", "sample_conflicts"):
+                      "writers", "sample_conflicts", "temps"):
             cur.execute(self._b.sql(f"DELETE FROM {table} WHERE session = ?"), (sid,))
         cur.execute(self._b.sql("DELETE FROM sessions WHERE id = ?"), (sid,))
 

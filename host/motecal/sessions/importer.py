@@ -39,6 +39,8 @@ from .still import StillThresholds, segment_recording, window_rows
 FORMATS = ("csv", "razor-text", "razor-float", "timestamped-csv")
 KINDS = ("auto", "static", "rotation", "idle")
 CSV_HEADER = ("mote",) + ("seq", "t", "label") + COLUMNS
+CSV_TEMP = "temp"               # optional last column: board temperature, degrees C
+TEMP_RANGE_C = (-100.0, 200.0)  # what an ITG3200-style sensor can report (int16 raw: -82..199)
 RAZOR_RATE_HZ = 50.0            # Razor AHRS firmware output: one sample every 20 ms
 IMPORT_MOTE = 1                 # mote id given to rows of formats without one
 AUTO_ROTATION_BELOW = 0.5       # auto kind: rotation when the still fraction is lower
@@ -160,6 +162,23 @@ def _count(tok: str, path, line, what: str, allow_empty=False) -> float:
     if not -32768 <= v <= 32768:
         raise _fail(path, line, f"{what} = {tok.strip()} is outside the 16-bit range of raw counts")
     return v
+
+
+def temperature_cell(tok: str, path, line, what: str = CSV_TEMP, factor: float = 1.0,
+                     offset: float = 0.0) -> float:
+    """A temperature cell in degrees C (empty: unknown, NaN); ``factor`` and
+    ``offset`` convert a file's own unit (C = value * factor + offset).  Not
+    a number, not finite or outside ``TEMP_RANGE_C``: one line naming file
+    and line."""
+    v = _number(tok, path, line, what, allow_empty=True)
+    if v != v:
+        return v
+    c = v * factor + offset
+    lo, hi = TEMP_RANGE_C
+    if not lo <= c <= hi:
+        raise _fail(path, line, f"{what} = {tok.strip()[:40]} is {c:g} degrees C, outside "
+                    f"{lo:g}..{hi:g}")
+    return c
 
 
 SEQ_MAX = 2 ** 53 - 1      # sequence numbers: exact as float64 too
@@ -370,10 +389,11 @@ def read_csv(path, chip=None, kind="auto") -> SessionData:
     if i == len(lines):
         raise _fail(path, i + 1 if lines else 1, "empty file: no CSV header")
     header = [h.strip() for h in next(csv.reader([lines[i]]))]
-    if tuple(header) != CSV_HEADER:
+    has_temp = tuple(header) == CSV_HEADER + (CSV_TEMP,)
+    if tuple(header) != CSV_HEADER and not has_temp:
         raise _fail(path, i + 1, f"bad header {lines[i].strip()[:80]!r}, expected "
-                    f"{','.join(CSV_HEADER)!r}")
-    ncol = len(CSV_HEADER)
+                    f"{','.join(CSV_HEADER)!r} (and optionally ,{CSV_TEMP})")
+    ncol = len(header)
     rows = []
     reader = csv.reader(lines[i + 1:])
     while True:
@@ -401,6 +421,8 @@ def read_csv(path, chip=None, kind="auto") -> SessionData:
                         f"{row[3][:40]!r}") from None
         vals = [_count(v, path, lineno, name, allow_empty=True)
                 for v, name in zip(row[4:], COLUMNS)]
+        if has_temp:
+            vals.append(temperature_cell(row[13], path, lineno))
         rows.append((mote, seq, t, label, vals, lineno))
     if not rows:
         raise _fail(path, len(lines), "no samples after the header")
@@ -408,7 +430,9 @@ def read_csv(path, chip=None, kind="auto") -> SessionData:
     seq = np.array([r[1] for r in rows], np.int64)
     t = np.array([r[2] for r in rows], float)
     label = np.array([r[3] for r in rows], np.int32)
-    raw = np.array([r[4] for r in rows], float)
+    raw = np.array([r[4] for r in rows], float).reshape(len(rows), ncol - 4)
+    temp = raw[:, 9].copy() if has_temp else None
+    raw = raw[:, :9]
     lines_of = np.array([r[5] for r in rows])
     if mote.min() < 0 or mote.max() > 0xFFFF:
         bad = int(np.flatnonzero((mote < 0) | (mote > 0xFFFF))[0])
@@ -431,7 +455,8 @@ def read_csv(path, chip=None, kind="auto") -> SessionData:
             "rates_by_mote_hz": {str(k): v for k, v in rates.items()},
             "clocks": "shared", "axis_frame": CSV_FRAME}
     data = SessionData(name=Path(path).stem, raw=raw, mote=mote, seq=seq, t=t, label=label,
-                       flags=np.zeros(len(rows), np.uint8), kind="imported", meta=meta)
+                       flags=np.zeros(len(rows), np.uint8), kind="imported", meta=meta,
+                       temp=temp)
     has_labels = bool((label != LABEL_NONE).any())
     if has_labels:
         return _finish(data, chip, kind, None, has_labels=True)
@@ -452,18 +477,23 @@ def write_csv(data: SessionData, path) -> None:
     ``t`` is when each sample was taken: ``SessionData.sample_times`` when the
     stored ``t`` is batch receive times (a logged session: rows of a batch
     share the time the host got it, compressed when the line is read faster
-    than real time), else ``t`` as stored, empty where unknown."""
+    than real time), else ``t`` as stored, empty where unknown.  A session
+    with a temperature (``data.temp`` not None) gets the ``temp`` column
+    (degrees C, empty where unknown) after the nine sensor columns."""
     times = data.sample_times() if batch_times(data.t) else data.t
+    temp = data.temp
     if hasattr(path, "write"):          # an open text file (motecal.outputs.open_output)
         f = contextlib.nullcontext(path)
     else:
         f = open(path, "w", newline="")
     with f as f:
         w = csv.writer(f, lineterminator="\n")
-        w.writerow(CSV_HEADER)
+        w.writerow(CSV_HEADER + ((CSV_TEMP,) if temp is not None else ()))
         for i in range(len(data)):
             vals = ["" if np.isnan(v) else (str(int(v)) if float(v).is_integer() else repr(float(v)))
                     for v in data.raw[i]]
+            if temp is not None:
+                vals.append("" if np.isnan(temp[i]) else repr(float(temp[i])))
             t = "" if np.isnan(times[i]) else f"{times[i]:.6f}"
             w.writerow([int(data.mote[i]), int(data.seq[i]), t, label_to_text(int(data.label[i]))]
                        + vals)
@@ -759,7 +789,8 @@ def detect_format(path) -> str:
                 continue
             if _RAZOR_LINE.match(s):
                 return "razor-text"
-            if [h.strip() for h in s.split(",")] == list(CSV_HEADER):
+            if [h.strip() for h in s.split(",")] in (list(CSV_HEADER),
+                                                     list(CSV_HEADER) + [CSV_TEMP]):
                 return "csv"
             if s.startswith("t_s,"):
                 return "timestamped-csv"

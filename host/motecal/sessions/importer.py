@@ -28,7 +28,8 @@ import numpy as np
 
 from ..errors import UserError
 from ..inputs import check_input_file, read_input_bytes
-from ..line.protocol import NINEDOF_RATE_HZ
+from ..line.protocol import (ITG3200_TEMP_AT_OFFSET_C, ITG3200_TEMP_LSB_PER_C,
+                             ITG3200_TEMP_OFFSET, NINEDOF_RATE_HZ)
 from .options import option_parts
 from .session import (ADXL345_LSB_PER_G, COLUMNS, HMC5883L_LSB_PER_GAUSS, HMC5883L_OVERFLOW,
                       ITG3200_LSB_PER_DPS, LABEL_MAX, LABEL_NONE, LABEL_ROT, NOMINAL_CHIPS, NOMINAL_SCALES,
@@ -636,15 +637,32 @@ def read_razor_float(path, chip="hmc5883l", kind="auto") -> SessionData:
 
 _TS_COLUMNS = {"acc_x": 0, "acc_y": 1, "acc_z": 2, "gyr_x": 3, "gyr_y": 4, "gyr_z": 5,
                "mag_x": 6, "mag_y": 7, "mag_z": 8}
+# A temperature column (MPU6050-style logs carry the chip's die temperature),
+# its unit in its name: degrees C = value * factor + offset.
+_TS_TEMP = {"temp_c": (1.0, 0.0), "temp_f": (5.0 / 9.0, -32.0 * 5.0 / 9.0), "temp_raw": None}
+# raw TEMP_OUT -> degrees C of the chips that have one (datasheets; the ITG3200's is protocol's)
+TEMP_RAW_C = {"MPU6050": (1.0 / 340.0, 36.53),
+              "ITG3200": (1.0 / ITG3200_TEMP_LSB_PER_C,
+                          ITG3200_TEMP_AT_OFFSET_C - ITG3200_TEMP_OFFSET / ITG3200_TEMP_LSB_PER_C)}
+TEMP_RAW_C["ITG3205"] = TEMP_RAW_C["ITG3200"]
 
 
 def _timestamped_header(path, line: str):
     cols_part, _, comment = line.partition("(")
     cols = [c.strip() for c in cols_part.strip().split(",")]
+    temps = [c for c in cols if c in _TS_TEMP or c.startswith("temp")]
+    if any(c not in _TS_TEMP for c in temps):
+        raise _fail(path, 1, f"temperature column {temps[0]!r}: name its unit "
+                    f"({', '.join(_TS_TEMP)})")
+    if len(temps) > 1:
+        raise _fail(path, 1, f"more than one temperature column ({', '.join(temps)})")
+    temp_col = cols.index(temps[0]) - 1 if temps else None
+    cols = [c for c in cols if c not in temps]
     if not cols or cols[0] != "t_s" or len(cols) < 4 or any(c not in _TS_COLUMNS for c in cols[1:]) \
             or len(set(cols)) != len(cols):
         raise _fail(path, 1, f"bad header {line.strip()[:80]!r}: expected t_s followed by "
-                    f"mag_x,mag_y,mag_z and/or acc_x..gyr_z columns")
+                    f"mag_x,mag_y,mag_z and/or acc_x..gyr_z columns (and optionally one of "
+                    f"{', '.join(_TS_TEMP)})")
     idx = [_TS_COLUMNS[c] for c in cols[1:]]
     sensors = sorted({s for s, sl in SENSOR_SLICES.items() for j in idx
                       if sl.start <= j < sl.stop}, key=list(SENSOR_SLICES).index)
@@ -660,16 +678,28 @@ def _timestamped_header(path, line: str):
             if found:
                 chips[s] = max(found, key=len)
                 break
-    return idx, sensors, chips
+    temp = None
+    if temp_col is not None:
+        unit = temps[0]
+        conv = _TS_TEMP[unit]
+        if conv is None:                  # raw counts: the conversion of the chip that has it
+            chip = next((chips[s] for s in ("gyro", "accel") if chips.get(s) in TEMP_RAW_C), None)
+            if chip is None:
+                raise _fail(path, 1, f"{unit}: no chip with a known temperature sensor named in "
+                            f"the header or file name ({', '.join(TEMP_RAW_C)}); give temp_c")
+            conv = TEMP_RAW_C[chip]
+            unit = f"{unit} ({chip}: C = raw * {conv[0]:.6g} + {conv[1]:.6g})"
+        temp = (temp_col, temps[0], conv, unit)
+    return idx, sensors, chips, temp
 
 
 def _parse_timestamped(path):
     lines = _read_text_lines(path)
     if not lines or not lines[0].strip():
         raise _fail(path, 1, "empty file: no header")
-    idx, sensors, chips = _timestamped_header(path, lines[0])
-    ncol = 1 + len(idx)
-    t, vals = [], []
+    idx, sensors, chips, temp = _timestamped_header(path, lines[0])
+    ncol = 1 + len(idx) + (temp is not None)
+    t, vals, temps = [], [], []
     for lineno, line in enumerate(lines[1:], start=2):
         if not line.strip():
             continue
@@ -677,12 +707,17 @@ def _parse_timestamped(path):
         if len(parts) != ncol:
             raise _fail(path, lineno, f"expected {ncol} columns, found {len(parts)}")
         t.append(_number(parts[0], path, lineno, "t_s"))
-        vals.append([_count(p, path, lineno, f"column {j + 2}") for j, p in enumerate(parts[1:])])
+        parts = parts[1:]
+        if temp is not None:
+            col, name, (factor, offset), _ = temp
+            temps.append(temperature_cell(parts.pop(col), path, lineno, name, factor, offset))
+        vals.append([_count(p, path, lineno, f"column {j + 2}") for j, p in enumerate(parts)])
     if not t:
         raise _fail(path, len(lines), "no samples after the header")
     raw = np.full((len(t), 9), np.nan)
     raw[:, idx] = np.array(vals)
-    return np.array(t), raw, sensors, chips
+    celsius = np.array(temps, float) if temp is not None else None
+    return np.array(t), raw, sensors, chips, celsius, (temp[3] if temp else None)
 
 
 def _timestamped_files(dir_or_files) -> list[Path]:
@@ -704,7 +739,11 @@ def _timestamped_files(dir_or_files) -> list[Path]:
 
 def read_timestamped(dir_or_files, chip=None, kind="auto") -> SessionData:
     """Timestamped CSV pairs (``hmc5883l_counts.csv`` + ``mpu6050_counts.csv``):
-    header ``t_s,<axis columns>  (comment naming the chip)``, counts.
+    header ``t_s,<axis columns>  (comment naming the chip)``, counts; one
+    optional temperature column, its unit in its name (``temp_c``,
+    ``temp_f``, or ``temp_raw``: the named chip's TEMP_OUT, ``TEMP_RAW_C``),
+    becomes ``SessionData.temp`` in degrees C (NaN in the rows of files
+    without one).
 
     Each sensor keeps its own time base: a row holds one sensor's sample (NaN
     for the others), ``t`` is the file's ``t_s``, rows sorted by time.  Rates
@@ -712,8 +751,12 @@ def read_timestamped(dir_or_files, chip=None, kind="auto") -> SessionData:
     """
     files = _timestamped_files(dir_or_files)
     ts, raws, chips, rates, owner, fileinfo = [], [], {}, {}, {}, []
+    temps, temp_units = [], {}
     for f in files:
-        t, raw, sensors, fchips = _parse_timestamped(f)
+        t, raw, sensors, fchips, celsius, unit = _parse_timestamped(f)
+        temps.append(np.full(len(t), np.nan) if celsius is None else celsius)
+        if unit is not None:
+            temp_units[str(f)] = unit
         for s in sensors:
             if s in owner:
                 raise UserError(f"{f}: {s} already read from {owner[s]}; give one run "
@@ -730,15 +773,20 @@ def read_timestamped(dir_or_files, chip=None, kind="auto") -> SessionData:
                          "rate_hz": rates[sensors[0]]})
     t = np.concatenate(ts)
     raw = np.vstack(raws)
+    temp = np.concatenate(temps)
     order = np.argsort(t, kind="stable")
-    t, raw = t[order], raw[order]
+    t, raw, temp = t[order], raw[order], temp[order]
     first = Path(files[0])
     meta = {"format": "timestamped-csv", "source": SOURCE_SEP.join(map(str, files)),
             "files": fileinfo,
             "rate_hz": max(rates.values()), "rates_hz": rates,
             "clocks": "separate: each sensor on its own time base, t from the files",
             "axis_frame": TIMESTAMPED_FRAME}
+    if temp_units:
+        meta["temp_from"] = temp_units
     data = _session(first.parent.name or first.stem, raw, t, meta=meta)
+    if temp_units:
+        data.temp = temp
     data.chips = {s: None for s in SENSOR_SLICES}
     for s in owner:
         name = chips.get(s, NOMINAL_CHIPS[s])

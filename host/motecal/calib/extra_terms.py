@@ -55,7 +55,7 @@ def heldout_decision(e_without: np.ndarray, e_with: np.ndarray,
         return Decision(False, float("nan"), float("nan"), n, 0.0)
     d = a - b
     se = float(np.std(d, ddof=1)) / np.sqrt(n)
-    z = float(d.mean() / se) if se > 0 else (np.inf if d.mean() > 0 else 0.0)
+    z = float(d.mean() / se) if se > 0 else (1e9 if d.mean() > 0 else 0.0)
     return Decision(bool(z > z_accept or z_accept == -np.inf), float(np.sqrt(a.mean())),
                     float(np.sqrt(b.mean())),
                     n, z)

@@ -38,6 +38,7 @@ CHUNK_S = 2.0              # a sweep's held-out groups: chunks of this long
 SPAN_SMOOTH_S = 1.0        # the field magnitude is averaged over this long ...
 SPAN_MAD = 3.0             # ... and a span deviating more than this many robust sd is disturbed
 SPAN_PAD_S = 0.5           # and this much on both sides of it
+SPAN_ITER = 3              # spans found again from the calibration without them, at most this often
 
 
 def sensor_model(sensor: str, settings: dict):
@@ -150,7 +151,7 @@ def _pose_table(data, board):
 # ---------------------------------------------------------------------------
 # the terms
 # ---------------------------------------------------------------------------
-def _gyro_terms(data, board, wanted: list, k: int, used, unused, z=X.Z_ACCEPT):
+def _gyro_terms(data, board, wanted: list, k: int, used, unused, z=X.Z_ACCEPT, log=None):
     """g_sensitivity and bias_drift of the gyroscope (``wanted`` in that
     order), each kept when the held-out pose error falls."""
     sc = board.gyro
@@ -169,6 +170,7 @@ def _gyro_terms(data, board, wanted: list, k: int, used, unused, z=X.Z_ACCEPT):
         _, eb, ec = X.gyro_heldout(W, A, T, N, k, (use["g_sensitivity"], use["bias_drift"]),
                                    (trial["g_sensitivity"], trial["bias_drift"]))
         dec = X.heldout_decision(eb, ec, z)
+        _log(log, "gyro", c, dec, "deg/s")
         if not dec.accepted:
             unused.append(f"gyro {c}: not used: it does not lower the held-out error "
                           f"({dec.text('deg/s')})")
@@ -210,7 +212,7 @@ def _gyro_terms(data, board, wanted: list, k: int, used, unused, z=X.Z_ACCEPT):
                         "session mean (" + ", ".join(f"{v:.4f}" for v in b_mean) + ")")
 
 
-def _accel_nonlinearity(data, board, k: int, used, unused, z=X.Z_ACCEPT):
+def _accel_nonlinearity(data, board, k: int, used, unused, z=X.Z_ACCEPT, log=None):
     sc = board.accel
     if sc is None or sc.model != "full":
         unused.append("accel nonlinearity: not fitted: needs the full model's accelerometer "
@@ -234,6 +236,7 @@ def _accel_nonlinearity(data, board, k: int, used, unused, z=X.Z_ACCEPT):
         return
     _, eb, ec = X.nl_heldout(U, w, A0, c0, k)
     dec = X.heldout_decision(eb, ec, z)
+    _log(log, "accel", "nonlinearity", dec, "g")
     if not dec.accepted:
         unused.append(f"accel nonlinearity: not used: it does not lower the held-out error "
                       f"({dec.text('g')})")
@@ -307,7 +310,7 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
     board = calibrate(data)
     if found:
         board.settings["poses_found"] = found
-    used, unused = [], []
+    used, unused, log = [], [], []
     for tr in items:
         if not tr.used:
             unused.append(tr.text)
@@ -344,6 +347,8 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
                 dec = magnitude_heldout(sensor, data, sb, scand, rows, rows & ~drop, group,
                                         ~drop, board.settings, k, pm, z)
                 unit = "of the target (relative)"
+            _log(log, sensor, "+".join(tr.cause for tr in mine), dec,
+                 unit if sensor == "gyro" else "relative")
             if dec.accepted:
                 _replace_sensor(board, cand, sensor)
                 used.append(f"{texts} left out (a trimmed fit): {dec.text(unit)}")
@@ -366,6 +371,16 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
                               "wander; calibrated through (the gate's residual limit holds it)")
                 continue
             cand = calibrate(drop_rows(data, [Treatment("mag", "spans", "", drop=cut)]))
+            for _ in range(SPAN_ITER - 1):
+                # the first spans come from a calibration the disturbance pulled:
+                # found again with the calibration made without them
+                if cand.mag is None:
+                    break
+                again = disturbed_spans(data, cand.mag, rows)
+                if not again.any() or np.array_equal(again, cut):
+                    break
+                cut = again
+                cand = calibrate(drop_rows(data, [Treatment("mag", "spans", "", drop=cut)]))
             if cand.mag is None:
                 unused.append("mag field_disturbance: without the disturbed spans the sweep "
                               "no longer determines the magnetometer: calibrated through")
@@ -376,6 +391,7 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
             secs = float(cut.sum()) / max(1.0, data.rate("mag") or data.rate())
             text = (f"mag field_disturbance: disturbed spans left out ({int(cut.sum())} readings, "
                     f"about {secs:.0f} s of {float(np.ptp(t[rows])):.0f} s)")
+            _log(log, "mag", "disturbed spans", dec, "relative")
             if dec.accepted:
                 _replace_sensor(board, cand, "mag")
                 used.append(f"{text}; {dec.text('of the field (relative)')}")
@@ -390,10 +406,17 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
             used.append(tr.text)
     # model terms (the accelerometer's first: the gyroscope's use its readings)
     if any(tr.term == "nonlinearity" and tr.sensor == "accel" for tr in items):
-        _accel_nonlinearity(data, board, k, used, unused, z)
+        _accel_nonlinearity(data, board, k, used, unused, z, log)
     wanted = [c for c in ("g_sensitivity", "bias_drift")
               if any(tr.term == c and tr.sensor == "gyro" for tr in items)]
     if wanted:
-        _gyro_terms(data, board, wanted, k, used, unused, z)
-    return board, {"used": used, "not_used": unused}
+        _gyro_terms(data, board, wanted, k, used, unused, z, log)
+    return board, {"used": used, "not_used": unused, "decisions": log}
+
+
+def _log(log, sensor, what, dec, unit):
+    if log is not None:
+        log.append({"sensor": sensor, "what": what, "used": dec.accepted,
+                    "heldout_rms_before": dec.before, "heldout_rms_after": dec.after,
+                    "groups": dec.groups, "z": dec.z, "unit": unit})
 

@@ -5,7 +5,7 @@ under the same name).
 
 ``data_key(data)`` = ``"<rows>:<sha256 prefix>"`` over the mote, sequence
 number, time, label and the nine readings of every row (NaN included), in
-row order.  Pure function; equal data give equal keys in any process.
+row order, and the temperature when the session has one.  Pure function; equal data give equal keys in any process.
 """
 from __future__ import annotations
 
@@ -24,6 +24,8 @@ def data_key(data: SessionData) -> str:
         arr = np.ascontiguousarray(np.asarray(a).astype(dt))
         h.update(str(arr.shape).encode())
         h.update(arr.tobytes())
+    if getattr(data, "temp", None) is not None:
+        h.update(np.ascontiguousarray(np.asarray(data.temp, "<f8")).tobytes())
     return f"{len(data)}:{h.hexdigest()[:24]}"
 
 

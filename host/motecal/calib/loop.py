@@ -9,7 +9,7 @@ error on held-out data.
 2. the readings the findings make wrong (``calib.terms.treatments``:
    repeats, clipped readings, outliers) are left out and the board is
    calibrated again; for each sensor, both calibrations are refitted without
-   each fold of held-out poses (a sweep: of 2 s chunks) and judged on it --
+   each fold of held-out poses (a sweep: of 1 s chunks) and judged on it --
    on the held-out readings the diagnosis did not call wrong, the same rows
    for both.  The treatment is used only when the held-out error falls by
    more than ``extra_terms.Z_ACCEPT`` standard errors; otherwise the plain
@@ -34,10 +34,12 @@ from .content import poses_from_stillness, term_support
 from .models import mag_groups, make_model, theta_from_affine
 from .terms import Treatment, drop_rows, treatments
 
-CHUNK_S = 2.0              # a sweep's held-out groups: chunks of this long
+CHUNK_S = 1.0              # a sweep's held-out groups: chunks of this long
 SPAN_SMOOTH_S = 1.0        # the field magnitude is averaged over this long ...
 SPAN_MAD = 3.0             # ... and a span deviating more than this many robust sd is disturbed
-SPAN_PAD_S = 0.5           # and this much on both sides of it
+SPAN_MAD_TRIES = (2.0, 3.0, 4.0, 6.0)   # the first pass (from the calibration the disturbance
+                                        # pulled): the widest cut that leaves a calibration
+SPAN_PAD_S = 0.3           # and this much on both sides of it
 SPAN_ITER = 3              # spans found again from the calibration without them, at most this often
 
 
@@ -55,7 +57,7 @@ def sensor_model(sensor: str, settings: dict):
 
 def _groups(data, sensor: str, dataset: str | None):
     """(rows of the sensor's data set, group id per row (-1 none), pose
-    means?) -- poses for the accelerometer, gyroscope and set O, 2 s chunks
+    means?) -- poses for the accelerometer, gyroscope and set O, 1 s chunks
     of a sweep."""
     if sensor in ("accel", "gyro") or dataset == "O":
         rows = (data.label >= 1)
@@ -257,10 +259,10 @@ def _accel_nonlinearity(data, board, k: int, used, unused, z=X.Z_ACCEPT, log=Non
     used.append(f"accel nonlinearity: fitted, {dec.text('g')}")
 
 
-def disturbed_spans(data, sc, rows) -> np.ndarray:
+def disturbed_spans(data, sc, rows, n_mad: float = SPAN_MAD) -> np.ndarray:
     """Rows of the sweep ``rows`` where the field magnitude (after the
     calibration ``sc``), averaged over ``SPAN_SMOOTH_S``, deviates from its
-    median by more than ``SPAN_MAD`` robust standard deviations, padded by
+    median by more than ``n_mad`` robust standard deviations, padded by
     ``SPAN_PAD_S``."""
     idx = np.flatnonzero(rows)
     out = np.zeros(len(data), bool)
@@ -275,7 +277,7 @@ def disturbed_spans(data, sc, rows) -> np.ndarray:
     sm = (c[lo + w] - c[lo]) / w
     med = np.median(sm)
     sd = 1.4826 * np.median(np.abs(sm - med))
-    bad = np.abs(sm - med) > SPAN_MAD * sd if sd > 0 else np.zeros(len(m), bool)
+    bad = np.abs(sm - med) > n_mad * sd if sd > 0 else np.zeros(len(m), bool)
     if bad.any():
         pad = max(1, int(round(SPAN_PAD_S * rate)))
         bad = np.convolve(bad.astype(float), np.ones(2 * pad + 1), "same") > 0
@@ -355,7 +357,11 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
             else:
                 unused.append(f"{texts}: kept in: leaving them out does not lower the "
                               f"held-out error ({dec.text(unit)})")
-    # the disturbed spans of a sweep
+    # the disturbed spans of a sweep (also tried when the diagnosis saw single
+    # readings far off: in a sweep they may be a span of a disturbed field)
+    if any(tr.sensor == "mag" and tr.cause == "outliers" for tr in items) and not any(
+            tr.term == "disturbed_spans" or tr.refuse for tr in items):
+        items.append(Treatment("mag", "field_disturbance", "", term="disturbed_spans"))
     for tr in items:
         if tr.term == "disturbed_spans":
             sb = board.mag
@@ -365,12 +371,18 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
                 continue
             rows, group, _ = _groups(data, "mag", "R")
             rows &= data.has("mag")
-            cut = disturbed_spans(data, sb, rows)
+            for n_mad in SPAN_MAD_TRIES:
+                # a wide first cut may leave too little of the sphere: narrower ones then
+                cut = disturbed_spans(data, sb, rows, n_mad)
+                if not cut.any():
+                    break
+                cand = calibrate(drop_rows(data, [Treatment("mag", "spans", "", drop=cut)]))
+                if cand.mag is not None:
+                    break
             if not cut.any():
                 unused.append("mag field_disturbance: no disturbed span stands out of the "
                               "wander; calibrated through (the gate's residual limit holds it)")
                 continue
-            cand = calibrate(drop_rows(data, [Treatment("mag", "spans", "", drop=cut)]))
             for _ in range(SPAN_ITER - 1):
                 # the first spans come from a calibration the disturbance pulled:
                 # found again with the calibration made without them

@@ -318,6 +318,7 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
             unused.append(tr.text)
     # readings left out, per sensor, judged on held-out data
     drops = [tr for tr in items if tr.used and tr.drop is not None and tr.drop.any()]
+    kept = []                        # the treatments taken: later candidates build on them
     for tr in items:
         if tr.used and tr.drop is not None and not tr.drop.any():
             unused.append(f"{tr.text}: none found in this session's rows")
@@ -353,6 +354,7 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
                  unit if sensor == "gyro" else "relative")
             if dec.accepted:
                 _replace_sensor(board, cand, sensor)
+                kept += mine
                 used.append(f"{texts} left out (a trimmed fit): {dec.text(unit)}")
             else:
                 unused.append(f"{texts}: kept in: leaving them out does not lower the "
@@ -371,12 +373,17 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
                 continue
             rows, group, _ = _groups(data, "mag", "R")
             rows &= data.has("mag")
+            gone = np.zeros(len(data), bool)        # readings already left out
+            for tk in kept:
+                if tk.sensor == "mag":
+                    gone |= tk.drop
+            rows &= ~gone
             for n_mad in SPAN_MAD_TRIES:
                 # a wide first cut may leave too little of the sphere: narrower ones then
                 cut = disturbed_spans(data, sb, rows, n_mad)
                 if not cut.any():
                     break
-                cand = calibrate(drop_rows(data, [Treatment("mag", "spans", "", drop=cut)]))
+                cand = calibrate(drop_rows(data, kept + [Treatment("mag", "spans", "", drop=cut)]))
                 if cand.mag is not None:
                     break
             if not cut.any():
@@ -392,7 +399,7 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
                 if not again.any() or np.array_equal(again, cut):
                     break
                 cut = again
-                cand = calibrate(drop_rows(data, [Treatment("mag", "spans", "", drop=cut)]))
+                cand = calibrate(drop_rows(data, kept + [Treatment("mag", "spans", "", drop=cut)]))
             if cand.mag is None:
                 unused.append("mag field_disturbance: without the disturbed spans the sweep "
                               "no longer determines the magnetometer: calibrated through")

@@ -283,6 +283,8 @@ def measured_section(jobs):
 
 
 def _fmt_dec(x):
+    if x.get("why"):
+        return f"{x['sensor']} {x['what']}: not judged ({x['why']})"
     u = "%" if x["unit"] == "relative" else x["unit"]
     k = 100.0 if x["unit"] == "relative" else 1.0
     return (f"{x['sensor']} {x['what']}: {k * x['heldout_rms_before']:.3g} -> "

@@ -35,8 +35,11 @@ class Decision:
     after: float                # held-out rms with
     groups: int                 # held-out groups (poses or chunks) compared
     z: float                    # improvement / its standard error
+    why: str | None = None      # why it could not be judged
 
     def text(self, unit: str) -> str:
+        if self.why:
+            return f"cannot be judged on held-out data: {self.why}"
         return (f"held-out rms {self.before:.3g} -> {self.after:.3g} {unit} over {self.groups} "
                 f"groups ({self.z:+.1f} standard errors)")
 

@@ -80,7 +80,12 @@ def magnitude_heldout(sensor, data, sc_base, sc_cand, rows_base, rows_cand, grou
     mdl = sensor_model(sensor, settings)
     lsb = sc_base.lsb_per_unit
     u = data.sensor(sensor) / lsb
-    ids = np.unique(group[group >= 0])
+    ids = np.unique(group[(group >= 0) & rows_base])
+    need = max(int(sc_base.rank or 0), 1)
+    if pose_means and len(ids) - int(np.ceil(len(ids) / k)) < need:
+        return X.Decision(False, float("nan"), float("nan"), 0, 0.0,
+                          why=f"too few poses to hold any out ({len(ids)} poses, {need} "
+                              "parameters)")
     fold_of = {g: i % k for i, g in enumerate(ids)}
     fold = np.array([fold_of.get(g, -1) for g in group])
     out = {}
@@ -174,8 +179,7 @@ def _gyro_terms(data, board, wanted: list, k: int, used, unused, z=X.Z_ACCEPT, l
         dec = X.heldout_decision(eb, ec, z)
         _log(log, "gyro", c, dec, "deg/s")
         if not dec.accepted:
-            unused.append(f"gyro {c}: not used: it does not lower the held-out error "
-                          f"({dec.text('deg/s')})")
+            unused.append(f"gyro {c}: not used: {_no_gain(dec, 'deg/s')}")
             continue
         use = trial
         used.append(f"gyro {c}: fitted, {dec.text('deg/s')}")
@@ -193,7 +197,8 @@ def _gyro_terms(data, board, wanted: list, k: int, used, unused, z=X.Z_ACCEPT, l
                                      "note": "still rate = bias + S (a - a_mean) (a: calibrated "
                                              "accelerometer, g; bias: the b_ parameters); "
                                              "applied on the host, not by the mote"}
-        sc.notes.append("g-sensitivity from the diagnosis: still rate = b0 + S a, largest |S| "
+        sc.notes.append("g-sensitivity from the diagnosis: still rate = b + S (a - a_mean), "
+                        "largest |S| "
                         f"{np.abs(S).max():.3g} deg/s per g (extra.g_sensitivity)")
         i = 4
     if use["bias_drift"]:
@@ -240,8 +245,7 @@ def _accel_nonlinearity(data, board, k: int, used, unused, z=X.Z_ACCEPT, log=Non
     dec = X.heldout_decision(eb, ec, z)
     _log(log, "accel", "nonlinearity", dec, "g")
     if not dec.accepted:
-        unused.append(f"accel nonlinearity: not used: it does not lower the held-out error "
-                      f"({dec.text('g')})")
+        unused.append(f"accel nonlinearity: not used: {_no_gain(dec, 'g')}")
         return
     mdl = make_model("accel", "full")
     th = theta_from_affine(mdl, A, c)
@@ -357,8 +361,7 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
                 kept += mine
                 used.append(f"{texts} left out (a trimmed fit): {dec.text(unit)}")
             else:
-                unused.append(f"{texts}: kept in: leaving them out does not lower the "
-                              f"held-out error ({dec.text(unit)})")
+                unused.append(f"{texts}: kept in: {_no_gain(dec, unit, 'leaving them out')}")
     # the disturbed spans of a sweep (also tried when the diagnosis saw single
     # readings far off: in a sweep they may be a span of a disturbed field)
     if any(tr.sensor == "mag" and tr.cause == "outliers" for tr in items) and not any(
@@ -415,8 +418,8 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
                 _replace_sensor(board, cand, "mag")
                 used.append(f"{text}; {dec.text('of the field (relative)')}")
             else:
-                unused.append(f"{text}: not used: it does not lower the held-out error "
-                              f"({dec.text('of the field (relative)')})")
+                unused.append(f"{text}: not used: "
+                              f"{_no_gain(dec, 'of the field (relative)')}")
         elif tr.refuse and tr.sensor == "mag" and board.mag is not None:
             board.mag, board.mag_sets = None, {}
             board.settings["insufficient"]["mag"] = tr.refuse
@@ -433,9 +436,21 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
     return board, {"used": used, "not_used": unused, "decisions": log}
 
 
+def _no_gain(dec, unit, what="it"):
+    if dec.why:
+        return dec.text(unit)
+    return f"{what} does not lower the held-out error ({dec.text(unit)})"
+
+
+def _finite(x):
+    return float(x) if np.isfinite(x) else None
+
+
 def _log(log, sensor, what, dec, unit):
     if log is not None:
         log.append({"sensor": sensor, "what": what, "used": dec.accepted,
-                    "heldout_rms_before": dec.before, "heldout_rms_after": dec.after,
-                    "groups": dec.groups, "z": dec.z, "unit": unit})
+                    "heldout_rms_before": _finite(dec.before),
+                    "heldout_rms_after": _finite(dec.after),
+                    "groups": dec.groups, "z": dec.z, "unit": unit,
+                    **({"why": dec.why} if dec.why else {})})
 

@@ -35,11 +35,11 @@ from .models import mag_groups, make_model, theta_from_affine
 from .terms import Treatment, drop_rows, treatments
 
 CHUNK_S = 1.0              # a sweep's held-out groups: chunks of this long
-SPAN_SMOOTH_S = 1.0        # the field magnitude is averaged over this long ...
+SPAN_SMOOTH_S = 0.5        # the field magnitude is averaged over this long ...
 SPAN_MAD = 3.0             # ... and a span deviating more than this many robust sd is disturbed
 SPAN_MAD_TRIES = (2.0, 3.0, 4.0, 6.0)   # the first pass (from the calibration the disturbance
                                         # pulled): the widest cut that leaves a calibration
-SPAN_PAD_S = 0.3           # and this much on both sides of it
+SPAN_PAD_S = 0.0           # and this much on both sides of it (at least one reading)
 SPAN_ITER = 3              # spans found again from the calibration without them, at most this often
 
 

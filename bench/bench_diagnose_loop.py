@@ -298,7 +298,10 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--no-measured", action="store_true", help="planted boards only")
+    ap.add_argument("--measured-only", action="store_true", help="the measured data only")
     a = ap.parse_args(argv)
+    if a.measured_only:
+        return measured_table(a.jobs)
     cs = [(c, a.seed * 100000 + 1000 * i + j) for i, c in enumerate(CAUSES)
           for j in range(a.boards)]
     t0 = time.time()
@@ -359,19 +362,25 @@ def main(argv=None):
                 f"{worst_vs_full:.3f}")
     if a.no_measured:
         return 0
+    return measured_table(a.jobs)
+
+
+def measured_table(jobs):
     print()
     print("measured data (../shared/data/measured): gate without -> with the diagnosis, what was "
           "used, held-out rms before -> after of each treatment or term tried (the same held-out "
           "poses or 1 s chunks for both; % of the target for accel/mag):")
     print()
     print("| data set | diagnosis named | gate: plain -> with the diagnosis | used | held-out rms "
-          "before -> after |")
-    print("| --- | --- | --- | --- | --- |")
-    for r in measured_section(a.jobs):
+          "before -> after | not tried, and why |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for r in measured_section(jobs):
         used = [u.split(":")[0] for u in r["rep"]["used"]] or ["nothing"]
-        decs = "; ".join(_fmt_dec(x) for x in r["rep"]["decisions"]) or "nothing to try"
+        decs = "; ".join(_fmt_dec(x) for x in r["rep"]["decisions"]) or "-"
+        why = "; ".join(u for u in r["rep"]["not_used"]
+                        if "held-out" not in u and "cross_axis" not in u) or "-"
         print(f"| {r['name']} | {', '.join(r['named']) or 'clean'} | {r['gate'][0]} -> "
-              f"{r['gate'][1]} | {', '.join(used)} | {decs} |")
+              f"{r['gate'][1]} | {', '.join(used)} | {decs} | {why} |")
     return 0
 
 

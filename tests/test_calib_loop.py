@@ -15,6 +15,7 @@ import pytest
 import plant as P
 from motecal.calib.board import calibrate_board
 from motecal.calib.loop import calibrate_with_diagnosis
+from motecal.commands.calibrate import TOOL
 from motecal.commands.main import main
 from motecal.sessions import store as store_mod
 from motecal.sessions.fingerprint import data_key
@@ -58,7 +59,7 @@ def test_kept_diagnosis_is_used_by_default_and_said(tmp_path, capsys):
     G = np.array(ses.meta["planted"][0]["term"]["G"])
     assert np.abs(S - G).max() < 0.25 * np.abs(G).max(), (S, G)
     # --no-diagnosis: the plain calibration, said
-    assert main(args[:-0 or None] + ["--no-diagnosis"]) == 0
+    assert main(args + ["--no-diagnosis"]) == 0
     out = capsys.readouterr().out
     assert "diagnosis: not used: --no-diagnosis" in out and "g_sensitivity" not in out
     # another version's diagnosis is not used silently
@@ -86,11 +87,8 @@ def test_diagnosis_of_other_rows_not_used(tmp_path, capsys):
     db = _db(tmp_path, ses)
     with open_store(db) as st:
         st.save_diagnosis("s", 1, {"clean": True, "findings": [], "model": {}},
-                          tool="motecal 0.1.0", data_key=data_key(ses.select(
+                          tool=TOOL, data_key=data_key(ses.select(
                               np.arange(len(ses)) < len(ses) - 5)))
-    from motecal.commands.calibrate import TOOL
-    with open_store(db) as st:
-        assert st.load_diagnosis("s", 1)["tool"] == "motecal 0.1.0" or TOOL
     assert main(["calibrate", "--db", db, "--session", "s", "--out", str(tmp_path / "c.json"),
                  "--seed", "1", "--kfold", "0"]) == 0
     out = capsys.readouterr().out
@@ -105,7 +103,6 @@ def test_both_flags_and_read_only_database(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 2 and len(err.strip().splitlines()) == 1
     # --no-keep leaves the database as it was
-    before = Path(db).read_bytes()
     assert main(["diagnose", "--db", db, "--session", "s", "--no-sim", "--no-keep"]) == 0
     with open_store(db, readonly=True) as st:
         assert st.load_diagnosis("s", 1) is None
@@ -192,3 +189,18 @@ def test_noise_only_terms_are_not_taken():
         clean += not rep["used"]
         assert len(rep["decisions"]) == 3, rep
     assert clean >= 4
+
+
+@pytest.mark.parametrize("finding", [
+    "not a dict", {"sensor": "mag", "cause": "unexplained", "evidence": {"outlier_times_s": ["x"]}},
+    {"sensor": "accel", "cause": "saturation", "evidence": {"limits": [{"axis": "q"}]},
+     "params": {"overflow_code": "no"}}])
+def test_malformed_diagnosis_file_is_one_line(tmp_path, capsys, finding):
+    db = _db(tmp_path, P.simulate([], "idle", 3))
+    f = tmp_path / "d.json"
+    f.write_text(json.dumps({"clean": False, "findings": [finding]}))
+    rc = main(["calibrate", "--db", db, "--session", "s", "--out", str(tmp_path / "c.json"),
+               "--diagnosis", str(f), "--kfold", "0"])
+    err = capsys.readouterr().err
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and "diagnosis" in err, err
+    assert not (tmp_path / "c.json").exists()

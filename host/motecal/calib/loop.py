@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import UserError
 from . import extra_terms as X
 from . import fit as _fit
 from .board import mag_data_sets
@@ -312,7 +313,11 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
     z = z_accept
     k = max(2, int(kfold) if kfold else 5)
     data, found = poses_from_stillness(data)
-    items = treatments(data, diagnosis)
+    try:
+        items = treatments(data, diagnosis)
+    except (TypeError, ValueError, KeyError, AttributeError, IndexError) as e:
+        raise UserError(f"the diagnosis has a finding calibrate cannot read ({e}); run "
+                        "motecal diagnose again") from None
     board = calibrate(data)
     if found:
         board.settings["poses_found"] = found

@@ -48,9 +48,13 @@ def load_diagnosis(path) -> dict:
 
 
 def _repeats(x: np.ndarray) -> np.ndarray:
+    """Rows whose reading equals the sensor's previous reading on all axes
+    (rows without a reading of this sensor in between are skipped: a sensor
+    read more slowly than the rows come)."""
     rep = np.zeros(len(x), bool)
-    if len(x) > 1:
-        rep[1:] = np.all(x[1:] == x[:-1], axis=1) & np.all(np.isfinite(x[1:]), axis=1)
+    idx = np.flatnonzero(np.all(np.isfinite(x), axis=1))
+    if len(idx) > 1:
+        rep[idx[1:]] = np.all(x[idx[1:]] == x[idx[:-1]], axis=1)
     return rep
 
 

@@ -59,9 +59,8 @@ BASE = "general"
 CAUSES = ["saturation-accel", "stale_samples-accel", "nonlinearity-accel", "outliers-mag",
           "spans-mag", "field_disturbance-mag-rotation", "g_sensitivity-gyro", "bias_drift-gyro"]
 # a field wandering over the whole sweep: no term calibrate can fit (a time-varying
-# field cannot be told from the direction's in one 40 s sweep; tried: a piecewise-linear
-# field in time fitted with the map gained on 2 of 4 boards and lost on 1); calibrated
-# through.  Shown as context, in the never-worse goal, not in the within-10 % goal.
+# field cannot be told reliably from the directions' shape in one 40 s sweep);
+# calibrated through.  Shown as context, in the never-worse goal, not in the 10 % goal.
 CONTEXT = ("field_disturbance-mag-rotation",)
 TERMS = ("nonlinearity", "g_sensitivity", "bias_drift")     # model terms: the reference is
                                                             # that term fitted (oracle)

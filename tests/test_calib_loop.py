@@ -204,3 +204,30 @@ def test_malformed_diagnosis_file_is_one_line(tmp_path, capsys, finding):
     err = capsys.readouterr().err
     assert rc == 2 and len(err.strip().splitlines()) == 1 and "diagnosis" in err, err
     assert not (tmp_path / "c.json").exists()
+
+
+def _diagnoses_roundtrip(url):
+    ses = P.simulate([], "idle", 2)
+    ses.name = "d"
+    with open_store(url, create=True) as st:
+        st.save_session(ses)
+        big = {"clean": False, "findings": [{"sensor": "mag", "cause": "unexplained",
+                                             "evidence": {"outlier_times_s": list(range(5000))}}]}
+        i = st.save_diagnosis("d", 1, big, tool=TOOL, data_key=data_key(ses))
+        j = st.save_diagnosis("d", 1, {"clean": True, "findings": []}, tool=TOOL,
+                              data_key=data_key(ses))
+        got = st.load_diagnosis("d", 1)
+        assert j > i and got["id"] == j and got["diagnosis"]["clean"] is True
+        assert got["data_key"] == data_key(st.load_session("d").for_mote(1))
+        assert st.load_diagnosis("d", 2) is None
+        st.save_session(ses, replace=True)                 # the session again: they go
+        assert st.load_diagnosis("d", 1) is None
+
+
+def test_diagnoses_on_postgres(pg_url):
+    _diagnoses_roundtrip(pg_url)
+
+
+def test_diagnoses_on_mariadb(mariadb):
+    import dbservers
+    _diagnoses_roundtrip(dbservers.new_database(mariadb, "t_diagnoses"))

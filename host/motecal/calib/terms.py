@@ -1,23 +1,25 @@
-"""Closing the loop (issue 13): what a diagnosis found, applied to the data a
-calibration is fitted on (``motecal calibrate --diagnosis diagnosis.json``).
+"""Closing the loop (issue 13): what each finding of a diagnosis (the JSON
+``motecal diagnose`` writes or keeps with the session: ``{"clean",
+"findings", "model"}``) asks of a calibration, as a ``Treatment``:
 
-Pure functions on a ``SessionData`` and the diagnosis' JSON (the form
-``motecal diagnose --json`` writes: ``{"clean", "findings", "model"}``).
-Each finding is either *used* -- the readings it makes wrong are left out of
-that sensor's fit, and the user is told how many -- or *not used*, with the
-reason:
+* ``stale_samples``: the repeated readings (equal on all axes to the
+  sensor's previous reading) to leave out;
+* ``saturation``: the readings at a clipped limit (or an overflow code) to
+  leave out, a static pose with any of them whole;
+* ``unexplained`` with outlier readings (a sweep): those readings (a
+  trimmed fit);
+* ``field_disturbance``: beyond what a calibration can go through (the
+  gate's rule), the magnetometer refused; else the disturbed time spans of
+  the sweep (a term ``calib.loop`` finds and cuts);
+* ``nonlinearity`` (accel), ``g_sensitivity`` and ``bias_drift`` (gyro):
+  terms ``calib.extra_terms`` fits;
+* anything else (cross-axis, already in the full model; drift of the
+  accelerometer or magnetometer; motion): not used, and the reason.
 
-* ``stale_samples``: repeated readings (equal on all axes to the previous
-  one) carry no new information and bias the noise: dropped;
-* ``saturation``: readings at a clipped limit (or an overflow code) are not
-  the true value: dropped;
-* ``unexplained`` with outlier readings (a sweep): dropped at the listed
-  times (a trimmed fit), counted;
-* ``field_disturbance`` the diagnosis judged not calibratable: the
-  magnetometer is refused with that reason (the same rule as the gate);
-  a smaller one is calibrated through (the gate's residual limit holds it);
-* terms the calibration has no parameter for (nonlinearity, g-sensitivity,
-  drift, cross-axis already in the full model, motion): not used, and said.
+Whether a treatment or term is then used is ``calib.loop``'s decision, on
+held-out data.  ``apply_diagnosis`` applies every row-dropping treatment at
+once (the bench's 'every treatment' arm).  Pure functions on a
+``SessionData`` and the diagnosis' JSON.
 """
 from __future__ import annotations
 

@@ -74,6 +74,7 @@ class MoteLink:
         # received, and readings waiting for the mote's first samples (to unwrap)
         self.temp_c: float | None = None
         self.temp_msgs = 0
+        self.temp_rejected = 0                  # readings whose seq fits no sample of the mote
         self._temp_wait: list[tuple[int, float, int]] = []
 
     def _remember(self, u: np.ndarray, rec: np.ndarray) -> None:
@@ -230,8 +231,13 @@ class MoteLink:
         until the mote's first samples are accepted."""
         if self.last16 is None or not self._temp_wait:
             return []
-        out = [(self.last_u + int(_wrapdiff(s, self.last16)), c, n)
-               for s, c, n in self._temp_wait]
+        out = []
+        for s, c, n in self._temp_wait:
+            u = self.last_u + int(_wrapdiff(s, self.last16))
+            if self.end - REORDER_WINDOW <= u <= self.end + MAX_JUMP:
+                out.append((u, c, n))
+            else:                    # not near the mote's samples (a reboot not yet confirmed)
+                self.temp_rejected += 1
         self._temp_wait = []
         return out
 

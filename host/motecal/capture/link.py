@@ -73,6 +73,7 @@ class MoteLink:
         # the board temperature (ninedof_mote_temp_msg): latest degrees C, messages
         # received, and readings waiting for the mote's first samples (to unwrap)
         self.temp_c: float | None = None
+        self.temp_range: tuple[float, float] | None = None   # lowest, highest seen
         self.temp_msgs = 0
         self.temp_rejected = 0                  # readings whose seq fits no sample of the mote
         self._temp_wait: list[tuple[int, float, int]] = []
@@ -222,6 +223,8 @@ class MoteLink:
             return
         c = float(P.temp_c(msg["temp_sum"] / msg["count"]))
         self.temp_c = c
+        lo, hi = self.temp_range or (c, c)
+        self.temp_range = (min(lo, c), max(hi, c))
         if len(self._temp_wait) < TEMP_WAIT_MAX:
             self._temp_wait.append((int(msg["seq"]), c, int(msg["count"])))
 

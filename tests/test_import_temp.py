@@ -92,6 +92,7 @@ def test_missing_temp_cell_and_a_bad_header(tmp_path, capsys):
     path.write_text(HEADER + ",temp\n1,0,0.0,,1,2,3,4,5,6,7,8,9\n")
     code, _, err = _motecal(capsys, "import", path, "--db", tmp_path / "d.db", "--session", "s")
     assert code == 2 and "line 2: expected 14 columns, found 13" in err
+    assert not (tmp_path / "d.db").exists()
     path.write_text(HEADER + ",temperature\n1,0,0.0,,1,2,3,4,5,6,7,8,9,20\n")
     code, _, err = _motecal(capsys, "import", path, "--db", tmp_path / "d.db", "--session", "s")
     assert code == 2 and "unknown format" in err and len(err.strip().splitlines()) == 1

@@ -555,3 +555,15 @@ def test_an_old_host_ignores_temperature_messages(tmp_path, monkeypatch):
     for m in (1, 2):
         np.testing.assert_array_equal(d.for_mote(m).raw, sent[m][1])
     assert d.temp is None and line["unknown_msgs"] == len(readings) and line["bad_msgs"] == 0
+
+
+def test_a_temperature_reading_far_from_the_motes_samples_is_rejected():
+    link = MoteLink(4)
+    link.temperature(dict(seq=3, count=125, reserved=0, temp_sum=-12000 * 125))
+    assert link.take_temps() == []                   # waits for the mote's samples
+    _accept(link, [65530, 65535, 4, 9])              # samples 65530..65543 (wrapped)
+    link.temperature(dict(seq=20000, count=125, reserved=0, temp_sum=-12000 * 125))
+    got = link.take_temps()
+    assert [u for u, _, _ in got] == [65536 + 3] and link.temp_rejected == 1
+    assert got[0][1] == pytest.approx(float(P.temp_c(-12000))) and got[0][2] == 125
+    assert link.temp_c == pytest.approx(float(P.temp_c(-12000))) and link.temp_msgs == 2

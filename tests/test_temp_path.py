@@ -80,6 +80,10 @@ def test_sim_to_export_and_back_carries_the_temperature(seed, tmp_path, capsys):
     with open(rec, "wb") as fh:
         write_file(w, fh)
     _log(rec, db)
+    summary = capsys.readouterr().out
+    lo, hi = warm(0.0), warm(15.0)
+    assert f"temperature {lo:.1f}.." in summary or f"temperature {lo + 0.1:.1f}.." in summary
+    assert f"..{hi:.1f} C" in summary or f"..{hi - 0.1:.1f} C" in summary, summary
     with open_store(str(db)) as st:
         d = st.load_session("s")
         readings = st.temps("s")

@@ -73,7 +73,9 @@ class MoteLink:
         # the board temperature (ninedof_mote_temp_msg): latest degrees C, messages
         # received, and readings waiting for the mote's first samples (to unwrap)
         self.temp_c: float | None = None
+        self.temp_range: tuple[float, float] | None = None   # lowest, highest seen
         self.temp_msgs = 0
+        self.temp_rejected = 0                  # readings whose seq fits no sample of the mote
         self._temp_wait: list[tuple[int, float, int]] = []
 
     def _remember(self, u: np.ndarray, rec: np.ndarray) -> None:
@@ -221,6 +223,8 @@ class MoteLink:
             return
         c = float(P.temp_c(msg["temp_sum"] / msg["count"]))
         self.temp_c = c
+        lo, hi = self.temp_range or (c, c)
+        self.temp_range = (min(lo, c), max(hi, c))
         if len(self._temp_wait) < TEMP_WAIT_MAX:
             self._temp_wait.append((int(msg["seq"]), c, int(msg["count"])))
 
@@ -230,8 +234,13 @@ class MoteLink:
         until the mote's first samples are accepted."""
         if self.last16 is None or not self._temp_wait:
             return []
-        out = [(self.last_u + int(_wrapdiff(s, self.last16)), c, n)
-               for s, c, n in self._temp_wait]
+        out = []
+        for s, c, n in self._temp_wait:
+            u = self.last_u + int(_wrapdiff(s, self.last16))
+            if self.end - REORDER_WINDOW <= u <= self.end + MAX_JUMP:
+                out.append((u, c, n))
+            else:                    # not near the mote's samples (a reboot not yet confirmed)
+                self.temp_rejected += 1
         self._temp_wait = []
         return out
 

@@ -258,6 +258,9 @@ class Logger:
             c = link.c
             line = (f"  mote {m}: {c['samples']} samples, lost {c['lost']}, "
                     f"duplicates {c['duplicates']}, reordered {c['reordered']}")
+            if link.temp_range is not None:
+                lo, hi = link.temp_range
+                line += f", temperature {lo:.1f}..{hi:.1f} C"
             cap = self.guide.captures.get(m) if self.guide else None
             if cap is not None and cap.kind == "static80":
                 line += f", poses {len(cap.accepted)}/{cap.poses}"

@@ -228,8 +228,7 @@ def test_diagnoses_on_postgres(pg_url):
     """In a database of its own (the server's 'motecal' database is shared by
     the store's tests, which count its sessions)."""
     import psycopg
-    with psycopg.connect(pg_url,
-                         autocommit=True) as con:
+    with psycopg.connect(pg_url, autocommit=True) as con:
         con.execute("DROP DATABASE IF EXISTS t_diagnoses")
         con.execute("CREATE DATABASE t_diagnoses")
     _diagnoses_roundtrip(pg_url.replace("/motecal?", "/t_diagnoses?"))

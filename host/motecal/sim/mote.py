@@ -192,6 +192,8 @@ class SimMote:
         rec = raw
         if self.cal is not None:
             if flags & P.FLAG_CORRECTED:
+                if hasattr(self.cal, "set_temperature"):     # sets with temperature terms
+                    self.cal.set_temperature(self._correction_temp_raw(self.t0 + k0 * self.period))
                 rec = np.asarray(self.cal.correct(raw), np.int16)
         if len(self.queue) >= QUEUE_LEN:
             self.dropped += k1 - k0
@@ -201,6 +203,15 @@ class SimMote:
         self.queue.append(Message(self.id, P.AM_NINEDOF_SAMPLES_MSG, payload, k0, k1 - k0,
                                   raw, rec, flags))
         self._kick()
+
+    def _correction_temp_raw(self, t: float) -> int:
+        """The raw TEMP_OUT the on-mote correction uses at time t (the
+        firmware: the mean of the last second's readings; here the board
+        temperature at t): ``temperature_c(t)`` of the mote or its board when
+        one is there (the thermal model, temp-api.md), else 25 C."""
+        f = getattr(self, "temperature_c", None) or getattr(self.sampler, "temperature_c", None)
+        celsius = float(f(t)) if f is not None else 25.0
+        return int(np.clip(np.rint(P.temp_raw(celsius)), -32768, 32767))
 
     # ------------------------------------------------------------------ radio
     def _pending(self, client: int) -> Message | None:

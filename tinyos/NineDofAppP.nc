@@ -243,8 +243,10 @@ implementation
     uint16_t recSeq;
     atomic {
       reading = FALSE;
+#ifndef NINEDOF_ITG_RATES_ONLY   /* (a comparison build without the temperature) */
       if (err == SUCCESS)
         ninedof_temp_add(&temps, readSeq, val.temp);   /* the temperature of sample readSeq */
+#endif
       if (err != SUCCESS) {
         counters.i2c_errors++;
         ninedof_align_lost(&align);           /* its trigger may not have gone out */

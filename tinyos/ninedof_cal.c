@@ -69,7 +69,7 @@ static void temp_none(ninedof_cal_t *cal)
   for (k = 0; k < NINEDOF_SENSORS; k++) {
     for (i = 0; i < 3; i++) {
       cal->tg[k][i] = 0;
-      cal->tc[k][i] = (int32_t)((uint32_t)cal->s[k].c[i] + (uint32_t)ROUND_Q14);
+      cal->to[k][i] = 0;
     }
   }
 }
@@ -215,8 +215,7 @@ void ninedof_cal_set_temp(ninedof_cal_t *cal, int16_t raw)
       dt = 0;
     for (i = 0; i < 3; i++) {
       cal->tg[k][i] = on ? (int16_t)temp_gain(t, i, dt) : 0;
-      cal->tc[k][i] = (int32_t)((uint32_t)cal->s[k].c[i] + (uint32_t)ROUND_Q14 +
-                                (uint32_t)(on ? temp_offset(t, i, dt) : 0));
+      cal->to[k][i] = on ? temp_offset(t, i, dt) : 0;
     }
   }
 }
@@ -478,6 +477,46 @@ static NINEDOF_ALWAYS_INLINE void sensor_q14(const ninedof_cal_sensor_native_t *
     : "r0", "r1", "memory");
   (void)acc0; (void)acc1; (void)acc2; (void)m; (void)x; (void)z; (void)p;
 }
+
+/* The same nine multiply-accumulates, the three int32 accumulators
+ * (c + 2^13 + A raw, Q14) stored as they are: for the temperature terms,
+ * which need A raw exactly (sensor_temp). */
+#define K_ST32(ACC)                                                     \
+  "st X+, %A[" #ACC "]\n\tst X+, %B[" #ACC "]\n\t"                     \
+  "st X+, %C[" #ACC "]\n\tst X+, %D[" #ACC "]\n\t"
+
+static NINEDOF_ALWAYS_INLINE void sensor_q14_acc(const ninedof_cal_sensor_native_t *s,
+                                                 const int16_t *in, int32_t *acc)
+{
+  int32_t acc0, acc1, acc2;
+  int16_t m, x;
+  uint8_t z;
+  const int16_t *p = in;
+
+  ninedof_kernel_out = (int16_t *)acc;
+  __asm__ volatile (
+    "clr %[z]\n\t"
+    K_LDC(acc0, 18, 19, 20, 21)
+    K_LDC(acc1, 22, 23, 24, 25)
+    K_LDC(acc2, 26, 27, 28, 29)
+    "ldi %A[m], 0x20\n\t"
+    K_ROUND(acc0) K_ROUND(acc1) K_ROUND(acc2)
+    K_LDX
+    K_LDM(0, 1) K_MAC(acc0) K_LDM(6, 7) K_MAC(acc1) K_LDM(12, 13) K_MAC(acc2)
+    K_LDX
+    K_LDM(2, 3) K_MAC(acc0) K_LDM(8, 9) K_MAC(acc1) K_LDM(14, 15) K_MAC(acc2)
+    K_LDX
+    K_LDM(4, 5) K_MAC(acc0) K_LDM(10, 11) K_MAC(acc1) K_LDM(16, 17) K_MAC(acc2)
+    "clr r1\n\t"
+    "lds r26, %[o]\n\t"
+    "lds r27, %[o]+1\n\t"
+    K_ST32(acc0) K_ST32(acc1) K_ST32(acc2)
+    : [acc0] "=&r" (acc0), [acc1] "=&r" (acc1), [acc2] "=&r" (acc2),
+      [m] "=&a" (m), [x] "=&a" (x), [z] "=&r" (z), [p] "+x" (p)
+    : [s] "z" (s), [o] "i" (&ninedof_kernel_out)
+    : "r0", "r1", "memory");
+  (void)acc0; (void)acc1; (void)acc2; (void)m; (void)x; (void)z; (void)p;
+}
 #else
 /* Same arithmetic in C, wrapping like the AVR code (only sets that were
  * never validated can wrap). */
@@ -499,6 +538,23 @@ static NINEDOF_ALWAYS_INLINE void sensor_q14(const ninedof_cal_sensor_native_t *
   out[0] = sat_q14(y[0]);
   out[1] = sat_q14(y[1]);
   out[2] = sat_q14(y[2]);
+}
+
+/* c + 2^13 + A raw per row (Q14), wrapping like the AVR code */
+static NINEDOF_ALWAYS_INLINE void sensor_q14_acc(const ninedof_cal_sensor_native_t *s,
+                                                 const int16_t *in, int32_t *acc)
+{
+  int16_t x0 = in[0], x1 = in[1], x2 = in[2];
+  uint8_t r;
+
+  for (r = 0; r < 3; r++) {
+    const int16_t *a = s->a + 3 * r;
+    uint32_t u = (uint32_t)s->c[r] + (uint32_t)ROUND_Q14;
+    u += (uint32_t)((int32_t)a[0] * x0);
+    u += (uint32_t)((int32_t)a[1] * x1);
+    u += (uint32_t)((int32_t)a[2] * x2);
+    acc[r] = (int32_t)u;
+  }
 }
 #endif
 
@@ -578,21 +634,19 @@ static NINEDOF_ALWAYS_INLINE int32_t mulhi16(int32_t p, int16_t g)
 static __attribute__((noinline)) void sensor_temp(const ninedof_cal_t *cal, uint8_t k,
                                                   const int16_t *in, int16_t *out)
 {
-  const int16_t *a = cal->s[k].a;
-  const int32_t *tc = cal->tc[k];
+  const ninedof_cal_sensor_native_t *s = &cal->s[k];
+  const int32_t *to = cal->to[k];
   const int16_t *g = cal->tg[k];
-  int16_t x0 = in[0], x1 = in[1], x2 = in[2];
-  int16_t y[3];
+  int32_t acc[3];
   uint8_t r;
 
-  for (r = 0; r < 3; r++, a += 3) {
-    uint32_t u = (uint32_t)((int32_t)a[0] * x0) + (uint32_t)((int32_t)a[1] * x1) +
-                 (uint32_t)((int32_t)a[2] * x2);
-    int32_t p = (int32_t)u;
-    u += (uint32_t)mulhi16(p, g[r]) + (uint32_t)tc[r];
-    y[r] = sat_q14((int32_t)u);
+  sensor_q14_acc(s, in, acc);          /* loads done: in and out may alias */
+  for (r = 0; r < 3; r++) {
+    uint32_t u = (uint32_t)acc[r];
+    int32_t p = (int32_t)(u - (uint32_t)s->c[r] - (uint32_t)ROUND_Q14);   /* A raw */
+    u += (uint32_t)mulhi16(p, g[r]) + (uint32_t)to[r];
+    out[r] = sat_q14((int32_t)u);
   }
-  out[0] = y[0]; out[1] = y[1]; out[2] = y[2];
 }
 
 /* Sensor k of one record; returns 0 when the sensor passes raw. */

@@ -79,7 +79,7 @@ typedef struct {
   /* the temperature terms at the temperature in force (ninedof_cal_set_temp) */
   int16_t temp;          /* raw TEMP_OUT in force */
   uint8_t temp_known;    /* 0: none set yet, each sensor at its t_ref */
-  int32_t tc[NINEDOF_SENSORS][3];   /* c_i + O + 2^13, Q14 */
+  int32_t to[NINEDOF_SENSORS][3];   /* O, Q14 */
   int16_t tg[NINEDOF_SENSORS][3];   /* g16, Q16 */
 } ninedof_cal_t;
 

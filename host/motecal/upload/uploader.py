@@ -220,8 +220,8 @@ class Uploader:
                 raise NoTemperature(f"mote {self.mote} refused the temperature terms (its "
                                     f"firmware takes no set longer than {P.CALSET_SIZE} bytes: "
                                     "an image without on-mote temperature correction); the set "
-                                    "in force is unchanged; --no-temp uploads the calibration "
-                                    "without them", ack["status"])
+                                    "in force is unchanged; `motecal upload --no-temp` uploads "
+                                    "the calibration without them", ack["status"])
             if ack["status"] != P.CAL_OK:
                 raise Rejected(f"mote {self.mote} rejected {what} of version {version}: "
                                f"{P.cal_reason(ack['status'])}; the set in force is "

@@ -66,11 +66,11 @@ static void temp_none(ninedof_cal_t *cal)
 
   cal->temp = 0;
   cal->temp_known = 0;
+  cal->gain_zero = (1u << NINEDOF_SENSORS) - 1u;
   for (k = 0; k < NINEDOF_SENSORS; k++) {
-    for (i = 0; i < 3; i++) {
+    cal->eff[k] = cal->s[k];
+    for (i = 0; i < 3; i++)
       cal->tg[k][i] = 0;
-      cal->to[k][i] = 0;
-    }
   }
 }
 
@@ -206,17 +206,23 @@ void ninedof_cal_set_temp(ninedof_cal_t *cal, int16_t raw)
 
   cal->temp = raw;
   cal->temp_known = 1;
+  cal->gain_zero = 0;
   for (k = 0; k < NINEDOF_SENSORS; k++) {
+    uint8_t zero = 1;
     const ninedof_cal_temp_native_t *t = &cal->t[k];
     uint8_t on = (cal->temp_sensors >> k) & 1;
     int32_t dt = on ? temp_delta(t, raw) : 0;
     /* an invalid set (never put in force) may not fit: keep it defined */
     if (dt > 32767 || dt < -32767)
       dt = 0;
+    cal->eff[k] = cal->s[k];
     for (i = 0; i < 3; i++) {
       cal->tg[k][i] = on ? (int16_t)temp_gain(t, i, dt) : 0;
-      cal->to[k][i] = on ? temp_offset(t, i, dt) : 0;
+      zero &= cal->tg[k][i] == 0;
+      cal->eff[k].c[i] = (int32_t)((uint32_t)cal->s[k].c[i] +
+                                   (uint32_t)(on ? temp_offset(t, i, dt) : 0));
     }
+    cal->gain_zero |= (uint8_t)(zero << k);
   }
 }
 
@@ -634,8 +640,7 @@ static NINEDOF_ALWAYS_INLINE int32_t mulhi16(int32_t p, int16_t g)
 static __attribute__((noinline)) void sensor_temp(const ninedof_cal_t *cal, uint8_t k,
                                                   const int16_t *in, int16_t *out)
 {
-  const ninedof_cal_sensor_native_t *s = &cal->s[k];
-  const int32_t *to = cal->to[k];
+  const ninedof_cal_sensor_native_t *s = &cal->eff[k];     /* c + O */
   const int16_t *g = cal->tg[k];
   int32_t acc[3];
   uint8_t r;
@@ -644,7 +649,7 @@ static __attribute__((noinline)) void sensor_temp(const ninedof_cal_t *cal, uint
   for (r = 0; r < 3; r++) {
     uint32_t u = (uint32_t)acc[r];
     int32_t p = (int32_t)(u - (uint32_t)s->c[r] - (uint32_t)ROUND_Q14);   /* A raw */
-    u += (uint32_t)mulhi16(p, g[r]) + (uint32_t)to[r];
+    u += (uint32_t)mulhi16(p, g[r]);
     out[r] = sat_q14((int32_t)u);
   }
 }
@@ -656,7 +661,10 @@ static NINEDOF_ALWAYS_INLINE uint8_t correct_sensor(const ninedof_cal_t *cal, ui
   const ninedof_cal_sensor_native_t *s = &cal->s[k];
 
   if ((cal->sensors & cal->temp_sensors & (1u << k)) && s->shift == NINEDOF_SHIFT_MAX) {
-    sensor_temp(cal, k, in, out);
+    if (cal->gain_zero & (1u << k))
+      sensor_q14(&cal->eff[k], in, out);      /* offsets only: the kernel with c + O */
+    else
+      sensor_temp(cal, k, in, out);
     return 1;
   }
   if ((cal->sensors & (1u << k)) && s->shift == NINEDOF_SHIFT_MAX) {

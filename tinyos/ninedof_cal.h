@@ -79,7 +79,11 @@ typedef struct {
   /* the temperature terms at the temperature in force (ninedof_cal_set_temp) */
   int16_t temp;          /* raw TEMP_OUT in force */
   uint8_t temp_known;    /* 0: none set yet, each sensor at its t_ref */
-  int32_t to[NINEDOF_SENSORS][3];   /* O, Q14 */
+  /* per sensor with temperature terms: the correction at that temperature
+   * for the kernel (a, shift as in s[k]; c = c + O, Q14), and whether its
+   * gain terms are all 0 (then the kernel alone is the whole correction) */
+  ninedof_cal_sensor_native_t eff[NINEDOF_SENSORS];
+  uint8_t gain_zero;                /* bit k: tg[k] all 0 */
   int16_t tg[NINEDOF_SENSORS][3];   /* g16, Q16 */
 } ninedof_cal_t;
 

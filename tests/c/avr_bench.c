@@ -134,6 +134,11 @@ int main(void)
   MEASURE("cal_set_temp", ninedof_cal_set_temp(&cal, -14100));
   MEASURE("correct_9axes_temp", ninedof_correct(&cal, raw, out));
   MEASURE("correct_block5_temp", ninedof_correct_block(&cal, raw, out, NINEDOF_BATCH));
+  for (i = 0; i < 3; i++)             /* offsets only: no gain change with temperature */
+    cal.t[i].g[0] = cal.t[i].g[1] = cal.t[i].g[2] = 0;
+  ninedof_cal_set_temp(&cal, -14100);
+  MEASURE("correct_9axes_temp_offsets", ninedof_correct(&cal, raw, out));
+  MEASURE("correct_block5_temp_offsets", ninedof_correct_block(&cal, raw, out, NINEDOF_BATCH));
   make_cal();
 
   MEASURE("board_record", ninedof_board_record(bytes[0], bytes[1], bytes[2], out));

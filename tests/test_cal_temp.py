@@ -277,8 +277,10 @@ def cal_temp(tmp_path_factory):
     return path
 
 
-def _world():
+def _world(celsius=None):
     w = World(motes=1, session="idle", seed=2, duration=3600.0)
+    if celsius is not None:          # the board's temperature (the thermal model's place)
+        w.motes[1].temperature_c = lambda t: np.full(np.shape(t), float(celsius))
     port = WorldPort(w)
     w.run_until(0.5)
     return w, port
@@ -288,17 +290,23 @@ def test_upload_with_temperature_terms_and_to_an_old_image(cal_temp):
     cal = U.load_cal(cal_temp)
     assert set(cal.temps) == {"gyro", "accel"}
     # a new image: the 164-byte set in 9 fragments, read back identical
-    w, port = _world()
+    w, port = _world(celsius=35.0)
     res = U.upload_cal(port, cal, 1, U.Options(), progress=U.NullProgress())
     tset, _ = U.build_set(cal, 1, 1)
     assert len(tset) == 164 and w.motes[1].cal.active_calset() == tset
     assert res.stats.messages == 1 + 9 + 1 + 9 and res.readback
-    # the simulated mote corrects with the board temperature (25 C here)
-    w.run_until(w.now + 1.0)
+    # the simulated mote corrects as the firmware: at the mean TEMP_OUT of the
+    # last temperature message (35 C: -13200), before the first one at t_ref
+    w.run_until(w.now + 2.0)
     sent = w.sent[1]
-    new = sent.flags == U.flags_for(1, 0b111)
-    t25 = int(round(float(P.temp_raw(25.0))))
-    np.testing.assert_array_equal(sent.records[new], M.correct(tset, sent.raw[new], t25))
+    new = np.flatnonzero(sent.flags == U.flags_for(1, 0b111))
+    raw = sent.raw[new]
+    at35, base = M.correct(tset, raw, -13200), M.correct(tset, raw)
+    assert not np.array_equal(at35, base)
+    got = sent.records[new]
+    rows_ok = np.all(got == at35, axis=1) | np.all(got == base, axis=1)
+    assert rows_ok.all()
+    assert np.all(got[-150:] == at35[-150:])        # after a temperature message
     # an old image: refused in one line, nothing changed on the mote
     w, port = _world()
     w.motes[1].cal = OldImage(w.motes[1].cal)

@@ -222,8 +222,6 @@ class SimMote:
         rec = raw
         if self.cal is not None:
             if flags & P.FLAG_CORRECTED:
-                if hasattr(self.cal, "set_temperature"):     # sets with temperature terms
-                    self.cal.set_temperature(self._correction_temp_raw(self.t0 + k0 * self.period))
                 rec = np.asarray(self.cal.correct(raw), np.int16)
         if len(self.queue) >= QUEUE_LEN:
             self.dropped += k1 - k0
@@ -233,15 +231,6 @@ class SimMote:
         self.queue.append(Message(self.id, P.AM_NINEDOF_SAMPLES_MSG, payload, k0, k1 - k0,
                                   raw, rec, flags))
         self._kick()
-
-    def _correction_temp_raw(self, t: float) -> int:
-        """The raw TEMP_OUT the on-mote correction uses at time t (the
-        firmware: the mean of the last second's readings; here the board
-        temperature at t): ``temperature_c(t)`` of the mote or its board when
-        one is there (the thermal model, temp-api.md), else 25 C."""
-        f = getattr(self, "temperature_c", None) or getattr(self.sampler, "temperature_c", None)
-        celsius = float(f(t)) if f is not None else 25.0
-        return int(np.clip(np.rint(P.temp_raw(celsius)), -32768, 32767))
 
     # ------------------------------------------------------------------ radio
     def _pending(self, client: int) -> Message | None:
@@ -363,6 +352,11 @@ class SimMote:
         newest = k1 - 1
         payload = P.MOTE_TEMP.pack(seq=max(newest, 0) & 0xFFFF, count=count, reserved=0,
                                    temp_sum=total)
+        if count and hasattr(self.cal, "set_temperature"):
+            # as the firmware: the period's mean (rounded half away from zero,
+            # ninedof_temp_pack) is the on-mote correction's temperature from now on
+            mean = (abs(total) + count // 2) // count
+            self.cal.set_temperature(mean if total >= 0 else -mean)
         if self.temp_msg is not None:                 # the last one is still on its way
             self.temp_dropped += 1
         else:

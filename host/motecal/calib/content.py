@@ -28,8 +28,9 @@ from ..sessions.still import StillThresholds, segment_recording
 TRIM_S = 0.2               # left out at both ends of a still stretch
 MIN_STILL_S = 0.6          # shortest still stretch kept (hand-held poses of 1.6 s, trimmed)
 MIN_SEG_SAMPLES = 20       # and at least this many rows
-TURN_AVG_S = 0.5           # the gyro rate averaged over this long at a stretch's ends ...
-TURN_DPS = 0.5             # ... must be within this of its median: else still turning
+TURN_AVG_S = 0.5           # the turn the gyro integrates over this long ...
+TURN_DEG = 0.25            # ... must stay within this (deg; 0.5 deg/s over 0.5 s) ...
+TURN_TREMOR_K = 4.0        # ... or this many times the stretch's median turn (tremor)
 MIN_POSE_ORIENTATIONS = 6  # still stretches covering this many orientations are poses
 
 
@@ -62,9 +63,13 @@ def still_stretches(data: SessionData) -> np.ndarray:
 
 
 def trim_turning(lab: np.ndarray, raw: np.ndarray, rate: float, scales) -> np.ndarray:
-    """Trim each stretch's ends while the gyroscope still turns: the rate,
-    averaged over ``TURN_AVG_S``, must be within ``TURN_DPS`` of the
-    stretch's own median (its bias).  Stretches left shorter than
+    """Keep the parts of each stretch where the board does not turn: the
+    rotation the gyroscope integrates over ``TURN_AVG_S`` (the rate less the
+    stretch's own median, its bias) must stay within ``TURN_DEG`` or
+    ``TURN_TREMOR_K`` times the stretch's median turn over that time (a
+    hand's tremor turns the board back and forth by a few tenths of a degree
+    and goes nowhere; the slow start or end of a move keeps going).  A
+    stretch broken by a turn becomes two; parts shorter than
     ``MIN_SEG_SAMPLES`` are dropped; numbers stay 1..K."""
     g = raw[:, 3:6]
     if np.isnan(g).all() or not (lab > 0).any():
@@ -77,21 +82,29 @@ def trim_turning(lab: np.ndarray, raw: np.ndarray, rate: float, scales) -> np.nd
         idx = np.flatnonzero(lab == s)
         x = g[idx] / K
         if np.isnan(x).any() or len(idx) < 2 * w:
-            keep = idx
+            parts = [idx]
         else:
-            q = len(idx) // 4
-            med = np.median(x[q:len(idx) - q] if len(idx) - 2 * q >= w else x, axis=0)
-            c = np.cumsum(np.vstack([np.zeros(3), x - med]), axis=0)
-            lo = np.clip(np.arange(len(idx)) - w // 2, 0, len(idx) - w)
-            ok = np.linalg.norm((c[lo + w] - c[lo]) / w, axis=1) <= TURN_DPS
-            if not ok.any():
-                continue
-            a, b = int(np.argmax(ok)), len(ok) - int(np.argmax(ok[::-1]))
-            keep = idx[a:b]
-        if len(keep) >= MIN_SEG_SAMPLES:
-            k += 1
-            out[keep] = k
+            ok = steady(x, rate, w)
+            edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(np.int8), [0]])))
+            parts = [idx[a:b] for a, b in zip(edges[::2], edges[1::2])]
+        for keep in parts:
+            if len(keep) >= MIN_SEG_SAMPLES:
+                k += 1
+                out[keep] = k
     return out
+
+
+def steady(x: np.ndarray, rate: float, w: int) -> np.ndarray:
+    """Per row of one stretch's gyro rates ``x`` (deg/s): the turn over the
+    ``w`` rows around it is within the stretch's noise and tremor (see
+    ``trim_turning``)."""
+    n = len(x)
+    q = n // 4
+    med = np.median(x[q:n - q] if n - 2 * q >= w else x, axis=0)
+    theta = np.vstack([np.zeros(3), np.cumsum(x - med, axis=0) / rate])
+    lo = np.clip(np.arange(n) - w // 2, 0, n - w)
+    turn = np.linalg.norm(theta[lo + w] - theta[lo], axis=1)
+    return turn <= max(TURN_DEG, TURN_TREMOR_K * float(np.median(turn)))
 
 
 def stretch_orientations(data: SessionData, lab: np.ndarray) -> int:

@@ -23,14 +23,15 @@ import numpy as np
 
 from ..maths.sphere import distinct_directions
 from ..sessions.session import LABEL_ROT, SessionData
-from ..sessions.still import StillThresholds, segment_recording
+from ..sessions.still import StillThresholds, gyro_bias, segment_recording
 
 TRIM_S = 0.2               # left out at both ends of a still stretch
 MIN_STILL_S = 0.6          # shortest still stretch kept (hand-held poses of 1.6 s, trimmed)
 MIN_SEG_SAMPLES = 20       # and at least this many rows
 TURN_AVG_S = 0.5           # the turn the gyro integrates over this long ...
 TURN_DEG = 0.25            # ... must stay within this (deg; 0.5 deg/s over 0.5 s) ...
-TURN_TREMOR_K = 4.0        # ... or this many times the stretch's median turn (tremor)
+TURN_TREMOR_K = 4.0        # ... or this many times the turn in the stretch's quietest ...
+TURN_QUIET_Q = 0.25        # ... quarter (tremor; the slow end of a move cannot raise it)
 MIN_POSE_ORIENTATIONS = 6  # still stretches covering this many orientations are poses
 
 
@@ -64,11 +65,14 @@ def still_stretches(data: SessionData) -> np.ndarray:
 
 def trim_turning(lab: np.ndarray, raw: np.ndarray, rate: float, scales) -> np.ndarray:
     """Keep the parts of each stretch where the board does not turn: the
-    rotation the gyroscope integrates over ``TURN_AVG_S`` (the rate less the
-    stretch's own median, its bias) must stay within ``TURN_DEG`` or
-    ``TURN_TREMOR_K`` times the stretch's median turn over that time (a
-    hand's tremor turns the board back and forth by a few tenths of a degree
-    and goes nowhere; the slow start or end of a move keeps going).  A
+    rotation the gyroscope integrates over ``TURN_AVG_S`` (the rate less its
+    bias: the running median over every stretch, ``still.gyro_bias``, so
+    that a stretch that is all the slow end of a move shows its turn) must
+    stay within ``TURN_DEG`` or
+    ``TURN_TREMOR_K`` times the turn over that time in the stretch's
+    quietest quarter (``TURN_QUIET_Q``; a hand's tremor turns the board back
+    and forth by a few tenths of a degree and goes nowhere, the slow start
+    or end of a move keeps going).  A
     stretch broken by a turn becomes two; parts shorter than
     ``MIN_SEG_SAMPLES`` are dropped; numbers stay 1..K."""
     g = raw[:, 3:6]
@@ -76,15 +80,17 @@ def trim_turning(lab: np.ndarray, raw: np.ndarray, rate: float, scales) -> np.nd
         return lab
     K = float((scales or {}).get("gyro", 14.375))
     w = max(1, int(round(TURN_AVG_S * rate)))
+    gd = g / K
+    bias = gyro_bias(np.where(np.isnan(gd), np.nanmedian(gd, axis=0), gd), rate, lab > 0)
     out = np.zeros_like(lab)
     k = 0
     for s in np.unique(lab[lab > 0]):
         idx = np.flatnonzero(lab == s)
-        x = g[idx] / K
+        x = gd[idx]
         if np.isnan(x).any() or len(idx) < 2 * w:
             parts = [idx]
         else:
-            ok = steady(x, rate, w)
+            ok = steady(x - bias[idx], rate, w)
             edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(np.int8), [0]])))
             parts = [idx[a:b] for a, b in zip(edges[::2], edges[1::2])]
         for keep in parts:
@@ -95,16 +101,14 @@ def trim_turning(lab: np.ndarray, raw: np.ndarray, rate: float, scales) -> np.nd
 
 
 def steady(x: np.ndarray, rate: float, w: int) -> np.ndarray:
-    """Per row of one stretch's gyro rates ``x`` (deg/s): the turn over the
-    ``w`` rows around it is within the stretch's noise and tremor (see
-    ``trim_turning``)."""
+    """Per row of one stretch's bias-free gyro rates ``x`` (deg/s): the turn
+    over the ``w`` rows around it is within the stretch's noise and tremor
+    (see ``trim_turning``)."""
     n = len(x)
-    q = n // 4
-    med = np.median(x[q:n - q] if n - 2 * q >= w else x, axis=0)
-    theta = np.vstack([np.zeros(3), np.cumsum(x - med, axis=0) / rate])
+    theta = np.vstack([np.zeros(3), np.cumsum(x, axis=0) / rate])
     lo = np.clip(np.arange(n) - w // 2, 0, n - w)
     turn = np.linalg.norm(theta[lo + w] - theta[lo], axis=1)
-    return turn <= max(TURN_DEG, TURN_TREMOR_K * float(np.median(turn)))
+    return turn <= max(TURN_DEG, TURN_TREMOR_K * float(np.quantile(turn, TURN_QUIET_Q)))
 
 
 def stretch_orientations(data: SessionData, lab: np.ndarray) -> int:

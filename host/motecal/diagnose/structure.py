@@ -445,7 +445,7 @@ def linear_points(obs: SensorObs, accel_g: np.ndarray | None, per_orientation: b
     force in g during each block (gyroscope), or None."""
     b = obs.blocks
     Y = b.mean
-    W = 1.0 / np.sqrt(obs.var_of_mean(b.n))
+    W = 1.0 / np.sqrt(obs.var_of_mean(b.n) if b.var is None else b.var)
     T = b.t
     if per_orientation:
         cgroup = b.seg                                   # one constant per orientation

@@ -46,7 +46,7 @@ class StillThresholds:
     gyro_dps: float = 1.5
     mag_gauss: float = 0.012
     min_still_s: float = 1.0     # shortest segment segment_still() labels
-    gyro_turn_deg: float = 0.5   # offline: spread of the integrated rotation (deg per axis)
+    gyro_turn_deg: float = 0.3   # offline: spread of the integrated rotation (deg per axis)
 
 
 def window_rows(rate_hz: float, th: StillThresholds = StillThresholds()) -> int:

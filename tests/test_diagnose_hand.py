@@ -7,7 +7,7 @@ turn taken out (``diagnose.turns``).
 
 Rates over a handful of seeds, the seeds printed on failure;
 ``MOTECAL_TEST_SEED`` shifts every seed.  The bench (bench/bench_diagnose.py,
-kinds ``hand-*``) measures the same with hundreds of cases.  (~40 s)"""
+kinds ``hand-*``) measures the same with hundreds of cases.  (~30-60 s)"""
 import os
 
 import numpy as np

@@ -533,6 +533,11 @@ def _heldout_linear(st: Structure, obs: SensorObs, fit_fn):
                 if not np.any((pts["cgroup"] == g) & ~te):
                     usable &= pts["cgroup"] != g
             r[usable] = pts["Y"][usable] - X[usable] @ fk.beta
+        if obs.blocks is not None and obs.blocks.var is not None:
+            # blocks known to different precision (the gyro's, the board's turn
+            # taken out): each residual weighted by it, in counts on average
+            W = pts["W"]
+            r = r * W / np.sqrt(np.mean(W * W, axis=0))
         out[spec] = float(np.sqrt(_nanmean(r * r))) / obs.K
         folds[spec] = np.array([_nanmean(r[fold == f] ** 2) for f in np.unique(fold)])
     for c in st.accepted:

@@ -104,13 +104,28 @@ def gyro_bias(g_dps: np.ndarray, rate_hz: float, quiet: np.ndarray | None = None
     return np.repeat(med, nb, axis=0)[:n]
 
 
+TREMOR_K = 4.0     # the spread limit is at least this many times the quiet rows' ...
+TREMOR_Q = 0.25    # ... lower quartile of the spread (the hand's tremor in its holds)
+
+
 def turn_spread_ok(g_dps: np.ndarray, rate_hz: float, w: int, lim_deg: float,
                    quiet: np.ndarray | None = None) -> np.ndarray:
     """Per row: the rotation the gyroscope integrates (bias removed,
     ``gyro_bias``) spreads by less than ``lim_deg`` per axis over the window
-    of w rows centred on it."""
+    of w rows centred on it -- or, for a hand that trembles, by less than
+    ``TREMOR_K`` x the lower quartile of that spread over the ``quiet`` rows
+    (the holds' tremor; moves' slow parts cannot raise a lower quartile)."""
     theta = np.cumsum(g_dps - gyro_bias(g_dps, rate_hz, quiet), axis=0) / rate_hz
-    return _centred_ok(theta, w, lim_deg)
+    n = len(theta)
+    sd = _moving_std(theta, w)
+    half = w // 2
+    spread = np.full(n, np.inf)
+    spread[:max(0, n - half)] = np.nan_to_num(sd[half:], nan=np.inf).max(axis=1)
+    q = spread[quiet] if quiet is not None and quiet.any() else spread
+    q = q[np.isfinite(q)]
+    if len(q):
+        lim_deg = max(lim_deg, TREMOR_K * float(np.quantile(q, TREMOR_Q)))
+    return spread < lim_deg
 
 
 def still_mask(raw: np.ndarray, rate_hz: float, scales: dict | None = None,

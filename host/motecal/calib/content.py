@@ -32,6 +32,8 @@ TURN_AVG_S = 0.5           # the turn the gyro integrates over this long ...
 TURN_DEG = 0.25            # ... must stay within this (deg; 0.5 deg/s over 0.5 s) ...
 TURN_TREMOR_K = 4.0        # ... or this many times the turn in the stretch's quietest ...
 TURN_QUIET_Q = 0.25        # ... quarter (tremor; the slow end of a move cannot raise it)
+ARRIVE_DEG = 0.1           # a stretch's ends within this of its median orientation (deg) ...
+ARRIVE_K = 3.0             # ... or this many times the median offset from it (tremor)
 MIN_POSE_ORIENTATIONS = 6  # still stretches covering this many orientations are poses
 
 
@@ -108,7 +110,19 @@ def steady(x: np.ndarray, rate: float, w: int) -> np.ndarray:
     theta = np.vstack([np.zeros(3), np.cumsum(x, axis=0) / rate])
     lo = np.clip(np.arange(n) - w // 2, 0, n - w)
     turn = np.linalg.norm(theta[lo + w] - theta[lo], axis=1)
-    return turn <= max(TURN_DEG, TURN_TREMOR_K * float(np.quantile(turn, TURN_QUIET_Q)))
+    ok = turn <= max(TURN_DEG, TURN_TREMOR_K * float(np.quantile(turn, TURN_QUIET_Q)))
+    # the ends: still arriving at (or leaving) the hold's orientation -- the
+    # last tenths of a degree of a move, within one window's turn limit
+    # but one-way -- are trimmed while the board is off the orientation it
+    # holds (the stretch's median) by more than ARRIVE_DEG or ARRIVE_K times
+    # its median offset (tremor)
+    off = np.linalg.norm(theta[1:] - np.median(theta[1:], axis=0), axis=1)
+    near = off <= max(ARRIVE_DEG, ARRIVE_K * float(np.median(off)))
+    if near.any():
+        a, b = int(np.argmax(near)), n - int(np.argmax(near[::-1]))
+        ok[:a] = False
+        ok[b:] = False
+    return ok
 
 
 def stretch_orientations(data: SessionData, lab: np.ndarray) -> int:

@@ -122,8 +122,12 @@ def drift_sizes(duration: float, max_params: int, per_axis: int = 3) -> list[int
     function per ~30 s (a fast warm-up) and one per ~10 s (a random walk), as
     the data allow (at most ``max_params`` parameters: a sixth of the points,
     so that the drift cannot follow everything else that varies with time)."""
-    small = F.DRIFT_J
     cap = max_params // per_axis
+    if cap < F.DRIFT_J:
+        # too few points for the smooth basis (a hand session's 24-30 poses):
+        # a straight line per axis, which the points can test
+        return [1]
+    small = F.DRIFT_J
     out = [small]
     for j in (int(np.clip(round(duration / 30.0), 6, 20)),
               int(np.clip(round(duration / 10.0), 8, 40))):

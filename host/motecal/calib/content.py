@@ -137,6 +137,23 @@ def stretch_orientations(data: SessionData, lab: np.ndarray) -> int:
     return int(distinct_directions(means))
 
 
+def describe(data: SessionData, lab: np.ndarray) -> str:
+    """What a session without pose labels holds, in words, from its still
+    stretches ``lab`` (``still_stretches``): poses (at least
+    ``MIN_POSE_ORIENTATIONS`` distinct orientations), a hold (one or a few),
+    or no still data; the rows between them are judged as a sweep per sensor
+    (the gate's coverage rule), so a recording can be both."""
+    k = int(lab.max()) if len(lab) else 0
+    n = stretch_orientations(data, lab) if k else 0
+    what = ("static poses" if n >= MIN_POSE_ORIENTATIONS else
+            "a hold in one orientation" if n == 1 else
+            f"a hold in {n} orientations" if n else "no still data")
+    moving = float(np.mean(lab == 0)) if len(lab) else 1.0
+    return (f"{k} still stretch{'es' if k != 1 else ''} found on the board's orientation, "
+            f"covering {n} distinct orientation{'s' if n != 1 else ''}: {what}; "
+            f"{moving:.0%} of the rows move (judged as a sweep by the coverage they reach)")
+
+
 def poses_from_stillness(data: SessionData) -> tuple[SessionData, str | None]:
     """A session without pose labels whose still stretches cover at least
     ``MIN_POSE_ORIENTATIONS`` distinct orientations holds static poses: a

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from ..calib.content import describe
 from ..calib.gate import field_plausibility, residual_reason
 from ..errors import QualityError, UserError
 from ..jsonable import finite, jsonable
@@ -144,11 +145,13 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
         raise QualityError(f"session {data.name}: no sensor readings to diagnose")
     plan = _plan(obs)
     n_tests = len(plan)
+    notes: list[str] = []
+    if still is not None:
+        notes.append("session: " + describe(data, still))
     a_test = G.per_test_alpha(alpha, n_tests)
     tests: list[dict] = []
     findings: list[Finding] = []
     screens: list[SC.Screen] = []
-    notes: list[str] = []
 
     def decide(sensor, cause, p, g, practical=True, fitted=True, wins=None):
         if force is not None:

@@ -22,9 +22,10 @@ stays put over it, judged by every sensor present:
   the integrated angle stays within its amplitude, while a turn of 5 deg/s
   or more moves it beyond the threshold within one window.  (The rate's
   own spread, ``gyro_dps``, which tremor breaks, is only used live.)
-* gyroscope, live (``StillDetector``, the guided logger): the standard
-  deviation of the rate below ``gyro_dps`` (1.5 deg/s; ITG3200 noise
-  ~0.4 deg/s rms).
+* gyroscope, live (``StillDetector``, the guided logger), and offline with
+  ``gyro_rule="rate"`` (a turntable's steady turns, ``foreign``): the
+  standard deviation of the rate below ``gyro_dps`` (1.5 deg/s; ITG3200
+  noise ~0.4 deg/s rms).
 
 Thresholds work on spreads, not means, so an unknown gyroscope bias (up to
 ~15 deg/s on an uncalibrated ITG3200) does not matter; offline, it is taken
@@ -47,6 +48,8 @@ class StillThresholds:
     mag_gauss: float = 0.012
     min_still_s: float = 1.0     # shortest segment segment_still() labels
     gyro_turn_deg: float = 0.3   # offline: spread of the integrated rotation (deg per axis)
+    gyro_rule: str = "turn"      # offline: "turn" (the board stays put) or "rate" (the rate
+                                 # is steady: a turntable's constant turn counts, gyro_dps)
 
 
 def window_rows(rate_hz: float, th: StillThresholds = StillThresholds()) -> int:
@@ -149,7 +152,9 @@ def still_mask(raw: np.ndarray, rate_hz: float, scales: dict | None = None,
     for name, lim in (("accel", th.accel_g), ("mag", th.mag_gauss)):
         if name in x:
             ok &= _centred_ok(x[name], w, lim)
-    if "gyro" in x:
+    if "gyro" in x and th.gyro_rule == "rate":
+        ok &= _centred_ok(x["gyro"], w, th.gyro_dps)
+    elif "gyro" in x:
         quiet = ok.copy() if ("accel" in x or "mag" in x) else None
         ok &= turn_spread_ok(x["gyro"], rate_hz, w, th.gyro_turn_deg, quiet)
     return ok

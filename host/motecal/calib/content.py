@@ -23,14 +23,18 @@ import numpy as np
 
 from ..maths.sphere import distinct_directions
 from ..sessions.session import LABEL_ROT, SessionData
-from ..sessions.still import StillThresholds, segment_recording
+from ..sessions.still import StillThresholds, gyro_bias, segment_recording
 from .gate import LIMITS, hull_depth
 
 TRIM_S = 0.2               # left out at both ends of a still stretch
 MIN_STILL_S = 0.6          # shortest still stretch kept (hand-held poses of 1.6 s, trimmed)
 MIN_SEG_SAMPLES = 20       # and at least this many rows
-TURN_AVG_S = 0.5           # the gyro rate averaged over this long at a stretch's ends ...
-TURN_DPS = 0.5             # ... must be within this of its median: else still turning
+TURN_AVG_S = 0.5           # the turn the gyro integrates over this long ...
+TURN_DEG = 0.25            # ... must stay within this (deg; 0.5 deg/s over 0.5 s) ...
+TURN_TREMOR_K = 4.0        # ... or this many times the turn in the stretch's quietest ...
+TURN_QUIET_Q = 0.25        # ... quarter (tremor; the slow end of a move cannot raise it)
+ARRIVE_DEG = 0.1           # a stretch's ends within this of its median orientation (deg) ...
+ARRIVE_K = 3.0             # ... or this many times the median offset from it (tremor)
 MIN_POSE_ORIENTATIONS = 6  # still stretches covering this many orientations are poses
 
 
@@ -63,36 +67,63 @@ def still_stretches(data: SessionData) -> np.ndarray:
 
 
 def trim_turning(lab: np.ndarray, raw: np.ndarray, rate: float, scales) -> np.ndarray:
-    """Trim each stretch's ends while the gyroscope still turns: the rate,
-    averaged over ``TURN_AVG_S``, must be within ``TURN_DPS`` of the
-    stretch's own median (its bias).  Stretches left shorter than
+    """Keep the parts of each stretch where the board does not turn: the
+    rotation the gyroscope integrates over ``TURN_AVG_S`` (the rate less its
+    bias: the running median over every stretch, ``still.gyro_bias``, so
+    that a stretch that is all the slow end of a move shows its turn) must
+    stay within ``TURN_DEG`` or
+    ``TURN_TREMOR_K`` times the turn over that time in the stretch's
+    quietest quarter (``TURN_QUIET_Q``; a hand's tremor turns the board back
+    and forth by a few tenths of a degree and goes nowhere, the slow start
+    or end of a move keeps going).  A
+    stretch broken by a turn becomes two; parts shorter than
     ``MIN_SEG_SAMPLES`` are dropped; numbers stay 1..K."""
     g = raw[:, 3:6]
     if np.isnan(g).all() or not (lab > 0).any():
         return lab
     K = float((scales or {}).get("gyro", 14.375))
     w = max(1, int(round(TURN_AVG_S * rate)))
+    gd = g / K
+    bias = gyro_bias(np.where(np.isnan(gd), np.nanmedian(gd, axis=0), gd), rate, lab > 0)
     out = np.zeros_like(lab)
     k = 0
     for s in np.unique(lab[lab > 0]):
         idx = np.flatnonzero(lab == s)
-        x = g[idx] / K
+        x = gd[idx]
         if np.isnan(x).any() or len(idx) < 2 * w:
-            keep = idx
+            parts = [idx]
         else:
-            q = len(idx) // 4
-            med = np.median(x[q:len(idx) - q] if len(idx) - 2 * q >= w else x, axis=0)
-            c = np.cumsum(np.vstack([np.zeros(3), x - med]), axis=0)
-            lo = np.clip(np.arange(len(idx)) - w // 2, 0, len(idx) - w)
-            ok = np.linalg.norm((c[lo + w] - c[lo]) / w, axis=1) <= TURN_DPS
-            if not ok.any():
-                continue
-            a, b = int(np.argmax(ok)), len(ok) - int(np.argmax(ok[::-1]))
-            keep = idx[a:b]
-        if len(keep) >= MIN_SEG_SAMPLES:
-            k += 1
-            out[keep] = k
+            ok = steady(x - bias[idx], rate, w)
+            edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(np.int8), [0]])))
+            parts = [idx[a:b] for a, b in zip(edges[::2], edges[1::2])]
+        for keep in parts:
+            if len(keep) >= MIN_SEG_SAMPLES:
+                k += 1
+                out[keep] = k
     return out
+
+
+def steady(x: np.ndarray, rate: float, w: int) -> np.ndarray:
+    """Per row of one stretch's bias-free gyro rates ``x`` (deg/s): the turn
+    over the ``w`` rows around it is within the stretch's noise and tremor
+    (see ``trim_turning``)."""
+    n = len(x)
+    theta = np.vstack([np.zeros(3), np.cumsum(x, axis=0) / rate])
+    lo = np.clip(np.arange(n) - w // 2, 0, n - w)
+    turn = np.linalg.norm(theta[lo + w] - theta[lo], axis=1)
+    ok = turn <= max(TURN_DEG, TURN_TREMOR_K * float(np.quantile(turn, TURN_QUIET_Q)))
+    # the ends: still arriving at (or leaving) the hold's orientation -- the
+    # last tenths of a degree of a move, within one window's turn limit
+    # but one-way -- are trimmed while the board is off the orientation it
+    # holds (the stretch's median) by more than ARRIVE_DEG or ARRIVE_K times
+    # its median offset (tremor)
+    off = np.linalg.norm(theta[1:] - np.median(theta[1:], axis=0), axis=1)
+    near = off <= max(ARRIVE_DEG, ARRIVE_K * float(np.median(off)))
+    if near.any():
+        a, b = int(np.argmax(near)), n - int(np.argmax(near[::-1]))
+        ok[:a] = False
+        ok[b:] = False
+    return ok
 
 
 def stretch_orientations(data: SessionData, lab: np.ndarray) -> int:
@@ -105,6 +136,23 @@ def stretch_orientations(data: SessionData, lab: np.ndarray) -> int:
     x = data.sensor("accel")
     means = np.array([x[acc & (lab == k)].mean(axis=0) for k in ks])
     return int(distinct_directions(means))
+
+
+def describe(data: SessionData, lab: np.ndarray) -> str:
+    """What a session without pose labels holds, in words, from its still
+    stretches ``lab`` (``still_stretches``): poses (at least
+    ``MIN_POSE_ORIENTATIONS`` distinct orientations), a hold (one or a few),
+    or no still data; the rows between them are judged as a sweep per sensor
+    (the gate's coverage rule), so a recording can be both."""
+    k = int(lab.max()) if len(lab) else 0
+    n = stretch_orientations(data, lab) if k else 0
+    what = ("static poses" if n >= MIN_POSE_ORIENTATIONS else
+            "a hold in one orientation" if n == 1 else
+            f"a hold in {n} orientations" if n else "no still data")
+    moving = float(np.mean(lab == 0)) if len(lab) else 1.0
+    return (f"{k} still stretch{'es' if k != 1 else ''} found on the board's orientation, "
+            f"covering {n} distinct orientation{'s' if n != 1 else ''}: {what}; "
+            f"{moving:.0%} of the rows move (judged as a sweep by the coverage they reach)")
 
 
 def poses_from_stillness(data: SessionData) -> tuple[SessionData, str | None]:

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from ..calib.content import describe
 from ..calib.gate import field_plausibility, residual_reason
 from ..errors import QualityError, UserError
 from ..jsonable import finite, jsonable
@@ -27,6 +28,7 @@ from . import gain as G
 from . import screens as SC
 from . import structure as ST
 from .prepare import SensorObs, all_obs, sensor_obs, session_still
+from .turns import turn_corrected
 from .regimes import (MIN_SWEEP_ROWS, accel_for_blocks, regime, shared_rows, sweep_reasons,
                       sweep_surrounds)
 
@@ -143,11 +145,13 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
         raise QualityError(f"session {data.name}: no sensor readings to diagnose")
     plan = _plan(obs)
     n_tests = len(plan)
+    notes: list[str] = []
+    if still is not None:
+        notes.append("session: " + describe(data, still))
     a_test = G.per_test_alpha(alpha, n_tests)
     tests: list[dict] = []
     findings: list[Finding] = []
     screens: list[SC.Screen] = []
-    notes: list[str] = []
 
     def decide(sensor, cause, p, g, practical=True, fitted=True, wins=None):
         if force is not None:
@@ -204,6 +208,8 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
     # -- structure: nested fits ----------------------------------------------------------
     structures = {}
     for s in ("accel", "mag", "gyro"):
+        if s == "gyro" and mot is not None:
+            _turn_correct(sobs, structures, mot, notes)
         o = sobs.get(s)
         if o is None:
             continue
@@ -341,8 +347,39 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
 # ---------------------------------------------------------------------------
 # helpers
 # ---------------------------------------------------------------------------
+TURN_SLOPE = (0.5, 2.0)  # the motion screen's slope: gyro and accelerometer agree about turns
 TILT_RATIO = 0.3        # length change / vector change below which a drift may be a tilt
 TILT_MAG_SE = 0.2       # the magnetometer's tilt slope must be known this well to decide
+
+
+def _turn_correct(sobs: dict, structures: dict, mot, notes: list) -> None:
+    """The board turned inside its still segments (tremor: the motion screen
+    kept, its gyro and accelerometer agreeing about turns): each gyro block's
+    mean carries the net turn.  The accelerometer and magnetometer, through
+    their fitted calibrations, measure it, and the gyro's analysis works on
+    the bias with that turn taken out (``turns``).  A sensor without a fitted
+    calibration (one orientation) is used as read only if it is the
+    accelerometer (its offsets are small next to gravity; a magnetometer's
+    hard iron is not)."""
+    g = sobs.get("gyro")
+    if g is None or not TURN_SLOPE[0] < mot.evidence.get("slope_accel_on_gyro", 0) < TURN_SLOPE[1]:
+        return
+    refs = []
+    for s in ("accel", "mag"):
+        o, st = sobs.get(s), structures.get(s)
+        if o is None:
+            continue
+        if st is not None and isinstance(st.fit, F.MagnitudeFit):
+            refs.append((o, lambda x, t, fit=st.fit: fit.calibrate(x, np.broadcast_to(t, len(x)))))
+        elif s == "accel":
+            refs.append((o, lambda x, t, K=o.K: x / K))
+    g2 = turn_corrected(g, refs)
+    if g2 is not None:
+        sobs["gyro"] = g2
+        notes.append(f"gyro: the board turned inside its still segments (motion): the bias of "
+                     f"{g2.turn_corrected} blocks is the rate less the turn that "
+                     f"{' and '.join(s for s in ('accel', 'mag') if any(r[0] is sobs.get(s) for r in refs))}"
+                     f" measured over each")
 
 
 def _is_tilt(tilt: dict) -> bool:

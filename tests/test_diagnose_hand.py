@@ -110,30 +110,36 @@ def test_calibration_terms_are_named_under_tremor(key):
 
 def test_gyro_hold_means_without_the_tremors_turn():
     """With tremor, each hold's plain gyro mean carries the tremor's net turn
-    (its scatter is >= 2x what the white noise allows); with the turn the
-    accelerometer and magnetometer measured taken out, the scatter matches
-    the stated variance (chi-square per degree of freedom 0.5-2) in every
-    seed."""
+    (its scatter is >= 2x what the white noise allows); with the turn taken
+    out (the accelerometer's and magnetometer's whole paths against the
+    gyroscope's), the scatter matches the stated variance (chi-square per
+    degree of freedom 0.5-2) and >= 80 % of the blocks are measured, in all
+    but at most one of 6 sessions (labelled and not, slow and fast moves;
+    a block too short to measure is left out, never kept with the tremor
+    inside and the plain mean's variance)."""
     bad = []
-    for j in range(3):
+    for j in range(6):
         seed = SEED + 60 + j
-        ses = _session(KINDS[j % 2], [_tremor(seed)], seed, labelled=True)
+        labelled = j < 3
+        ses = _session(KINDS[j % 2], [_tremor(seed)], seed, labelled=labelled)
         d = diagnose(ses, simulate=False)
         g = d.obs["gyro"]
         plain = all_obs(ses)["gyro"]
         if g.blocks.var is None:
             bad.append((seed, "not corrected", d.notes))
             continue
+        ok = np.all(np.isfinite(g.blocks.var), axis=1)
 
         def chi2(mean, var):
             r = mean - np.average(mean, axis=0, weights=1 / var)
-            return float(np.sum(r ** 2 / var) / (r.size - 3))
+            return float(np.sum(r ** 2 / var) / (r.size - 3)), float(np.sqrt(np.mean(r ** 2)))
 
-        c_plain = chi2(plain.blocks.mean, plain.sigma ** 2 / plain.blocks.n[:, None])
-        c_corr = chi2(g.blocks.mean, g.blocks.var)
-        if not (c_plain >= 2.0 and 0.5 <= c_corr <= 2.0):
-            bad.append((seed, round(c_plain, 2), round(c_corr, 2)))
-    assert not bad, bad
+        c_plain, _ = chi2(plain.blocks.mean, plain.sigma ** 2 / plain.blocks.n[:, None])
+        c_corr, _ = chi2(g.blocks.mean[ok], g.blocks.var[ok])
+        if not (c_plain >= 2.0 and 0.5 <= c_corr <= 2.0 and ok.mean() >= 0.8):
+            bad.append((seed, labelled, round(c_plain, 2), round(c_corr, 2),
+                        round(float(ok.mean()), 2)))
+    assert len(bad) <= 1, f"seed, labelled, chi2 plain, chi2 corrected, blocks measured: {bad}"
 
 
 def test_clean_hand_sessions_without_tremor():

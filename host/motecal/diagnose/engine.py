@@ -236,6 +236,10 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
             drop = None
             if s in clip_rows:
                 drop = np.array([clip_rows[s][g].any() for g in o.blocks.rows])
+            if o.blocks is not None and o.blocks.var is not None:
+                # blocks whose turn could not be measured (turns): left out
+                bad = ~np.all(np.isfinite(o.blocks.var), axis=1)
+                drop = bad if drop is None else drop | bad
             st = ST.analyse_linear(o, [c for c in cands if acc_g is not None
                                        or c != "g_sensitivity"], level, accel_g=acc_g,
                                    drop_blocks=drop)
@@ -379,7 +383,9 @@ def _turn_correct(sobs: dict, structures: dict, mot, notes: list) -> None:
         notes.append(f"gyro: the board turned inside its still segments (motion): the bias of "
                      f"{g2.turn_corrected} blocks is the rate less the turn that "
                      f"{' and '.join(s for s in ('accel', 'mag') if any(r[0] is sobs.get(s) for r in refs))}"
-                     f" measured over each")
+                     f" measured over each (their whole paths against the gyro's)"
+                     + (f"; {g2.turn_left_out} blocks too short to measure left out"
+                        if g2.turn_left_out else ""))
 
 
 def _is_tilt(tilt: dict) -> bool:

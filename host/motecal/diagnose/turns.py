@@ -6,13 +6,22 @@ moves from hold to hold (a false drift, a g-sensitivity lost in it).
 
 The accelerometer and magnetometer see that turn: a small rotation phi of
 the board moves a fixed world vector v (gravity, the field) in the body
-frame by dv = v x phi.  Per block, the mean directions over ``END_S`` at its
-start and end give phi by weighted least squares (gravity shows the turn
-across it, the field the turn about gravity), and the gyroscope's bias over
-the block is its integrated rate between the same two windows less phi,
-over the time between them.  The estimate's variance (gyro white noise plus
-the directions' noise through the least squares) replaces the block mean's,
-so the tests downstream weigh each block by what it is known to.
+frame by dv = v x phi.  The gyroscope draws the turn's path itself, bias
+included: theta(t), its integrated rate.  So per block every reading of
+the two (calibrated, unit directions u_k) is fitted as
+u_k = c + [u0]x (theta(t_k) - b (t_k - tm)), with a constant c per sensor
+and the bias b unknown, by weighted least squares (a complementary
+smoother over the block: the gyroscope gives the shape of the tremor, the
+directions where it leads).  Gravity shows the turn across itself, the field
+the turn about gravity.  Using the whole path rather than the directions at
+the block's two ends, and the hold's edges beyond the still stretch while
+the gyroscope says the board has not turned yet (``EXTEND_DEG``), is what
+makes the estimate useful: a slope over T is known as T^-1.5.  The
+estimate's variance (the gyroscope's white noise, plus the directions'
+noise through the least squares, scaled by the paths' own leftovers)
+replaces the block mean's, so the tests downstream weigh each block by what
+it is known to; a block too short to be measured is left out (NaN variance)
+rather than trusted with its tremor inside.
 
 Used by the diagnosis when the board moved inside its still segments (the
 ``motion`` screen kept): otherwise the plain block mean is the better
@@ -25,30 +34,132 @@ import numpy as np
 
 from .prepare import SensorObs
 
-END_S = 0.25            # the direction at a block's start and end: mean over this long
-MIN_END_ROWS = 5
+MIN_ROWS = 20            # readings of a reference sensor a block needs
+MIN_PATH_S = 0.5         # shorter blocks: no turn measured, left out
+EXTEND_S = 0.5           # a block's span is widened over moving readings by at most this ...
+EXTEND_DEG = 0.1         # ... while the board stays this close to the block's end (0.2-0.3 deg
+                         # reach into the moves, whose edges the linear model does not fit)
+NW_LAGS = 16           # readings (0.13 s at 125 Hz) over which leftovers may be correlated
 MAX_CHI2 = 4.0          # the sensors' turns must agree (median chi-square per dof of the blocks)
-
-
-def _end_means(o: SensorObs, cal, t0: float, t1: float):
-    """Mean unit direction (calibrated by ``cal``) and mean time of ``o``'s
-    readings in [t0, t1], and the variance of each component of that
-    direction; None if too few."""
-    sel = np.flatnonzero((o.t >= t0) & (o.t <= t1) & ~o.overflow)
-    if len(sel) < MIN_END_ROWS:
-        return None
-    raw = o.x[sel].mean(axis=0)
-    m = np.asarray(cal(raw[None, :], o.t[sel][:1]), float)[0]
-    L = float(np.linalg.norm(m))
-    Lr = float(np.linalg.norm(raw))
-    if not (L > 0 and Lr > 0):
-        return None
-    var = float(np.mean(o.sigma ** 2)) / len(sel) / Lr ** 2
-    return m / L, float(o.t[sel].mean()), var
 
 
 def _skew(v):
     return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+
+
+def _gyro_turn(gyr: SensorObs, t0: float, t1: float):
+    """The gyroscope's integrated rate (rad, bias included) over [t0, t1]:
+    (times, (n, 3) turn from t0), or None if too few readings."""
+    sel = np.flatnonzero((gyr.t >= t0) & (gyr.t <= t1))
+    if len(sel) < 10:
+        return None
+    tg = gyr.t[sel]
+    dt = np.diff(tg, prepend=tg[0])
+    return tg, np.radians(np.cumsum(gyr.x[sel] / gyr.K * dt[:, None], axis=0))
+
+
+def _path_bias(gyr: SensorObs, refs: list, t0: float, t1: float):
+    """The gyro's bias over [t0, t1] from the whole path: every reading of
+    the reference sensors (calibrated directions u_k) against the gyro's
+    integrated turn theta(t) less the bias b: u_k = c + [u0]x (theta(t_k) -
+    b (t_k - tm)), with a constant c per sensor and b (rad/s) unknown,
+    solved by weighted least squares.  Returns (b rad/s, its covariance
+    from the directions, sum of squared weighted residuals, their degrees
+    of freedom, the time span) or None."""
+    g = _gyro_turn(gyr, t0, t1)
+    if g is None:
+        return None
+    tg, theta = g
+    cols, ys, ws, nref = [], [], [], 0
+    tm = 0.5 * (t0 + t1)
+    rows_b = []
+    for r, cal in refs:
+        sel = np.flatnonzero((r.t >= t0) & (r.t <= t1) & ~r.overflow)
+        if len(sel) < MIN_ROWS:
+            continue
+        m = np.asarray(cal(r.x[sel], r.t[sel]), float)
+        L = np.linalg.norm(m, axis=1)
+        Lr = float(np.linalg.norm(r.x[sel].mean(axis=0)))
+        if not (np.all(L > 0) and Lr > 0):
+            continue
+        u = m / L[:, None]
+        u0 = u.mean(axis=0)
+        u0 /= np.linalg.norm(u0)
+        th = np.column_stack([np.interp(r.t[sel], tg, theta[:, a]) for a in range(3)])
+        S = _skew(u0)
+        y = u - th @ S.T                      # u - [u0]x theta = c - [u0]x b (t - tm)
+        dt = r.t[sel] - tm
+        var = float(np.mean(r.sigma ** 2)) / Lr ** 2
+        for j in range(3):
+            ys.append(y[:, j])
+            ws.append(np.full(len(sel), 1.0 / var))
+            cols.append((nref, j, len(sel)))
+            rows_b.append(-S[j][None, :] * dt[:, None])
+        nref += 1
+    if not nref:
+        return None
+    n = sum(c[2] for c in cols)
+    A = np.zeros((n, 3 * nref + 3))
+    k = 0
+    for (ri, j, m), rb in zip(cols, rows_b):
+        A[k:k + m, 3 * ri + j] = 1.0
+        A[k:k + m, 3 * nref:] = rb
+        k += m
+    y = np.concatenate(ys)
+    w = np.concatenate(ws)
+    N = A.T @ (A * w[:, None])
+    if np.linalg.cond(N) > 1e12:
+        return None
+    cov = np.linalg.inv(N)
+    beta = cov @ (A.T @ (w * y))
+    e = y - A @ beta
+    # a unit direction moves only across itself: of each reading's three
+    # components two carry noise (the one along u0 is ~0 to first order),
+    # and of each sensor's constant two are fitted to it
+    dof = 2 * (n // 3) - 2 * nref - 3
+    cb = cov[3 * nref:, 3 * nref:]
+    if np.linalg.cond(cb) > 1e8:
+        return None
+    # readings' leftovers about the turn are correlated over short lags (the
+    # sensors' filters, the tremor seen a little apart in time): the
+    # long-run variance of the leftovers, per series (Bartlett weights)
+    ew = e * np.sqrt(w)
+    ac = np.zeros(NW_LAGS + 1)
+    k = 0
+    for (ri, j, m) in cols:
+        x = ew[k:k + m]
+        k += m
+        for lag in range(NW_LAGS + 1):
+            ac[lag] += float(x[lag:] @ x[:len(x) - lag]) if lag < len(x) else 0.0
+    return beta[3 * nref:], cb, float(e @ (w * e)), max(1, dof), float(tg[-1] - tg[0]), ac
+
+
+def _extended(gyr: SensorObs, rows: np.ndarray, rate_mean: np.ndarray):
+    """The block's time span, widened over the neighbouring moving readings
+    while the board stays within ``EXTEND_DEG`` of its orientation at the
+    block's end (the gyroscope's integrated turn, less the block's mean
+    rate as its rough bias), at most ``EXTEND_S`` each way: a still stretch
+    is cut well inside the hold (its ends trimmed, the stillness judged over
+    windows), and the slope that gives the bias is known as T^-1.5."""
+    t0, t1 = float(gyr.t[rows[0]]), float(gyr.t[rows[-1]])
+    if gyr.moving is None or EXTEND_S <= 0:
+        return t0, t1
+    out = []
+    for end, step in ((rows[0], -1), (rows[-1], 1)):
+        k = end
+        ang = np.zeros(3)
+        while True:
+            j = k + step
+            if j < 0 or j >= gyr.n or not gyr.moving[j] \
+                    or abs(gyr.t[j] - gyr.t[end]) > EXTEND_S:
+                break
+            dt = abs(gyr.t[j] - gyr.t[k])
+            ang = ang + (gyr.x[j] - rate_mean) / gyr.K * dt
+            if float(np.linalg.norm(ang)) > EXTEND_DEG:
+                break
+            k = j
+        out.append(float(gyr.t[k]))
+    return out[0], out[1]
 
 
 def turn_corrected(gyr: SensorObs, refs: list) -> SensorObs | None:
@@ -62,61 +173,41 @@ def turn_corrected(gyr: SensorObs, refs: list) -> SensorObs | None:
     b = gyr.blocks
     if b is None or not refs or not len(b):
         return None
-    mean = b.mean.copy()
-    var = gyr.var_of_mean(b.n).copy()
-    K = gyr.K
-    done = 0
-    chi2 = []
+    sols = {}
     for i, rows in enumerate(b.rows):
-        t0, t1 = gyr.t[rows[0]], gyr.t[rows[-1]]
-        if t1 - t0 < 4 * END_S:
+        t0, t1 = _extended(gyr, rows, b.mean[i])
+        if t1 - t0 < MIN_PATH_S:
             continue
-        A, y, w = [], [], []
-        for r, cal in refs:
-            e0 = _end_means(r, cal, t0, t0 + END_S)
-            e1 = _end_means(r, cal, t1 - END_S, t1)
-            if e0 is None or e1 is None:
-                continue
-            (u0, _, v0), (u1, _, v1) = e0, e1
-            A.append(_skew(u0))            # u1 - u0 = u0 x phi = [u0]x phi
-            y.append(u1 - u0)
-            w.append(np.full(3, 1.0 / (v0 + v1)))
-        if not A:
-            continue
-        A, y, w = np.vstack(A), np.concatenate(y), np.concatenate(w)
-        N = A.T @ (A * w[:, None])
-        if np.linalg.cond(N) > 1e8:
-            continue
-        cov = np.linalg.inv(N)
-        phi = cov @ (A.T @ (w * y))                           # rad, body frame
-        if len(y) > 3:
-            e = y - A @ phi
-            chi2.append(float(e @ (w * e)) / (len(y) - 3))
-        # the gyro's turn between the same windows: its integrated rate,
-        # averaged over each window (the directions are window averages too)
-        sel = np.flatnonzero((gyr.t >= t0) & (gyr.t <= t1))
-        if len(sel) < 10:
-            continue
-        tg = gyr.t[sel]
-        dt = np.diff(tg, prepend=tg[0])
-        theta = np.cumsum(gyr.x[sel] / K * dt[:, None], axis=0)      # deg, bias included
-        w0, w1 = tg <= t0 + END_S, tg >= t1 - END_S
-        if w0.sum() < MIN_END_ROWS or w1.sum() < MIN_END_ROWS:
-            continue
-        T = float(tg[w1].mean() - tg[w0].mean())
-        if not T > 0:
-            continue
-        turn = theta[w1].mean(axis=0) - theta[w0].mean(axis=0)
-        bias = (turn - np.degrees(phi)) / T                           # deg/s
-        mean[i] = bias * K
-        var[i] = gyr.sigma ** 2 / (T * gyr.rate) + \
-            np.degrees(np.sqrt(np.diag(cov))) ** 2 / T ** 2 * K ** 2
-        done += 1
-    if not done:
+        sol = _path_bias(gyr, refs, t0, t1)
+        if sol is not None:
+            sols[i] = sol
+    if not sols:
         return None
-    if chi2 and float(np.median(chi2)) > MAX_CHI2:
-        return None          # the two sensors disagree about the turn (their frames?)
+    # the directions' noise from the paths' own leftovers (pooled over the
+    # blocks): a reading's noise about the turn the gyroscope drew
+    rss = sum(s[2] for s in sols.values())
+    dof = sum(s[3] for s in sols.values())
+    ac = sum(s[5] for s in sols.values())
+    lags = np.arange(1, NW_LAGS + 1)
+    kappa = 1.0
+    if ac[0] > 0:
+        kappa = max(1.0, 1.0 + 2.0 * float(np.sum((1.0 - lags / (NW_LAGS + 1.0)) * ac[1:] / ac[0])))
+    scale = rss / dof * kappa
+    chi2 = [s[2] / s[3] for s in sols.values()]
+    if float(np.median(chi2)) > MAX_CHI2:
+        return None          # the sensors disagree with the gyroscope about the turn
+    # a block whose turn cannot be measured keeps the tremor's turn in its
+    # mean: it is left out (NaN variance), not trusted as a still block
+    mean = b.mean.copy()
+    var = np.full(b.mean.shape, np.nan)
+    K = gyr.K
+    for i, (bb, cb, _, _, T, _) in sols.items():
+        mean[i] = np.degrees(bb) * K
+        # gyro white noise: the slope of its integral over T (6/5 of a mean's)
+        var[i] = 1.2 * gyr.sigma ** 2 / (T * gyr.rate) + \
+            scale * np.degrees(np.sqrt(np.diag(cb))) ** 2 * K ** 2
     blocks = dataclasses.replace(b, mean=mean, var=var)
     out = dataclasses.replace(gyr, blocks=blocks)
-    out.turn_corrected = done
+    out.turn_corrected = len(sols)
+    out.turn_left_out = len(b) - len(sols)
     return out

@@ -164,7 +164,7 @@ def bound(hits: list, lower: bool) -> float:
     return 1.0 if k == n else float(beta.ppf(0.95, k + 1, n - k))
 
 
-def cases(per: int, n_clean: int, n_pairs: int, seed0: int):
+def cases(per: int, n_clean: int, n_pairs: int, seed0: int, hand_per: int | None = None):
     out = []
     keys = list(P.THRESHOLDS)
     for i, key in enumerate(keys):
@@ -182,7 +182,7 @@ def cases(per: int, n_clean: int, n_pairs: int, seed0: int):
         for h, kind in enumerate(hand):
             if kind.endswith(TREMOR) and key[0] == "motion":
                 continue                 # planted in every case of the kind
-            for j in range(per):
+            for j in range(per if hand_per is None else hand_per):
                 out.append((kind, [key], seed0 + 70000 + 1000 * i + 100 * h + j, j % 2 == 0))
     clean_kinds = [("static80", True), ("static80", False), ("idle", True), ("idle", False),
                    ("hold", True), ("hold", False), ("rotation", True), ("free", False)]
@@ -210,6 +210,9 @@ def _pct(x):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--per", type=int, default=10, help="cases per (cause, sensor) (10)")
+    ap.add_argument("--hand-per", type=int, default=20,
+                    help="cases per (cause, sensor) and hand kind, half labelled (20: 10 per key "
+                         "and kind, labelled or not)")
     ap.add_argument("--clean", type=int, default=60,
                     help="clean cases per session kind (60: no false alarm in 60 bounds the rate "
                          "below 5 %%; the 5-minute hold gets a third)")
@@ -222,7 +225,7 @@ def main(argv=None):
                     help="plant sizes x this (e.g. 0.5 probes below the thresholds)")
     a = ap.parse_args(argv)
     _set_scale(a.scale)
-    cs = cases(a.per, a.clean, a.pairs, a.seed)
+    cs = cases(a.per, a.clean, a.pairs, a.seed, min(a.hand_per, 99))
     if a.only:
         cs = [c for c in cs if c[1] and any(a.only in f"{k[0]}:{k[1]}" for k in c[1])]
     if a.kinds:

@@ -100,3 +100,102 @@ def noise_floor(board, sensor: str) -> float:
     """rms over axes of the white noise of a 1 s average, in the unit."""
     sig = np.asarray(board.sensors[sensor].noise, float) / K_NOMINAL[sensor]
     return float(np.sqrt(np.mean(sig ** 2)) / np.sqrt(board.rate_hz))
+
+
+# ---------------------------------------------------------------------------
+# planted boards for the diagnosis' ``temperature`` cause
+# ---------------------------------------------------------------------------
+SPAN = 3.0
+HOLD_S = 300.0
+
+
+def _base(thermal: dict, sensor=None, term=None) -> SimModel:
+    d = load_model("paper").to_json()
+    d["defaults"]["terms"] = [dict({"term": "thermal"}, **thermal)]
+    if term is not None:
+        d["defaults"][sensor]["terms"].append(term)
+    return SimModel.from_json(d, "paper+thermal" + (f"+{sensor}-{term['term']}" if term else ""))
+
+
+def plant_temperature(sensor: str, rng, scale: float = 1.0) -> dict:
+    """A board warming up (rise 6-12 C, time constant 3-8 min) with a
+    temperature term on ``sensor`` of size threshold x log-uniform[1, SPAN]:
+    gyro offset (one axis) in static80, accel offset (one axis) or mag
+    sensitivity (all axes) in a 5-minute hold."""
+    from motecal.diagnose.causes import THERMAL_THRESHOLDS
+    kind, thr, _ = THERMAL_THRESHOLDS[("temperature", sensor)]
+    size = thr * float(np.exp(rng.uniform(0, np.log(SPAN)))) * scale
+    sgn = float(rng.choice([-1.0, 1.0]))
+    thermal = {"rise_c": round(float(rng.uniform(6, 12)), 3),
+               "tau_s": round(float(rng.uniform(180, 480)), 1)}
+    if sensor == "mag":
+        term = {"term": "temperature", "scale_per_c": [sgn * size] * 3}
+    else:
+        v = [0.0, 0.0, 0.0]
+        v[int(rng.integers(3))] = sgn * size
+        term = {"term": "temperature", "offset_per_c": v}
+    return {"cause": "temperature", "sensor": sensor, "size": size, "thermal": thermal,
+            "term": term, "kind": "static80" if sensor == "gyro" else "idle",
+            "duration": None if sensor == "gyro" else HOLD_S}
+
+
+def plant_time_drift(sensor: str, rng) -> dict:
+    """A drift that does not follow the temperature, on a warming board: the
+    gyro's warm-up amplitude (5-15 counts) settling with 30-90 s in a static80
+    whose temperature settles with 5-8 min; an accel or mag slope (0.015-0.045
+    counts/s) in a 5-minute hold whose temperature settles within 40-100 s."""
+    v = [0.0, 0.0, 0.0]
+    a = int(rng.integers(3))
+    sgn = float(rng.choice([-1.0, 1.0]))
+    if sensor == "gyro":
+        v[a] = sgn * 5.0 * float(np.exp(rng.uniform(0, np.log(SPAN))))
+        term = {"term": "bias_drift", "amplitude": v, "tau_s": round(float(rng.uniform(30, 90)), 1)}
+        thermal = {"rise_c": round(float(rng.uniform(6, 12)), 3),
+                   "tau_s": round(float(rng.uniform(300, 480)), 1)}
+    else:
+        v[a] = sgn * 0.015 * float(np.exp(rng.uniform(0, np.log(SPAN))))
+        term = {"term": "bias_drift", "slope": v}
+        thermal = {"rise_c": round(float(rng.uniform(6, 12)), 3),
+                   "tau_s": round(float(rng.uniform(40, 100)), 1)}
+    return {"cause": "bias_drift", "sensor": sensor, "thermal": thermal, "term": term,
+            "kind": "static80" if sensor == "gyro" else "idle",
+            "duration": None if sensor == "gyro" else HOLD_S}
+
+
+def plant_clean(kind: str, rng) -> dict:
+    """A warming board with no temperature coefficient and no drift."""
+    return {"cause": None, "sensor": None, "term": None, "kind": kind,
+            "thermal": {"rise_c": round(float(rng.uniform(6, 12)), 3),
+                        "tau_s": round(float(rng.uniform(180, 480)), 1)},
+            "duration": None if kind == "static80" else HOLD_S}
+
+
+def simulate_plant(p: dict, seed: int) -> SessionData:
+    m = _base(p["thermal"], p["sensor"], p["term"])
+    b = m.board(1, seed)
+    traj = make_trajectory(p["kind"], seed, duration=p["duration"])
+    ses = _session(b, traj, seed, f"{m.name}-{p['kind']}-seed{seed}", kind=p["kind"])
+    ses.meta["planted"] = p
+    ses.meta["board"] = b
+    ses.meta["trajectory_obj"] = traj
+    return ses
+
+
+def true_coef(ses: SessionData, sensor: str) -> np.ndarray:
+    """The planted temperature slope of the still readings (counts/C per
+    axis): the offset, plus the gain times the noise-free reading (from the
+    planted board and the trajectory, not from the data)."""
+    p = ses.meta["planted"]
+    b = ses.meta["board"]
+    term = p["term"]
+    o = np.asarray(term.get("offset_per_c", [0.0] * 3), float)
+    k = np.asarray(term.get("scale_per_c", [0.0] * 3), float)
+    if not np.any(k):
+        return o
+    pt = b.physical_truth()[sensor]
+    traj = ses.meta["trajectory_obj"]
+    m = traj.at(np.array([ses.t[len(ses.t) // 2]]), b.environment.gravity_g)
+    u = {"accel": m.specific_force[0], "gyro": m.omega[0],
+         "mag": m.R[0].T @ b.environment.field_world()}[sensor]
+    x = np.asarray(pt["M"]) @ (pt["K"] * u) + np.asarray(pt["b"])
+    return o + k * x

@@ -90,3 +90,14 @@ def test_without_temperature_nothing_is_tested_and_the_model_gets_the_term():
     assert any(t["term"] == "thermal" for t in d2["terms"])
     f = next(f for f in d.findings if f.cause == "temperature")
     assert "follows the board temperature" in f.summary and "deg/s/C" in f.summary
+
+
+def test_report_draws_the_temperature_finding(tmp_path):
+    from motecal.diagnose.plots import write_report
+    p = plant_temperature("accel", np.random.default_rng(SEED0 + 9))
+    p["term"]["offset_per_c"] = [0.0, 0.5, 0.0]
+    ses, d = _run(p, SEED0 + 9)
+    files = write_report(d, ses, tmp_path)
+    name = next(f for f in files if f.endswith("accel-temperature.png"))
+    assert (tmp_path / name).stat().st_size > 5000
+    assert "temperature" in (tmp_path / "summary.txt").read_text()

@@ -107,6 +107,9 @@ def apply_diagnosis(data: SessionData, diagnosis: dict) -> tuple[SessionData, li
                               "(the gate's residual limit holds it)")
         elif c == "cross_axis":
             unused.append(f"{s} cross_axis: already in the full model (--model full)")
+        elif c == "temperature":
+            unused.append(f"{s} temperature: calibrate fits it itself when the session carries "
+                          "the temperature (calib.thermal)")
         else:
             unused.append(f"{s} {c}: the calibration has no {c} term")
     return dataclasses.replace(data, raw=raw), used, unused, refuse

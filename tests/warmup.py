@@ -199,3 +199,37 @@ def true_coef(ses: SessionData, sensor: str) -> np.ndarray:
          "mag": m.R[0].T @ b.environment.field_world()}[sensor]
     x = np.asarray(pt["M"]) @ (pt["K"] * u) + np.asarray(pt["b"])
     return o + k * x
+
+
+def hold_errors(bc, model, board, seed: int, hold_s: float = 1200.0, mote_c=None) -> dict:
+    """``thermal_error`` for every sensor of ``bc`` with a temperature model
+    on one fresh hold: ``{sensor: {"uncompensated", "compensated", "floor",
+    "mote" (the C correction, when ``mote_c(bc, raw, temp_raw_per_row)``
+    is given: its output in the unit)}}``.  The twin is kept at each
+    sensor's ``t_ref``."""
+    traj = make_trajectory("idle", seed, duration=hold_s)
+    t = board.sample_times(hold_s)
+    raw = board.sampler(traj, seed).read(t).astype(float)
+    temp = board.temperature_reading_c(t)
+    n = int(board.rate_hz)
+    k = len(t) // n
+    twins = {}
+    mote = mote_c(bc, raw, temp) if mote_c is not None else None
+    out = {}
+    for name, sc in bc.sensors():
+        if sc.temperature is None:
+            continue
+        tr = round(sc.temperature.t_ref_c, 6)
+        if tr not in twins:
+            twins[tr] = twin(model, board, tr).sampler(traj, seed).read_detail(t).pre_chip
+        s = SL[name]
+        v0 = sc.apply(twins[tr][:, s])
+
+        def err(v):
+            d = (v[:k * n] - v0[:k * n]).reshape(k, n, 3).mean(axis=1)
+            return float(np.sqrt(np.mean(d ** 2)))
+        out[name] = {"uncompensated": err(sc.apply(raw[:, s])),
+                     "compensated": err(sc.apply(raw[:, s], temp)),
+                     "floor": noise_floor(board, name),
+                     "mote": err(mote[name]) if mote is not None and name in mote else None}
+    return out

@@ -205,7 +205,9 @@ def hold_errors(bc, model, board, seed: int, hold_s: float = 1200.0, mote_c=None
     """``thermal_error`` for every sensor of ``bc`` with a temperature model
     on one fresh hold: ``{sensor: {"uncompensated", "compensated", "floor",
     "mote" (the C correction, when ``mote_c(bc, raw, temp_raw_per_row)``
-    is given: its output in the unit)}}``.  The twin is kept at each
+    is given: its output in the unit; from the second second on, since the
+    mote has no temperature before its first second's mean -- that first
+    second's error is ``mote_first_s``)}}``.  The twin is kept at each
     sensor's ``t_ref``."""
     traj = make_trajectory("idle", seed, duration=hold_s)
     t = board.sample_times(hold_s)
@@ -225,11 +227,13 @@ def hold_errors(bc, model, board, seed: int, hold_s: float = 1200.0, mote_c=None
         s = SL[name]
         v0 = sc.apply(twins[tr][:, s])
 
-        def err(v):
-            d = (v[:k * n] - v0[:k * n]).reshape(k, n, 3).mean(axis=1)
+        def err(v, first=0, last=k):
+            d = (v[:k * n] - v0[:k * n]).reshape(k, n, 3).mean(axis=1)[first:last]
             return float(np.sqrt(np.mean(d ** 2)))
+        has_mote = mote is not None and name in mote
         out[name] = {"uncompensated": err(sc.apply(raw[:, s])),
                      "compensated": err(sc.apply(raw[:, s], temp)),
                      "floor": noise_floor(board, name),
-                     "mote": err(mote[name]) if mote is not None and name in mote else None}
+                     "mote": err(mote[name], 1) if has_mote else None,
+                     "mote_first_s": err(mote[name], 0, 1) if has_mote else None}
     return out

@@ -143,7 +143,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--boards", type=int, default=12, help="calibrated boards (12)")
     ap.add_argument("--per", type=int, default=20, help="diagnosis cases per sensor (20)")
-    ap.add_argument("--clean", type=int, default=20, help="clean boards per kind (20)")
+    ap.add_argument("--clean", type=int, default=30, help="clean boards per kind (30)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     a = ap.parse_args(argv)

@@ -160,7 +160,11 @@ def make_test(data: SessionData, o, regime: str | None) -> TempTest | None:
     elif regime != "single":
         return None
     b = o.blocks
-    temp = np.array([np.nanmean(data.temp[o.rows[r]]) if len(r) else np.nan for r in b.rows])
+    def mean_temp(r):
+        v = data.temp[o.rows[r]] if len(r) else np.empty(0)
+        v = v[np.isfinite(v)]
+        return float(v.mean()) if len(v) else np.nan
+    temp = np.array([mean_temp(r) for r in b.rows])
     ok = np.isfinite(temp)
     if ok.sum() < 8:
         return None

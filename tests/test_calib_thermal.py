@@ -101,19 +101,27 @@ def test_warmup_error_falls_to_the_noise_floor_on_a_fresh_hold(warm):
 
 
 def test_mag_sensitivity_from_the_hold(warm):
-    """One sensitivity coefficient for the three axes: within the planted
-    per-axis range (HMC5883L -0.25..-0.35 %/C drawn per axis) +- 4 std."""
-    bad = []
+    """Per axis: each coefficient within 4 std (+ 1e-4, the soft iron mixing
+    the axes) of the planted one; one for the three axes: within the planted
+    per-axis range (HMC5883L -0.25..-0.35 %/C drawn per axis) +- 4 std; and
+    on a fresh hold the error within 2x the floor in at least 2 of 3 boards."""
+    bad, within = [], 0
     for seed, m, b, ses, bc in warm:
         tm = bc.mag.temperature
         o, k = _planted(b, "mag")
         if tm is None:
             bad.append((seed, bc.mag.notes[-1]))
             continue
-        est, sd = -tm.scale_per_c[0], tm.scale_per_c_std[0]
-        if not (k.min() - 4 * sd - 1e-4 <= est <= k.max() + 4 * sd + 1e-4):
-            bad.append((seed, est, k, sd))
+        est, sd = -tm.scale_per_c, tm.scale_per_c_std
+        if any("per axis from" in n for n in tm.notes):
+            if np.any(np.abs(est - k) > 4 * sd + 1e-4):
+                bad.append((seed, "per axis", est, k, sd))
+        elif not (k.min() - 4 * sd[0] - 1e-4 <= est[0] <= k.max() + 4 * sd[0] + 1e-4):
+            bad.append((seed, "common", est, k, sd))
+        c = thermal_error(bc.mag, m, b, seed + 500, tm.t_ref_c, hold_s=600.0)
+        within += c <= 2 * noise_floor(b, "mag")
     assert not bad, bad
+    assert within >= 2, within
 
 
 def test_accel_from_static_poses_across_a_span():

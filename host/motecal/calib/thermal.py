@@ -18,10 +18,12 @@ span once, for calibrate and diagnose):
   with a small change of the static fit's own map, so that what that fit
   absorbed of the drift is given back).  The gain's coefficient (ADXL345:
   0.01 %/C, a twentieth of the offset's effect at 1 g) is not fitted.
-* **magnetometer** -- one relative sensitivity coefficient for the three
-  axes (the HMC5883L's -0.3 %/C): within a hold the field vector grows by
-  ``k dT`` (hard iron included: a field the chip measures); across poses or
-  a sweep over a span the field magnitude does.
+* **magnetometer** -- a relative sensitivity coefficient per axis (the
+  HMC5883L's -0.3 %/C), or one for the three axes when each axis' own is not
+  determined (an axis that reads little of the field in a hold): within a
+  hold the field vector grows by ``k dT`` (hard iron included: a field the
+  chip measures); across poses or a sweep over a span the field magnitude
+  does.
 
 Every observation set is kept only when its own temperature span reaches
 ``content.MIN_TEMP_SPAN_C``; the sets of a sensor are fitted together by
@@ -40,13 +42,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..sessions.session import HMC5883L_OVERFLOW, LABEL_NONE, LABEL_ROT, SessionData
-from .content import MIN_TEMP_SPAN_C, TempContent
+from .content import MIN_POSE_ORIENTATIONS, MIN_TEMP_SPAN_C, TempContent
 from .result import BoardCalibration, TempModel
 
 BLOCK_S = 1.0              # still data are averaged over blocks this long
 FOLDS = 5
 MAX_SWEEP_ROWS = 3000      # sweep rows used for the magnetometer (evenly strided)
-STD_LIMITS = {"accel": 2e-4, "gyro": 0.01, "mag": 5e-4}   # g/C, deg/s/C, 1/C
+STD_LIMITS = {"accel": 2e-4, "gyro": 0.01, "mag": 1e-4}   # g/C, deg/s/C, 1/C
 UNITS = {"accel": "g/C", "gyro": "deg/s/C", "mag": "/C"}
 
 
@@ -68,13 +70,14 @@ class ObsSet:
 
 def without_holds(data: SessionData, tc: TempContent) -> SessionData:
     """The rows the static calibration uses: the holds (long still poses,
-    kept for the temperature fit) left out when other poses remain, so a
-    20-minute warm-up does not outweigh the 80 poses."""
+    kept for the temperature fit) left out when at least 12 other poses
+    remain, so a 20-minute warm-up does not outweigh the 80 poses (a session
+    of a few long holds, such as the Razor files, keeps them as its poses)."""
     if not tc.holds:
         return data
     hold = np.isin(data.label, tc.holds)
     others = np.unique(data.label[(data.label >= 1) & ~hold])
-    if len(others) < 2:
+    if len(others) < 2 * MIN_POSE_ORIENTATIONS:    # a session of holds: they are its poses
         return data
     label = data.label.copy()
     label[hold] = LABEL_NONE
@@ -187,14 +190,19 @@ def accel_sets(board, data, tc, t_ref) -> list[ObsSet]:
     return out
 
 
-def mag_sets(board, data, tc, t_ref) -> list[ObsSet]:
+def mag_sets(board, data, tc, t_ref, per_axis: bool = True) -> list[ObsSet]:
+    """Holds and the main set (sweep or poses); ``per_axis``: a sensitivity
+    coefficient per axis (3 parameters), else one for the three."""
     sc = board.mag
     c = sc.c
     out = []
     raw, temp, lab = _blocks(data, tc.holds, "mag")
+
+    def hold_col(dt, vbar, i):
+        x = dt * (vbar[i] - c[i])
+        return np.outer(x, np.eye(3)[i]) if per_axis else x[:, None]
     if len(raw):
-        r = _hold_rows(sc.apply(raw), temp, lab,
-                       lambda dt, vbar, i: (dt * (vbar[i] - c[i]))[:, None])
+        r = _hold_rows(sc.apply(raw), temp, lab, hold_col)
         if r is not None:
             out.append(ObsSet("holds", r[0], r[1], np.zeros((len(r[0]), 0)), r[2], r[3]))
     x = data.sensor("mag")
@@ -218,7 +226,9 @@ def mag_sets(board, data, tc, t_ref) -> list[ObsSet]:
         nv = np.linalg.norm(v, axis=1)
         u = v / nv[:, None]
         B = float(sc.field_gauss) if sc.field_gauss else float(np.median(nv))
-        xt = ((temps - t_ref) * np.einsum("ij,ij->i", u, v - c))[:, None]
+        xt = (temps - t_ref)[:, None] * u * (v - c)
+        if not per_axis:
+            xt = xt.sum(axis=1, keepdims=True)
         out.append(ObsSet("sweep" if sc.dataset == "R" else "poses", nv - B, xt,
                           _sym_cols(u, v), np.arange(len(v)) % FOLDS, temps))
     return out
@@ -344,6 +354,17 @@ def attach(board: BoardCalibration, data: SessionData, main: SessionData,
         t_ref = _t_ref(main, _main_rows(main, name, sc))
         builder = {"accel": accel_sets, "gyro": gyro_sets, "mag": mag_sets}[name]
         res = fit_sensor(name, builder(board, data, tc, t_ref) if np.isfinite(t_ref) else [])
+        if name == "mag" and np.isfinite(t_ref):
+            # one coefficient for the three axes, when each axis' own is not
+            # determined or does not predict held-out blocks better
+            common = fit_sensor(name, mag_sets(board, data, tc, t_ref, per_axis=False))
+            if common["why"] is None and (
+                    res["why"] is not None
+                    or not res["heldout_rms_after"] < common["heldout_rms_after"]):
+                common["per_axis_why"] = res["why"] or (
+                    f"held-out rms {res['heldout_rms_after']:.3g}, not below the common "
+                    f"coefficient's {common['heldout_rms_after']:.3g}")
+                res = common
         why = res["why"]
         if why is not None:
             report["not_fitted"][name] = why
@@ -371,12 +392,15 @@ def _temp_model(name, sc, res, t_ref) -> TempModel:
     ho = f"held-out rms {res['heldout_rms_before']:.3g} -> {res['heldout_rms_after']:.3g} {sc.unit}"
     src = " + ".join(res["sets"])
     if name == "mag":
-        k, sk = float(theta[0]), float(std[0])
-        notes = [f"sensitivity {k * 100:+.3f} +- {sk * 100:.3f} %/C (one coefficient for the "
-                 f"three axes) from {src}, {lo:.1f}-{hi:.1f} C around {t_ref:.2f} C; {ho}"]
+        k, sk = np.broadcast_to(theta, 3), np.broadcast_to(std, 3)
+        if len(theta) == 1:
+            what = (f"{k[0] * 100:+.3f} +- {sk[0] * 100:.3f} %/C (one coefficient for the three "
+                    f"axes; per axis: {res.get('per_axis_why')})")
+        else:
+            what = f"{_fmt(k * 100)} +- {_fmt(sk * 100)} %/C per axis"
+        notes = [f"sensitivity {what} from {src}, {lo:.1f}-{hi:.1f} C around {t_ref:.2f} C; {ho}"]
         return TempModel(t_ref, (lo, hi), np.zeros(3), np.full(3, np.nan),
-                         scale_per_c=np.full(3, -k), scale_per_c_std=np.full(3, sk),
-                         notes=notes, extra=extra)
+                         scale_per_c=-k, scale_per_c_std=sk, notes=notes, extra=extra)
     o = -theta                    # the correction removes what the data showed
     notes = [f"offset {_fmt(o)} +- {_fmt(std)} {sc.unit}/C from {src}, "
              f"{lo:.1f}-{hi:.1f} C around {t_ref:.2f} C; {ho}",

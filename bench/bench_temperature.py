@@ -18,7 +18,8 @@ model, against the white-noise floor of a 1 s average.  Goal: within 2x
 that floor, gyro and accelerometer.
 
 Diagnosis: ``temperature`` planted on warming boards (gyro: static80;
-accel, mag: a 5-minute hold) at threshold x 1-3 (``causes.THERMAL_THRESHOLDS``),
+accel, mag: a 5-minute hold; accel: static80 too) at threshold x 1-3
+(``causes.THERMAL_THRESHOLDS``),
 a time drift that does not follow the temperature (tests/warmup.py
 ``plant_time_drift``) and clean warming boards (static80 and holds).  Rates
 with one-sided 95 % Clopper-Pearson bounds; fitted / true gain with the true
@@ -115,18 +116,19 @@ def calib_case(seed):
 
 
 def diag_case(case):
-    what, sensor, kind, seed = case
+    what, key, kind, seed = case
     rng = np.random.default_rng(seed)
+    sensor = key.split("-")[0] if key else None
     if what == "temperature":
-        p = W.plant_temperature(sensor, rng)
+        p = W.plant_temperature(key, rng)
     elif what == "bias_drift":
-        p = W.plant_time_drift(sensor, rng)
+        p = W.plant_time_drift(sensor, rng, poses=key.endswith("poses"))
     else:
         p = W.plant_clean(kind, rng)
     t0 = time.time()
     ses = W.simulate_plant(p, seed)
     d = diagnose(ses, simulate=False, seed=seed)
-    r = {"what": what, "sensor": sensor, "kind": p["kind"], "seed": seed,
+    r = {"what": what, "sensor": key, "kind": p["kind"], "seed": seed,
          "causes": sorted(d.causes()), "ratio": None}
     if what == "temperature" and sensor in d.temperature and d.temperature[sensor].named:
         tt = d.temperature[sensor]
@@ -155,8 +157,11 @@ def main(argv=None):
         cal = pool.map(calib_case, [a.seed * 1000 + i for i in range(a.boards)], chunksize=1)
         cases = [(w, s, None, a.seed * 100000 + 1000 * i + j)
                  for i, (w, s) in enumerate([("temperature", "gyro"), ("temperature", "accel"),
-                                             ("temperature", "mag"), ("bias_drift", "gyro"),
-                                             ("bias_drift", "accel"), ("bias_drift", "mag")])
+                                             ("temperature", "mag"),
+                                             ("temperature", "accel-poses"),
+                                             ("bias_drift", "gyro"), ("bias_drift", "accel"),
+                                             ("bias_drift", "mag"),
+                                             ("bias_drift", "accel-poses")])
                  for j in range(a.per)]
         cases += [("clean", None, k, a.seed * 100000 + 70000 + 1000 * i + j)
                   for i, k in enumerate(["static80", "idle"]) for j in range(a.clean)]
@@ -234,36 +239,37 @@ def main(argv=None):
     # -- diagnosis ---------------------------------------------------------------------
     print()
     print("diagnosis on warming boards (one-sided 95 % Clopper-Pearson bounds):")
-    print(f"{'planted':<13}{'sensor':<7}{'kind':<10}{'n':>4}  {'as wanted':>9}  "
+    print(f"{'planted':<13}{'sensor':<13}{'kind':<10}{'n':>4}  {'as wanted':>9}  "
           f"{'bound':>7}  {'gain/truth median':>17}  misses")
     goals = {"temperature": [], "bias_drift": [], "clean": []}
     ratios = []
-    for what, sensors in (("temperature", ("gyro", "accel", "mag")),
-                          ("bias_drift", ("gyro", "accel", "mag")), ("clean", (None,))):
+    keys = ("gyro", "accel", "mag", "accel-poses")
+    for what, sensors in (("temperature", keys), ("bias_drift", keys), ("clean", (None,))):
         for s in sensors:
             kinds = ["static80", "idle"] if what == "clean" else [None]
             for k in kinds:
                 rs = [r for r in diag if r["what"] == what and r["sensor"] == s
                       and (k is None or r["kind"] == k)]
+                sn = (s or "").split("-")[0]
                 if what == "temperature":
-                    hit = [(s, "temperature") in map(tuple, r["causes"]) for r in rs]
+                    hit = [(sn, "temperature") in map(tuple, r["causes"]) for r in rs]
                     ratios += [r["ratio"] for r in rs if r["ratio"] is not None]
                 elif what == "bias_drift":
-                    hit = [(s, "bias_drift") in map(tuple, r["causes"])
-                           and (s, "temperature") not in map(tuple, r["causes"]) for r in rs]
+                    hit = [(sn, "bias_drift") in map(tuple, r["causes"])
+                           and (sn, "temperature") not in map(tuple, r["causes"]) for r in rs]
                 else:
                     hit = [not r["causes"] for r in rs]
                 goals[what] += hit
                 rr = [r["ratio"] for r in rs if r["ratio"] is not None]
                 miss = [f"seed {r['seed']}: {r['causes']}" for r, h in zip(rs, hit) if not h][:2]
-                print(f"{what:<13}{s or '-':<7}{rs[0]['kind'] if rs else '-':<10}{len(rs):>4}  "
+                print(f"{what:<13}{s or '-':<13}{rs[0]['kind'] if rs else '-':<10}{len(rs):>4}  "
                       f"{_pct(np.mean(hit)) if hit else '-':>9}  "
                       f"{_pct(bound(hit, True)) if hit else '-':>7}  "
                       f"{np.median(rr) if rr else float('nan'):>17.3f}  {'; '.join(miss)}")
     t = goals["temperature"]
     record("diagnosis: temperature named on planted warming boards",
            ">= 95 % (#16)", 100 * np.mean(t), "%", bool(np.mean(t) >= 0.95),
-           note=f"{len(t)} boards (gyro, accel, mag); 95 % lower bound "
+           note=f"{len(t)} boards (gyro, accel, mag, accel in poses); 95 % lower bound "
                 f"{100 * bound(t, True):.1f} %")
     bd = goals["bias_drift"]
     record("diagnosis: drift that does not follow temperature named bias_drift (not temperature)",

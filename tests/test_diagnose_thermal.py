@@ -20,8 +20,8 @@ def _run(p, seed):
     return ses, diagnose(ses, simulate=False, seed=seed)
 
 
-@pytest.mark.parametrize("sensor", ["gyro", "accel", "mag"])
-def test_planted_temperature_is_named_with_its_coefficient(sensor):
+@pytest.mark.parametrize("key", ["gyro", "accel", "mag", "accel-poses"])
+def test_planted_temperature_is_named_with_its_coefficient(key):
     """4 seeds: named in all but at most one; its coefficient within 5 std
     of the planted slope; fitted / true held-out gain (true: the planted
     coefficient predicting the same held-out blocks) median within 0.75-1.33."""
@@ -29,7 +29,8 @@ def test_planted_temperature_is_named_with_its_coefficient(sensor):
     for k in range(4):
         seed = SEED0 + 1000 + 17 * k
         rng = np.random.default_rng(seed)
-        p = plant_temperature(sensor, rng)
+        p = plant_temperature(key, rng)
+        sensor = p["sensor"]
         ses, d = _run(p, seed)
         f = next((f for f in d.findings if (f.sensor, f.cause) == (sensor, "temperature")), None)
         if f is None:
@@ -46,14 +47,15 @@ def test_planted_temperature_is_named_with_its_coefficient(sensor):
     assert 0.75 <= float(np.median(ratios)) <= 1.33, ratios
 
 
-@pytest.mark.parametrize("sensor", ["gyro", "accel", "mag"])
-def test_drift_that_does_not_follow_temperature_stays_bias_drift(sensor):
+@pytest.mark.parametrize("key", ["gyro", "accel", "mag", "accel-poses"])
+def test_drift_that_does_not_follow_temperature_stays_bias_drift(key):
     """3 seeds: a drift whose course differs from the warm-up's is named
     bias_drift and not temperature, in all but at most one."""
     bad = []
     for k in range(3):
         seed = SEED0 + 2000 + 13 * k
-        p = plant_time_drift(sensor, np.random.default_rng(seed))
+        sensor = key.split("-")[0]
+        p = plant_time_drift(sensor, np.random.default_rng(seed), poses=key.endswith("poses"))
         ses, d = _run(p, seed)
         c = d.causes()
         if (sensor, "bias_drift") not in c or (sensor, "temperature") in c:

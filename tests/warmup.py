@@ -124,6 +124,8 @@ def plant_temperature(sensor: str, rng, scale: float = 1.0) -> dict:
     sensitivity (all axes) in a 5-minute hold."""
     from motecal.diagnose.causes import THERMAL_THRESHOLDS
     kind, thr, _ = THERMAL_THRESHOLDS[("temperature", sensor)]
+    poses = sensor.endswith("-poses")           # accel-poses: the 80 static poses
+    sensor = sensor.split("-")[0]
     size = thr * float(np.exp(rng.uniform(0, np.log(SPAN)))) * scale
     sgn = float(rng.choice([-1.0, 1.0]))
     thermal = {"rise_c": round(float(rng.uniform(6, 12)), 3),
@@ -134,16 +136,18 @@ def plant_temperature(sensor: str, rng, scale: float = 1.0) -> dict:
         v = [0.0, 0.0, 0.0]
         v[int(rng.integers(3))] = sgn * size
         term = {"term": "temperature", "offset_per_c": v}
+    static = sensor == "gyro" or poses
     return {"cause": "temperature", "sensor": sensor, "size": size, "thermal": thermal,
-            "term": term, "kind": "static80" if sensor == "gyro" else "idle",
-            "duration": None if sensor == "gyro" else HOLD_S}
+            "term": term, "kind": "static80" if static else "idle",
+            "duration": None if static else HOLD_S}
 
 
-def plant_time_drift(sensor: str, rng) -> dict:
+def plant_time_drift(sensor: str, rng, poses: bool = False) -> dict:
     """A drift that does not follow the temperature, on a warming board: the
     gyro's warm-up amplitude (5-15 counts) settling with 30-90 s in a static80
     whose temperature settles with 5-8 min; an accel or mag slope (0.015-0.045
-    counts/s) in a 5-minute hold whose temperature settles within 40-100 s."""
+    counts/s) in a 5-minute hold (``poses``: the accelerometer's static80)
+    whose temperature settles within 40-100 s."""
     v = [0.0, 0.0, 0.0]
     a = int(rng.integers(3))
     sgn = float(rng.choice([-1.0, 1.0]))
@@ -157,9 +161,9 @@ def plant_time_drift(sensor: str, rng) -> dict:
         term = {"term": "bias_drift", "slope": v}
         thermal = {"rise_c": round(float(rng.uniform(6, 12)), 3),
                    "tau_s": round(float(rng.uniform(40, 100)), 1)}
+    static = sensor == "gyro" or poses
     return {"cause": "bias_drift", "sensor": sensor, "thermal": thermal, "term": term,
-            "kind": "static80" if sensor == "gyro" else "idle",
-            "duration": None if sensor == "gyro" else HOLD_S}
+            "kind": "static80" if static else "idle", "duration": None if static else HOLD_S}
 
 
 def plant_clean(kind: str, rng) -> dict:

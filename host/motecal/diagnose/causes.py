@@ -47,6 +47,7 @@ THRESHOLDS = {
 THERMAL_THRESHOLDS = {
     ("temperature", "gyro"): ("static80 warming up", 0.3, "offset per C, counts/C"),
     ("temperature", "accel"): ("5-minute hold warming up", 0.1, "offset per C, counts/C"),
+    ("temperature", "accel-poses"): ("static80 warming up", 0.1, "offset per C, counts/C"),
     ("temperature", "mag"): ("5-minute hold warming up", 3e-4, "|sensitivity| per C, 1/C"),
 }
 
@@ -121,7 +122,8 @@ CAUSES = {c.id: c for c in (
           "offsets (and gain) that follow the board temperature: warm-up after power-on, "
           "the room",
           "the session carries a temperature spanning >= 2 C over still blocks in few "
-          "orientations (gyro: every still block; accel, mag: holds); an offset per axis "
+          "orientations (gyro: every still block; accel, mag: holds) or over the "
+          "accelerometer's static poses (through the magnitude); an offset per axis "
           "times (T - t_ref) passes the F-test beyond a smooth time basis, or alone while the "
           "time basis adds nothing on top of it, and lowers the held-out residual of "
           "interleaved blocks"),

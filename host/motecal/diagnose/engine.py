@@ -145,7 +145,7 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
         raise QualityError(f"session {data.name}: no sensor readings to diagnose")
     plan = _plan(obs)
     plan += [(s, "temperature") for s, o in obs.items()           # issue 16
-             if TH.make_test(data, o, regime(o)) is not None]
+             if TH.testable(data, o, regime(o))]
     n_tests = len(plan)
     a_test = G.per_test_alpha(alpha, n_tests)
     tests: list[dict] = []
@@ -292,7 +292,8 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
     for s in ("accel", "gyro", "mag"):
         if (s, "temperature") not in plan or s not in sobs:
             continue
-        tt = TH.make_test(data, sobs[s], regime(sobs[s]))
+        tt = (TH.make_pose_test(data, sobs[s], structures.get(s))
+              if regime(sobs[s]) == "poses" else TH.make_test(data, sobs[s], regime(sobs[s])))
         if tt is None:
             continue
         TH.run_test(tt, a_test)

@@ -7,7 +7,7 @@ still blocks span at least ``calib.content.MIN_TEMP_SPAN_C`` (the span
 sensors whose still data are blocks in few orientations: the gyroscope
 (every still block, one zero-rate offset per axis) and the accelerometer and
 magnetometer in one or a few orientations (holds; one offset per axis and
-orientation).  Per axis, block means (2 s) weighted by their noise:
+orientation); the accelerometer's static poses too (below).  Per axis, block means (2 s) weighted by their noise:
 
     M0   offsets only
     T    M0 + offset_per_c * (T - t_ref)          3 parameters
@@ -27,8 +27,12 @@ is replaced, with a note).  When temperature and time are the same curve (a
 warm-up whose drift has the very shape of the temperature), the simpler
 explanation wins: temperature.
 
-Poses of a static session in many orientations and magnetometer sweeps are
-not tested here: their drift is seen through the magnitude only.
+The accelerometer's poses in many orientations (static80) get the same
+test through the magnitude (``PoseTempTest``): one residual per pose mean of
+the structure's starting fit, an offset change showing as ``u . o``, a small
+change of the map as nuisance (9 columns), the time basis per axis as
+``u x basis(t)``.  The magnetometer's poses and sweeps are not tested (its
+temperature effect is a gain, which a drift of offsets does not describe).
 """
 from __future__ import annotations
 
@@ -118,6 +122,17 @@ class TempTest:
         X = self.columns(temperature, time)
         return np.column_stack([X @ b for b in betas])
 
+    def coefficients(self, betas, s2: float, time: bool):
+        """(coefficient, std) per axis in counts/C from the fit with temperature."""
+        ng = len(np.unique(self.seg))
+        X = self.columns(True, time)
+        std = []
+        for a in range(3):
+            Xa = X * np.sqrt(self.w[:, a])[:, None]
+            cov = np.linalg.pinv(Xa.T @ Xa) * max(1.0, s2)
+            std.append(float(np.sqrt(max(cov[ng, ng], 0.0))))
+        return np.array([b[ng] for b in betas]), np.array(std)
+
     def heldout_rms(self, temperature: bool, time: bool, fixed=None) -> tuple[float, np.ndarray]:
         """rms (counts) of held-out block means over ``KFOLD`` interleaved folds,
         each predicted by the model fitted on the other folds; per-fold rms."""
@@ -185,7 +200,8 @@ def run_test(tt: TempTest, level: float) -> TempTest:
     k3 = tt.y.size
     best = None
     for n in N_TIME_CHOICES:           # the time basis: as flexible as the data ask
-        if 3 * (n + 1 + len(np.unique(tt.seg))) > k3 / 3:
+        tt.n_time, tt.tau = n, TAU_CHOICES[0]
+        if tt.fit(True, True)[2] > k3 / 3:
             break
         for tau in (0.0,) + TAU_CHOICES:
             tt.n_time, tt.tau = n, tau
@@ -205,17 +221,7 @@ def run_test(tt: TempTest, level: float) -> TempTest:
     significant = tt.p_T_D < level or (tt.p_T < level and not time_needed)
     tt.with_time = time_needed
     betas, rss, npar = tt.fit(True, time_needed)
-    ng = len(np.unique(tt.seg))
-    tt.coef = np.array([b[ng] for b in betas])
-    # standard deviation of each coefficient from the weighted design
-    X = tt.columns(True, time_needed)
-    s2 = rss / max(1, k3 - npar)
-    std = []
-    for a in range(3):
-        Xa = X * np.sqrt(tt.w[:, a])[:, None]
-        cov = np.linalg.pinv(Xa.T @ Xa) * max(1.0, s2)
-        std.append(float(np.sqrt(max(cov[ng, ng], 0.0))))
-    tt.coef_std = np.array(std)
+    tt.coef, tt.coef_std = tt.coefficients(betas, rss / max(1, k3 - npar), time_needed)
     before, per_b = tt.heldout_rms(False, time_needed)
     after, per_a = tt.heldout_rms(True, time_needed)
     tt.heldout = (before, after)
@@ -277,3 +283,122 @@ def thermal_term(data: SessionData) -> dict | None:
     a, r, lt, sl = sol.x
     return {"term": "thermal", "ambient_c": round(float(a), 4), "rise_c": round(float(r), 4),
             "tau_s": round(float(np.exp(lt)), 3), "room_slope_c_per_h": round(float(sl), 4)}
+
+
+# ---------------------------------------------------------------------------
+# static poses in many orientations: the drift seen through the magnitude
+# ---------------------------------------------------------------------------
+def _sym_cols(u, v):
+    """A small change of the calibration's map, seen in a magnitude: u^T W v
+    (W symmetric, 6) + u^T d (3)."""
+    return np.column_stack([u[:, 0] * v[:, 0], u[:, 1] * v[:, 1], u[:, 2] * v[:, 2],
+                            u[:, 0] * v[:, 1] + u[:, 1] * v[:, 0],
+                            u[:, 0] * v[:, 2] + u[:, 2] * v[:, 0],
+                            u[:, 1] * v[:, 2] + u[:, 2] * v[:, 1], u])
+
+
+@dataclass
+class PoseTempTest(TempTest):
+    """The same test on static poses: one magnitude residual per pose mean
+    (the structure's starting fit), an offset change o (unit) showing as
+    u . o; temperature u dT, time u x basis(t), nuisance a small change of
+    the map.  ``y``/``w`` hold the residual in column 0 (unit, weights)."""
+    u: np.ndarray | None = None
+    v: np.ndarray | None = None
+
+    def _blocks(self, temperature: bool, time: bool):
+        cols = [_sym_cols(self.u, self.v)]
+        if temperature:
+            cols.append(self.u * (self.temp - self.t_ref)[:, None])
+        if time:
+            span = max(float(np.ptp(self.t)), 1e-9)
+            tau = (self.t - self.t.min()) / span
+            basis = [tau - 0.5] + [np.cos(np.pi * j * tau) for j in range(1, self.n_time)]
+            if self.tau > 0:
+                basis.append(1.0 - np.exp(-(self.t - self.t.min()) / self.tau))
+            cols += [self.u * b[:, None] for b in basis]
+        return np.hstack(cols)
+
+    def fit(self, temperature: bool, time: bool, rows=None, fixed=None):
+        X = self._blocks(temperature, time)
+        rows = np.ones(len(self.y), bool) if rows is None else rows
+        y, Xr = self.y[rows, 0].copy(), X[rows]
+        sw = np.sqrt(self.w[rows, 0])
+        if fixed is not None and temperature:
+            y = y - Xr[:, 9:12] @ (np.asarray(fixed, float) / self.K)
+            Xr = np.delete(Xr, np.s_[9:12], axis=1)
+        beta, *_ = np.linalg.lstsq(Xr * sw[:, None], y * sw, rcond=None)
+        r = (y - Xr @ beta) * sw
+        if fixed is not None and temperature:
+            beta = np.insert(beta, 9, np.asarray(fixed, float) / self.K)
+        return [beta], float(r @ r), Xr.shape[1]
+
+    def predict(self, betas, temperature: bool, time: bool) -> np.ndarray:
+        return (self._blocks(temperature, time) @ betas[0])[:, None]
+
+    def coefficients(self, betas, s2: float, time: bool):
+        X = self._blocks(True, time) * np.sqrt(self.w[:, 0])[:, None]
+        cov = np.linalg.pinv(X.T @ X) * max(1.0, s2)
+        return betas[0][9:12] * self.K, np.sqrt(np.clip(np.diag(cov)[9:12], 0, None)) * self.K
+
+    def heldout_rms(self, temperature: bool, time: bool, fixed=None):
+        fold = np.arange(len(self.y)) % KFOLD
+        sq, per = 0.0, []
+        for f in range(KFOLD):
+            te = fold == f
+            if not te.any():
+                continue
+            betas, _, _ = self.fit(temperature, time, rows=~te, fixed=fixed)
+            r = (self.y[te, 0] - self.predict(betas, temperature, time)[te, 0]) \
+                * np.sqrt(self.w[te, 0] / self.w[te, 0].mean())
+            s = float(np.sum(r ** 2))
+            sq += s
+            per.append(np.sqrt(s / len(r)))
+        return float(np.sqrt(sq / len(self.y))) * self.K, np.array(per)
+
+
+def make_pose_test(data: SessionData, o, st) -> PoseTempTest | None:
+    """The poses regime's test (the accelerometer's offsets), on the pose
+    means of the structure ``st`` (its starting fit), or None.  (A
+    magnetometer's sensitivity is a gain, not an offset: not tested on
+    poses.)"""
+    if not data.has_temp or o is None or st is None or st.regime != "poses" \
+            or o.sensor != "accel":
+        return None
+    pts = st.points
+    X, T = pts["X"], pts["T"]
+    idx = pts["group"]
+    temp = []
+    for i in idx:
+        v = data.temp[o.rows[o.segs.rows[i]]] if len(o.segs.rows[i]) else np.empty(0)
+        v = v[np.isfinite(v)]
+        temp.append(float(v.mean()) if len(v) else np.nan)
+    temp = np.array(temp)
+    ok = np.isfinite(temp)
+    if ok.sum() < 24:
+        return None
+    fit = st.fit0
+    r = fit.residuals(X, T)
+    v = fit.calibrate(X, T)
+    u = v / np.linalg.norm(v, axis=1)[:, None]
+    V = pts["V"]
+    tt = PoseTempTest(o.sensor, r[ok][:, None], (1.0 / np.maximum(V[ok], 1e-30))[:, None],
+                      temp[ok], T[ok], np.zeros(ok.sum(), int), float(np.mean(temp[ok])),
+                      float(o.K), u=u[ok], v=v[ok])
+    if tt.span < MIN_TEMP_SPAN_C:
+        return None
+    return tt
+
+
+def testable(data: SessionData, o, regime: str | None) -> bool:
+    """Whether the temperature test runs for this sensor (for the plan's
+    count): still blocks (``make_test``) or, for the accelerometer and
+    magnetometer in the poses regime, pose means spanning the temperature."""
+    if regime == "poses" and o is not None and o.sensor == "accel" \
+            and data.has_temp and o.segs is not None:
+        temp = np.array([np.nanmean(data.temp[o.rows[r]]) if len(r) and
+                         np.isfinite(data.temp[o.rows[r]]).any() else np.nan
+                         for r in o.segs.rows])
+        ok = np.isfinite(temp)
+        return ok.sum() >= 24 and float(np.ptp(temp[ok])) >= MIN_TEMP_SPAN_C
+    return make_test(data, o, regime) is not None

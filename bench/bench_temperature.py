@@ -46,6 +46,7 @@ import numpy as np  # noqa: E402
 import warmup as W  # noqa: E402
 from motecal.calib import calibrate_board  # noqa: E402
 from motecal.diagnose.engine import diagnose  # noqa: E402
+from motecal.sessions.session import NOMINAL_SCALES  # noqa: E402
 from results import record  # noqa: E402
 
 HOLD_S = 1200.0
@@ -81,7 +82,6 @@ def mote_correction():
             raise AttributeError("mote_c.correct has no temperature")
     except (ImportError, AttributeError, OSError) as e:
         return None, f"no on-mote temperature correction in this tree ({e})"
-    from motecal.sessions.session import NOMINAL_SCALES
 
     def run(bc, raw, temp):
         phys = {n: (sc.A, sc.c) for n, sc in bc.sensors()}
@@ -193,11 +193,13 @@ def main(argv=None):
         if mo is not None:
             first[s] = float(np.median([r["mote_first_s"] for r in rows]))
         within = int(np.sum(h <= 2.0))
+        within_m = "" if mo is None else f", mote {int(np.sum(mo <= 2.0))}"
         print(f"{s:<7}{np.median(fl):>9.3g} {unit:<5} median {np.median(u):6.1f}x  "
               f"median {np.median(h):4.2f}x (max {h.max():4.2f})  "
               + (f"median {np.median(mo):4.2f}x (max {mo.max():4.2f})" if mo is not None
                  else f"{'not measured':>15}")
-              + f"  {within:>4} of {len(rows)}" + (f"  (no model on {nf})" if nf else ""))
+              + f"  host {within} of {len(rows)}{within_m}"
+              + (f"  (no model on {nf})" if nf else ""))
         summary[s] = (u, h, mo, len(rows), nf)
     for c in cal:
         if c["not_fitted"]:
@@ -224,7 +226,10 @@ def main(argv=None):
                    note=f"median {np.median(mo):.2f}x; fixed-point set with temperature "
                         f"terms, the previous second's mean TEMP_OUT in force, from the "
                         f"second second on (the first second, before any temperature, "
-                        f"is corrected at t_ref: median error {first[s]:.3g} {units[s]})")
+                        f"is corrected at t_ref: median error {first[s]:.3g} {units[s]}); "
+                        f"the record holds whole counts, and on a still board every "
+                        f"sample rounds alike: up to half a count of bias "
+                        f"({0.5 / NOMINAL_SCALES[s]:.2g} {units[s]})")
         else:
             record(f"temperature: {label} error over a 20-min warm-up, on the mote (C)",
                    "<= 2x the white-noise floor of a 1 s average (#16)", None, "x floor", None,
@@ -232,7 +237,7 @@ def main(argv=None):
     if "mag" in summary:
         u, h, mo, n, nf = summary["mag"]
         record(f"temperature: magnetometer error over a 20-min warm-up, host (median of {n})",
-               "context: one sensitivity coefficient for the three axes", float(np.median(h)),
+               "context: sensitivity per axis (or one for the three)", float(np.median(h)),
                "x floor", None, note=f"max {h.max():.2f}x; uncompensated median "
                                      f"{np.median(u):.1f}x")
 

@@ -161,3 +161,30 @@ def test_cal_json_carries_the_model_and_the_summary_says_what_was_fitted(warm, t
     text = summary(bc)
     assert "gyro: temperature: offset" in text and "accel: temperature: offset" in text, text
     assert "held-out rms" in text
+
+
+def test_gyro_sensitivity_from_moves_over_a_span_when_determined():
+    """80 poses while the board warms (3-6 C): where the moves determine the
+    gyro's sensitivity coefficient (std <= 4e-4 /C and better on held-out
+    moves), the correction is minus the planted coefficient within 4 std
+    (+ 1e-4); otherwise the note says why.  4 boards."""
+    bad, fitted = [], 0
+    for k in range(4):
+        seed = SEED0 + 3 * k
+        ses = paper_sized_session(seed, "thermal", accel_noise_mg=None, rotation=False)
+        bc = calibrate_board(ses, seed=1, kfold=0)
+        tm = bc.gyro.temperature
+        if tm is None:
+            continue
+        planted = np.array(next(t for t in ses.meta["truth"]["gyro"]["terms"]
+                                if t["term"] == "temperature")["scale_per_c"])
+        if "scale_fit" not in tm.extra:
+            bad.append((seed, "no scale_fit"))
+        elif tm.extra["scale_fit"].get("why") is None:
+            fitted += 1
+            if np.any(np.abs(tm.scale_per_c + planted) > 4 * tm.scale_per_c_std + 1e-4):
+                bad.append((seed, tm.scale_per_c, -planted, tm.scale_per_c_std))
+        else:
+            assert "sensitivity against temperature not determined" in tm.notes[1], tm.notes
+            assert np.all(tm.scale_per_c == 0)
+    assert not bad, bad

@@ -209,3 +209,63 @@ def term_support(term: str, directions: np.ndarray, times: np.ndarray | None = N
             return f"the poses span {span:.0f} s (at least {MIN_DRIFT_SPAN_S:g} s for a drift)"
         return None
     return f"no {term} term in the calibration"
+
+
+# --------------------------------------------------------------------------
+# temperature (issue 16): what a session's temperature can determine
+# --------------------------------------------------------------------------
+MIN_TEMP_SPAN_C = 2.0      # still data must cover this span for a temperature term
+HOLD_MIN_S = 30.0          # a still pose at least this long is a hold (a warm-up, say)
+
+
+@dataclasses.dataclass
+class TempContent:
+    """The temperature a session carries, judged once for calibrate and
+    diagnose: its range over the still rows (static poses and holds), the
+    labels of the holds (poses of at least ``HOLD_MIN_S``) and the
+    temperature span that the holds and the other poses each cover."""
+    has_temp: bool
+    lo: float = float("nan")
+    hi: float = float("nan")
+    holds: tuple = ()               # pose labels that are holds
+    hold_span_c: float = 0.0        # the largest span within one hold
+    pose_span_c: float = 0.0        # span of the other poses' mean temperatures
+    why: str | None = None          # why no temperature term can be determined (None: one can)
+
+    @property
+    def span_c(self) -> float:
+        return 0.0 if not self.has_temp else float(self.hi - self.lo)
+
+
+def hold_labels(data: SessionData) -> list[int]:
+    """Pose labels whose still rows last at least ``HOLD_MIN_S`` seconds."""
+    t = data.sample_times()
+    out = []
+    for p in np.unique(data.label[data.label >= 1]):
+        m = data.label == p
+        if t[m].max() - t[m].min() >= HOLD_MIN_S:
+            out.append(int(p))
+    return out
+
+
+def temperature_content(data: SessionData) -> TempContent:
+    """See ``TempContent``.  ``why`` is None when the still data span at
+    least ``MIN_TEMP_SPAN_C``, within a hold or across the poses."""
+    if not data.has_temp:
+        return TempContent(False, why="the session carries no temperature")
+    still = (data.label >= 1) & np.isfinite(data.temp)
+    if not still.any():
+        return TempContent(True, why="no still rows with a temperature (static poses or holds)")
+    T = data.temp
+    holds = hold_labels(data)
+    hold_span = max((float(np.ptp(T[still & (data.label == h)])) for h in holds), default=0.0)
+    others = [p for p in np.unique(data.label[still]) if p not in holds]
+    pm = [float(np.mean(T[still & (data.label == p)])) for p in others]
+    pose_span = float(np.ptp(pm)) if len(pm) >= 2 else 0.0
+    c = TempContent(True, float(T[still].min()), float(T[still].max()), tuple(holds),
+                    hold_span, pose_span)
+    if max(hold_span, pose_span) < MIN_TEMP_SPAN_C:
+        c.why = (f"the still data span {max(hold_span, pose_span):.2f} C within a hold or "
+                 f"across the poses (at least {MIN_TEMP_SPAN_C:g} C: a warm-up hold of several "
+                 f"minutes after power-on, or poses across a span)")
+    return c

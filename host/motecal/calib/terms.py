@@ -124,6 +124,10 @@ def treatments(data: SessionData, diagnosis: dict) -> list:
         elif c == "cross_axis":
             out.append(Treatment(s, c, f"{s} cross_axis: already in the full model "
                                        "(--model full)", used=False))
+        elif c == "temperature":
+            out.append(Treatment(s, c, f"{s} temperature: calibrate fits it itself when the "
+                                       "session carries the temperature (calib.thermal)",
+                                 used=False))
         elif (s, c) in FITTED_TERMS:
             out.append(Treatment(s, c, f"{s} {c}: fitted", term=c))
         else:

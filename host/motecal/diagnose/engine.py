@@ -27,6 +27,7 @@ from . import fitting as F
 from . import gain as G
 from . import screens as SC
 from . import structure as ST
+from . import thermal as TH
 from .prepare import SensorObs, all_obs, sensor_obs, session_still
 from .turns import turn_corrected
 from .regimes import (MIN_SWEEP_ROWS, accel_for_blocks, regime, shared_rows, sweep_reasons,
@@ -65,6 +66,7 @@ class Diagnosis:
     obs: dict
     comparison: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    temperature: dict = field(default_factory=dict)   # sensor -> thermal.TempTest
 
     @property
     def clean(self) -> bool:
@@ -144,6 +146,8 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
     if not obs:
         raise QualityError(f"session {data.name}: no sensor readings to diagnose")
     plan = _plan(obs)
+    plan += [(s, "temperature") for s, o in obs.items()           # issue 16
+             if TH.testable(data, o, regime(o))]
     n_tests = len(plan)
     notes: list[str] = []
     if still is not None:
@@ -293,6 +297,34 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
                                  "(it turns with the accelerometer): not a bias drift")
                 break
 
+    # temperature (issue 16): a drift that follows the board temperature
+    temp_tests = {}
+    for s in ("accel", "gyro", "mag"):
+        if (s, "temperature") not in plan or s not in sobs:
+            continue
+        tt = (TH.make_pose_test(data, sobs[s], structures.get(s))
+              if regime(sobs[s]) == "poses" else TH.make_test(data, sobs[s], regime(sobs[s])))
+        if tt is None:
+            continue
+        TH.run_test(tt, a_test)
+        if force is not None:
+            tt.named = (s, "temperature") in force
+            tt.keep_drift = (s, "bias_drift") in force
+        temp_tests[s] = tt
+        record(s, "temperature", min(tt.p_T, tt.p_T_D), tt.named, p_temperature=tt.p_T,
+               p_temperature_beyond_time=tt.p_T_D, p_time_beyond_temperature=tt.p_D_T)
+        if not tt.named:
+            continue
+        ev, params, g = TH.finding_parts(tt)
+        findings.append(Finding(s, "temperature", C.summary(
+            s, "temperature", ev, params, g, ev["heldout_rms_before"], ev["heldout_rms_after"],
+            TH.UNITS[s]), ev, params, g))
+        if not tt.keep_drift and (s, "bias_drift") in {(f.sensor, f.cause) for f in findings}:
+            findings = [f for f in findings if (f.sensor, f.cause) != (s, "bias_drift")]
+            notes.append(f"{s}: its drift follows the board temperature (the time basis adds "
+                         f"nothing on top of it, p = {tt.p_D_T:.2g}): named temperature, not "
+                         f"bias_drift")
+
     # saturation in static poses: the gain on the pose means (censored)
     for sc in screens:
         if sc.cause == "saturation" and sc.sensor in structures and sc.sensor in clip_rows:
@@ -341,7 +373,7 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
     findings.sort(key=lambda f: ({"accel": 0, "gyro": 1, "mag": 2}[f.sensor], order[f.cause]))
     start_model, model = _models(data, obs, sobs, structures, findings, screens, mot)
     d = Diagnosis(data.name, motes[0], data.kind, findings, tests, alpha, n_tests, model,
-                  start_model, structures, screens, sobs, notes=notes)
+                  start_model, structures, screens, sobs, notes=notes, temperature=temp_tests)
     if simulate:
         from .compare import comparison
         d.comparison = comparison(data, d, seed=seed, rediagnose=diagnose)
@@ -932,6 +964,10 @@ def _models(data, obs, sobs, structures, findings, screens, mot):
         if s == "mag" and (s, "field_disturbance") in kept:
             ext_terms = [{"term": "field_disturbance",
                           **kept[(s, "field_disturbance")].params}] + ext_terms
+        if (s, "temperature") in kept:
+            tp = kept[(s, "temperature")].params
+            ext_terms.append({"term": "temperature", "t_ref_c": tp["t_ref_c"],
+                              "offset_per_c": X._r(np.asarray(tp["offset_per_c"]) * scale)})
         if (s, "saturation") in kept:
             ext_terms.append(X.saturation_term(kept[(s, "saturation")].params, s, o.K))
         if (s, "stale_samples") in kept:
@@ -944,6 +980,8 @@ def _models(data, obs, sobs, structures, findings, screens, mot):
     board_terms = []
     if ("accel", "motion") in kept:
         board_terms.append({"term": "motion", **kept[("accel", "motion")].params})
+    if any(c == "temperature" for _, c in kept):
+        board_terms.append(TH.thermal_term(data))
     mote = data.motes[0]
     start = X.model_json(f"{data.name}-paper", mote, rate, dict(env), sensors_start, [],
                          f"the paper's starting model fitted to session {data.name}")

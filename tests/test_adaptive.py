@@ -153,3 +153,33 @@ def test_end_to_end_through_the_simulator(tmp_path):
     need = poses_needed(pose_stats(data.raw, data.label), data.scales)
     assert need["in_order"] is not None and need["in_order"] <= len(data.poses())
     assert need["best_subset"] is not None and need["best_subset"] <= need["in_order"]
+
+
+def test_calibrate_reports_the_poses_needed(tmp_path):
+    """`motecal calibrate` on a finished guided session: a 'poses needed'
+    section, and the same figures in cal.json (the accelerometer's quality);
+    the rest of the output is unchanged in form."""
+    import json
+    import subprocess
+    import sys
+    from motecal.sim.world import World
+    from motecal.capture.logger import NullDisplay
+    world = World(motes=1, session="static80", seed=4)
+    db = str(tmp_path / "s.db")
+    with open_store(db, create=True) as store:
+        w = store.open_session("s", kind="static80", meta={"rate_hz": 125.0})
+        port = WorldPort(world, step=0.05)
+        flow = GuidedFlow("static80", follow=1, auto=True, options=dict(rate_hz=125.0))
+        Logger(port.spec, w, LinkTracker(), guide=flow, source=port,
+               display=NullDisplay()).run()
+    out = tmp_path / "cal.json"
+    r = subprocess.run([sys.executable, "-m", "motecal", "calibrate", "--db", db, "--session",
+                        "s", "--out", str(out), "--seed", "1", "--kfold", "0"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "gate: accepted" in r.stdout and "mse before" in r.stdout
+    assert "poses needed" in r.stdout and "in the order taken: the first" in r.stdout
+    pn = json.loads(out.read_text())["accel"]["quality"]["poses_needed"]
+    assert pn["poses"] == 80 and MIN_POSES <= pn["best_subset"] <= pn["in_order"] <= 80
+    assert len(pn["subset"]) == pn["best_subset"] and set(pn["subset"]) <= set(range(1, 81))
+    assert f"the first {pn['in_order']} of 80" in r.stdout

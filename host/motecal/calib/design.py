@@ -512,3 +512,48 @@ class Planner:
         a = assess(st, self.scales, self.targets, min_angle_deg=self.min_angle,
                    lo_samples=self.lo, hi_samples=self.hi, q=self.q)
         return Advice(a.all_met, a.text(self.targets), a.next_up, a.samples, a)
+
+
+def session_poses_needed(board, data, targets: Targets = Targets(),
+                         q: float = CONFIDENCE) -> dict | None:
+    """``poses_needed`` for a calibrated board (``calibrate_board``'s result)
+    and its session (one mote): judged on the sensors its static poses
+    calibrated (the magnetometer only when its calibration came from the
+    poses, set O, not from a sweep).  Kept in ``cal.json`` under the
+    accelerometer's ``quality["poses_needed"]``; None without an
+    accelerometer calibration from poses."""
+    if board.accel is None or not (data.label >= 1).any():
+        return None
+    sensors = ["accel"]
+    if board.mag is not None and board.mag.dataset == "O":
+        sensors.append("mag")
+    if board.gyro is not None:
+        sensors.append("gyro")
+    st = pose_stats(data.raw, data.label)
+    out = poses_needed(st, data.scales, targets, sensors=tuple(sensors), q=q)
+    board.accel.quality["poses_needed"] = out
+    return out
+
+
+def describe_poses_needed(pn: dict) -> list[str]:
+    """The text ``motecal calibrate`` prints for ``poses_needed``."""
+    t = pn["targets"]
+    names = {"accel": f"accel {t['accel_g'] * 1e3:g} mg", "mag": f"mag {t['mag_rel'] * 1e2:g} %",
+             "gyro": f"gyro bias {t['gyro_dps']:g} deg/s"}
+    fmt = {"accel": lambda b: f"accel {b * 1e3:.3g} mg", "mag": lambda b: f"mag {b * 1e2:.3g} %",
+           "gyro": lambda b: f"gyro {b:.3g} deg/s"}
+    want = ", ".join(names[s] for s in pn["sensors"])
+    have = ", ".join(fmt[s](b) for s, b in pn["bounds_all"].items() if b is not None)
+    lines = [f"  poses needed (promised error at {pn['confidence']:.0%} on fresh directions, "
+             f"targets {want}):"]
+    if pn["in_order"] is None:
+        why = (f"fewer than {MIN_POSES} poses" if pn["poses"] < MIN_POSES
+               else f"all {pn['poses']} poses promise {have}")
+        lines.append(f"    the targets are not met ({why})")
+        return lines
+    lines.append(f"    all {pn['poses']} poses promise {have}")
+    lines.append(f"    in the order taken: the first {pn['in_order']} of {pn['poses']}")
+    if pn["best_subset"] is not None:
+        lines.append(f"    best subset found: {pn['best_subset']} poses ("
+                     + " ".join(str(x) for x in pn["subset"]) + ")")
+    return lines

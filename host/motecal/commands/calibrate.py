@@ -25,6 +25,7 @@ import sys
 from pathlib import Path
 
 from ..calib.board import calibrate_board
+from ..calib.design import describe_poses_needed, session_poses_needed
 from ..calib.gate import decide
 from ..calib.models import MODEL_FAMILIES, parse_groups
 from ..calib.result import BoardCalibration
@@ -142,6 +143,8 @@ def summary(board: BoardCalibration) -> str:
     for name, sc in board.sensors():
         for n in sc.notes:
             lines.append(f"  {name}: {n}")
+    if board.accel is not None and board.accel.quality.get("poses_needed"):
+        lines += describe_poses_needed(board.accel.quality["poses_needed"])
     g = board.gate
     if g:
         state = "accepted" if g.get("accepted") else ("refused, saved anyway (--force)"
@@ -178,6 +181,7 @@ def run(args) -> int:
                 if "mag" in refuse and board.mag is not None:
                     board.mag, board.mag_sets = None, {}
                     board.settings["insufficient"]["mag"] = refuse["mag"]
+            session_poses_needed(board, dm)
             decision = decide(board, force=args.force)
             print(summary(board))
             if not decision.accepted and not args.force:

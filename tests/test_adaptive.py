@@ -14,7 +14,7 @@ from motecal.calib.design import (MIN_POSES, Planner, PoseStats, Targets, assess
 from motecal.capture.guide import AdaptiveCapture, GuidedFlow
 from motecal.capture.link import LinkTracker
 from motecal.capture.logger import Logger
-from motecal.maths.sphere import angle_deg, fibonacci_sphere
+from motecal.maths.sphere import angle_deg
 from motecal.sessions.session import NOMINAL_SCALES
 from motecal.sessions.store import open_store
 from motecal.sim import load_model, simulate_session
@@ -183,3 +183,37 @@ def test_calibrate_reports_the_poses_needed(tmp_path):
     assert pn["poses"] == 80 and MIN_POSES <= pn["best_subset"] <= pn["in_order"] <= 80
     assert len(pn["subset"]) == pn["best_subset"] and set(pn["subset"]) <= set(range(1, 81))
     assert f"the first {pn['in_order']} of 80" in r.stdout
+
+
+def test_log_options_and_screen(tmp_path):
+    """Bad adaptive options: one line, exit 2, nothing stored; the screens
+    draw an adaptive flow's status (estimate line included)."""
+    import io
+    import subprocess
+    import sys
+    from motecal.commands.log_screen import PlainDisplay, _guide_text
+    src = tmp_path / "empty.bin"
+    src.write_bytes(b"")
+    db = tmp_path / "x.db"
+    for bad in (["--max-poses", "5"], ["--target-mg", "0"], ["--min-angle", "120"]):
+        r = subprocess.run([sys.executable, "-m", "motecal", "log", "--port", str(src), "--db",
+                            str(db), "--session", "s", "--guided", "adaptive", "--yes", *bad],
+                           capture_output=True, text=True, timeout=60)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, (bad, r.stderr)
+        assert "Traceback" not in r.stderr and not db.exists()
+    cap = AdaptiveCapture(1, planner=Planner(NOMINAL_SCALES), rate_hz=125.0, auto=False)
+    cap.text = "accel 0.9 mg (target 0.5)"
+    text = _guide_text(cap.status()).plain
+    assert "pose 1 (at most 80; the first 12 spread evenly)" in text
+    assert "promised error: accel 0.9 mg (target 0.5)" in text and "suggested:" in text
+
+    class L:                     # what PlainDisplay reads of a logger
+        guide = GuidedFlow("adaptive", auto=False, options=dict(planner=None))
+        elapsed, connected = 1.0, True
+
+        class tracker:
+            motes, line = {}, {"crc_errors": 0}
+    L.guide.captures[1] = cap
+    out = io.StringIO()
+    PlainDisplay(out=out, every=0.0).tick(L)
+    assert "mote 1: pose 1/80:" in out.getvalue() and "pose 1 (at most 80)" in out.getvalue()

@@ -44,7 +44,7 @@ def test_prediction_is_honest_on_fixed_sessions():
         st = pose_stats(ses.raw, ses.label).take(range(30))
         acc = design_sensor("accel", st, ses.scales["accel"])
         sub = ses.select(np.isin(ses.label, st.labels) | (ses.label == 0))
-        b = calibrate_board(sub, seed=1, kfold=0)
+        b = calibrate_board(sub, seed=1, kfold=0, gyro_matrix=False)
         true = vector_error(b.accel, ses.meta["physical_truth"])
         ratios.append(true / acc.rms)
         if true > acc.bound * 1.2:
@@ -110,7 +110,7 @@ def test_adaptive_reaches_the_target_with_few_poses():
     for seed in (11, 12, 13):
         cap = AdaptiveCapture(1, planner=Planner(NOMINAL_SCALES), rate_hz=125.0)
         data, fig = run_guided(cap, GENERAL, seed)
-        b = calibrate_board(data, seed=1, kfold=0)
+        b = calibrate_board(data, seed=1, kfold=0, gyro_matrix=False)
         true = vector_error(b.accel, data.meta["physical_truth"])
         promised = cap.advice.assessment.bounds["accel"]
         if not (cap.met and fig["poses"] <= 30 and true <= 1.2 * promised):
@@ -146,7 +146,7 @@ def test_end_to_end_through_the_simulator(tmp_path):
     for k in data.poses():                         # the person held still there
         held = set(truth_label[np.isin(sent.seq, data.seq[data.label == k])])
         assert len(held) == 1 and held != {0}, (k, held)
-    b = calibrate_board(data.for_mote(1), seed=1, kfold=0)
+    b = calibrate_board(data.for_mote(1), seed=1, kfold=0, gyro_matrix=False)
     board = net.boards[1]
     true = vector_error(b.accel, board.physical_truth())
     assert true <= 1.2 * cap.advice.assessment.bounds["accel"], true

@@ -6,6 +6,9 @@ message) and without (1), no injected loss: what is lost is lost to
 collisions (after 2 retries), full mote send queues, and the BaseStation's
 full radio->serial queue.  Records are random int16 so HDLC escaping costs
 what it costs on real data.  Goal: 6 motes at 250000 baud lose <= 0.1%.
+Every mote also sends its temperature message (ninedof_mote_temp_msg, once a
+second, issue 16); the goal cell is measured again without it (an image
+built before it), with the line's use in both, to show the budget unchanged.
 
     .venv/bin/python bench/bench_link.py [--duration 60] [--seed 1]
 """
@@ -32,17 +35,28 @@ class NoiseSampler:
         return self.rng.integers(-2048, 2048, size=(len(t), 9), dtype=np.int16)
 
 
-def run(motes, baud, batch, duration, seed):
+def run(motes, baud, batch, duration, seed, temperature=True, line=None):
     ppm = np.random.default_rng(seed).normal(0, 20, motes + 1)
     net = Network({m: NoiseSampler(seed * 100 + m) for m in range(1, motes + 1)},
                   {m: float(ppm[m]) for m in range(1, motes + 1)},
-                  duration=duration, baud=baud, batch=batch, seed=seed, cal_factory=None)
+                  duration=duration, baud=baud, batch=batch, seed=seed, cal_factory=None,
+                  temperature=temperature)
+    temp_bytes = 0
     while not net.done:
-        net.run_until(net.now + 5.0)
+        out = net.run_until(net.now + 5.0)
+        if line is not None:
+            for f in P.decode_stream(out):
+                am = f.am()
+                if am is not None and am.am_type == P.AM_NINEDOF_MOTE_TEMP_MSG:
+                    temp_bytes += len(P.encode_am(am))
     st = net.stats["motes"]
     gen = sum(d["generated"] for d in st.values())
     got = sum(d["delivered"] for d in st.values())
     why = {k: sum(d[k] for d in st.values()) for k in ("dropped", "radio_lost", "bs_dropped")}
+    if line is not None:
+        line.update(bytes=net.stats["line"]["bytes_out"], temp_bytes=temp_bytes,
+                    temp_msgs=sum(d["temp_sent"] for d in st.values()),
+                    capacity=baud / 10 * duration)
     return got / gen, why
 
 
@@ -84,6 +98,34 @@ def main():
            f"<= {100 * GOAL_LOSS:.1f} % (#2)", 100 * loss, "%", ok, digits=2,
            note=f"worst of seeds {a.seed}..{a.seed + 4}, batch {P.NINEDOF_BATCH}, "
                 f"{a.duration:g} simulated s each")
+    # the same cell without the temperature message (an older image), and the line's use
+    use = {}
+    for temp in (False, True):
+        use[temp] = {}
+        run(GOAL_MOTES, GOAL_BAUD, P.NINEDOF_BATCH, a.duration, a.seed, temp, use[temp])
+    old = [1 - run(GOAL_MOTES, GOAL_BAUD, P.NINEDOF_BATCH, a.duration, a.seed + k, False)[0]
+           for k in range(5)]
+    frame = len(P.message_frame(P.MOTE_TEMP, dest=0, src=1, seq=0, count=125, reserved=0,
+                                temp_sum=-12000 * 125))
+    t = use[True]
+    print(f"temperature message: {P.MOTE_TEMP.size}-byte payload, {frame} bytes on the line "
+          f"(unescaped); {t['temp_msgs']} sent by {GOAL_MOTES} motes in {a.duration:g} s = "
+          f"{100 * t['temp_bytes'] / t['capacity']:.3f}% of the line")
+    for temp in (False, True):
+        u = use[temp]
+        print(f"  {'with' if temp else 'without'} it: line {100 * u['bytes'] / u['capacity']:.2f}% "
+              f"busy; loss seeds {a.seed}..{a.seed + 4}: "
+              + ", ".join(f"{100 * x:.3f}%" for x in (losses if temp else old)))
+    record(f"loss, {GOAL_MOTES} motes at 125 Hz on one {GOAL_BAUD} baud line, without the "
+           "temperature message", "unchanged by it (#16)", 100 * max(old), "%", None, digits=2,
+           note=f"worst of seeds {a.seed}..{a.seed + 4}; the figure above is with it, "
+                f"one {frame}-byte message per mote per second")
+    record(f"serial line busy, {GOAL_MOTES} motes at {GOAL_BAUD} baud, with / without the "
+           "temperature message", "", 100 * use[True]["bytes"] / use[True]["capacity"], "%",
+           None, digits=3,
+           note=f"{100 * use[False]['bytes'] / use[False]['capacity']:.3f} % without; "
+                f"temperature messages {100 * use[True]['temp_bytes'] / use[True]['capacity']:.3f}"
+                f" % of the line")
     stock = [n for n in range(1, 9) if results[(n, 57600, P.NINEDOF_BATCH)][0] >= 1 - GOAL_LOSS]
     record("motes within that loss at iris's stock 57600 baud", "", max(stock, default=0),
            "motes", None, note=f"batch {P.NINEDOF_BATCH}, seed {a.seed}")

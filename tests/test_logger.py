@@ -470,3 +470,100 @@ def test_argument_mistakes_are_one_line(tmp_path, capsys):
         err = capsys.readouterr().err
         assert msg in err and len(err.strip().splitlines()) == 1, (argv, err)
     assert not (tmp_path / "x.db").exists()
+
+
+# --------------------------------------------------------------------------
+# the board temperature (ninedof_mote_temp_msg)
+# --------------------------------------------------------------------------
+def _temp_frame(mote, seq16, celsius, count=125):
+    raw = int(round(float(P.temp_raw(celsius))))
+    return P.message_frame(P.MOTE_TEMP, dest=0xFFFF, src=mote, seq=seq16 & 0xFFFF,
+                           count=count, reserved=0, temp_sum=raw * count)
+
+
+def _with_temps(frames, sent, motes, every=25, start=20.0, step=0.25):
+    """Insert a temperature message of each of ``motes`` after every ``every``
+    sample frames (the mote's newest sample so far), warming by ``step``;
+    returns the new frame list and the readings sent (mote, unwrapped seq, C)."""
+    out, readings, done = [], [], {m: 0 for m in motes}
+    for f in frames:
+        out.append(f)
+        am = P.decode_stream(f)[0].am()
+        m = am.src
+        if m in motes and am.am_type == P.AM_NINEDOF_SAMPLES_MSG:
+            done[m] += 1
+            if done[m] % every == 0:
+                u = int(sent[m][0][done[m] * 5 - 1])
+                c = start + step * len([r for r in readings if r[0] == m])
+                out.append(_temp_frame(m, u, c))
+                readings.append((m, u, round(float(P.temp_c(round(float(P.temp_raw(c))))), 9)))
+    return out, readings
+
+
+def test_logger_stores_each_motes_temperature_and_loads_it_per_row(tmp_path, capsys):
+    from motecal.commands.log_screen import PlainDisplay
+    raws = {m: pose_trajectory(n_poses=2, seed=20 + m)[0] for m in (1, 2, 3)}
+    frames, sent = sample_frames(raws, seq0={1: 65400, 2: 0, 3: 7})
+    frames, readings = _with_temps(frames, sent, motes=(1, 2))
+    early = _temp_frame(2, 3, 19.0)          # before mote 2's first samples: waits for them
+    nothing = P.message_frame(P.MOTE_TEMP, dest=0xFFFF, src=1, seq=5, count=0, reserved=0,
+                              temp_sum=0)    # no reading in the period: nothing stored
+    again = next(f for f in frames if P.decode_stream(f)[0].am().am_type
+                 == P.AM_NINEDOF_MOTE_TEMP_MSG)      # a message forwarded twice
+    frames = [early, nothing] + frames + [again]
+    rec = tmp_path / "rec.bin"
+    rec.write_bytes(b"".join(frames))
+    with open_store(str(tmp_path / "run.db"), create=True) as st:
+        w = st.open_session("r", kind="free", meta={"source": str(rec)})
+        lg = Logger(S.parse_port(str(rec)), w, LinkTracker(), display=PlainDisplay(every=0))
+        lg.run()
+        stored = st.temps("r")
+        d = st.load_session("r")
+    got = {(int(m), int(s)): c for m, s, _, c, n in stored}
+    want = {(m, u): c for m, u, c in readings}
+    want[(2, 3)] = round(float(P.temp_c(round(float(P.temp_raw(19.0))))), 9)
+    assert set(got) == set(want)                     # the repeated reading kept once
+    assert all(abs(got[k] - want[k]) < 1e-9 for k in want)
+    assert lg.tracker.motes[1].temp_msgs == len([r for r in readings if r[0] == 1]) + 2
+    assert np.isnan(d.temp[d.mote == 3]).all()       # a mote that sends none
+    one = d.for_mote(1)
+    centres = np.array(sorted(u for m, u, _ in readings if m == 1)) - 62
+    assert np.isfinite(one.temp).all()               # rows within 2 s of a reading
+    inside = (one.seq >= centres[0]) & (one.seq <= centres[-1])
+    assert np.all(np.diff(one.temp[inside]) >= 0)    # warming, interpolated
+    assert "mote 1 " in capsys.readouterr().out.split("line:")[0]
+
+
+def test_an_old_host_ignores_temperature_messages(tmp_path, monkeypatch):
+    """A host built before AM 0x69 (its FIXED_MESSAGES lack it) decodes the
+    samples and status of a new image unchanged and counts the temperature
+    messages as unknown."""
+    raws = {m: pose_trajectory(n_poses=1, seed=30 + m)[0] for m in (1, 2)}
+    frames, sent = sample_frames(raws, seq0={1: 0, 2: 9}, status_every=20)
+    frames, readings = _with_temps(frames, sent, motes=(1, 2), every=10)
+    assert readings
+    old = {k: v for k, v in P.FIXED_MESSAGES.items() if k != P.AM_NINEDOF_MOTE_TEMP_MSG}
+    monkeypatch.setattr(P, "FIXED_MESSAGES", old)
+    assert P.decode_message(P.decode_stream(_temp_frame(1, 5, 25.0))[0].am()) is None
+    rec = tmp_path / "rec.bin"
+    rec.write_bytes(b"".join(frames))
+    with open_store(str(tmp_path / "run.db"), create=True) as st:
+        w = st.open_session("r", kind="free", meta={"source": str(rec)})
+        Logger(S.parse_port(str(rec)), w, LinkTracker()).run()
+        d = st.load_session("r")
+        line = st.link_stats("r")["line"]
+    for m in (1, 2):
+        np.testing.assert_array_equal(d.for_mote(m).raw, sent[m][1])
+    assert d.temp is None and line["unknown_msgs"] == len(readings) and line["bad_msgs"] == 0
+
+
+def test_a_temperature_reading_far_from_the_motes_samples_is_rejected():
+    link = MoteLink(4)
+    link.temperature(dict(seq=3, count=125, reserved=0, temp_sum=-12000 * 125))
+    assert link.take_temps() == []                   # waits for the mote's samples
+    _accept(link, [65530, 65535, 4, 9])              # samples 65530..65543 (wrapped)
+    link.temperature(dict(seq=20000, count=125, reserved=0, temp_sum=-12000 * 125))
+    got = link.take_temps()
+    assert [u for u, _, _ in got] == [65536 + 3] and link.temp_rejected == 1
+    assert got[0][1] == pytest.approx(float(P.temp_c(-12000))) and got[0][2] == 125
+    assert link.temp_c == pytest.approx(float(P.temp_c(-12000))) and link.temp_msgs == 2

@@ -214,7 +214,7 @@ def test_newer_schema_refused_and_old_schema_migrated(tmp_path):
     assert "cut_off" not in [r[1] for r in con.execute("PRAGMA table_info(line_stats)")]
     con.close()
     with open_store(v2) as st:
-        assert st.schema_version == SCHEMA_VERSION == 5
+        assert st.schema_version == SCHEMA_VERSION == 6
         line = st.link_stats("two")["line"]
         assert (line["frames"], line["crc_errors"], line["cut_off"]) == (7, 1, 0)
     # version 3 (no fault counters of the mote yet) gains the columns, its rows read 0
@@ -236,6 +236,55 @@ def test_newer_schema_refused_and_old_schema_migrated(tmp_path):
         mote = st.link_stats("three")["motes"][5]
         assert (mote["frames"], mote["mote_i2c_errors"]) == (11, 2)
         assert (mote["mote_i2c_nacks"], mote["mote_bus_resets"], mote["mote_chip_reinits"]) == (0, 0, 0)
+
+
+def _old_db(path, version: int):
+    """A sqlite database made by the migrations up to ``version``, with one session."""
+    con = sqlite3.connect(path)
+    for v in range(1, version + 1):
+        for stmt in store_mod.MIGRATIONS[v]:
+            con.execute(stmt.format(**store_mod._SqliteBackend.types))
+    con.execute("INSERT INTO schema_version VALUES (?)", (version,))
+    con.execute("INSERT INTO sessions (name, kind, started, scales, chips, meta) VALUES "
+                "('five', 'free', 0, '{}', '{}', '{}')")
+    con.execute("INSERT INTO samples (session, mote, seq, ax, ay, az) VALUES (1, 4, 9, 1, 2, 3)")
+    con.commit()
+    con.close()
+
+
+def test_schema_5_migrates_to_6_with_the_temperature_table(tmp_path):
+    """Version 5 (no temperature yet) gains the temps table; its sessions load
+    with temp None; a session with a temperature is stored and loaded back."""
+    v5 = str(tmp_path / "v5.db")
+    _old_db(v5, 5)
+    con = sqlite3.connect(v5)
+    assert "temps" not in {r[0] for r in con.execute(
+        "SELECT name FROM sqlite_master WHERE type = 'table'")}
+    con.close()
+    # read-only: read as it is (no temps table), temp None
+    with open_store(v5, readonly=True) as st:
+        assert st.schema_version == 5
+        assert st.load_session("five").temp is None
+    with open_store(v5) as st:
+        assert st.schema_version == SCHEMA_VERSION == 6
+        d = st.load_session("five")
+        assert d.temp is None and d.raw[0, :3].tolist() == [1, 2, 3]
+    with open_store(v5) as st:
+        data = _session("warm", n=200, motes=(1, 2))
+        data.temp = np.linspace(20.0, 30.0, len(data))
+        data.temp[7] = np.nan                 # unknown in one row: its neighbours fill it
+        st.save_session(data)
+        back = st.load_session("warm")
+        want = data.temp[np.lexsort((data.seq, data.mote))]
+        assert np.array_equal(back.temp[np.isfinite(want)], want[np.isfinite(want)])
+        assert np.isclose(back.temp[7], (want[6] + want[8]) / 2)
+        assert np.array_equal(st.load_session("warm", mote=2).temp, want[100:])
+        st.save_session(_session("cold"))
+        assert st.load_session("cold").temp is None
+    con = sqlite3.connect(v5)
+    cols = [r[1] for r in con.execute("PRAGMA table_info(temps)")]
+    assert cols == ["session", "mote", "seq", "t", "temp_c", "count"]
+    con.close()
 
 
 def test_live_writer_batches_labels_stats_and_end(tmp_path):
@@ -275,6 +324,73 @@ def test_live_writer_batches_labels_stats_and_end(tmp_path):
         w2.end()
         with pytest.raises(ValueError):
             w2.set_link_stats(1, {"bogus": 1})
+
+
+def test_live_writer_stores_temperature_readings(tmp_path):
+    """Readings of the mote's temperature messages: stored once (a repeated
+    message is ignored), interpolated by seq to every row when loaded, the
+    nearest within 2 s before the first and after the last, NaN further."""
+    db = str(tmp_path / "temp.db")
+    rate = 125
+    with open_store(db, create=True) as st:
+        w = st.open_session("warm", kind="free", meta={"rate_hz": rate})
+        n = 20 * rate
+        seq = np.arange(n)
+        w.add_samples(np.full(n, 4), seq, np.full(n, 0.5), np.zeros(n, int), np.ones((n, 9), int))
+        # one reading a second from second 5 to 12: 125 readings each, newest at seq
+        newest = np.arange(5, 13) * rate - 1
+        temps = 20.0 + 0.5 * np.arange(len(newest))
+        for s, c in zip(newest, temps):
+            w.add_temp(4, int(s), 1.0, float(c), rate)
+        w.add_temp(4, int(newest[0]), 1.0, 99.0, rate)      # the same message again
+        w.commit()
+        w.add_temp(4, int(newest[1]), 1.0, 99.0, rate)      # ... in a later commit
+        w.end()
+        assert len(st.temps("warm")) == len(newest)
+        d = st.load_session("warm")
+    centre = newest - (rate - 1) / 2
+    assert np.allclose(d.temp[centre.astype(int)], temps, atol=0.5 * 0.5 / rate)
+    inside = (seq >= centre[0]) & (seq <= centre[-1])
+    assert np.allclose(d.temp[inside], np.interp(seq[inside], centre, temps))
+    before = seq < centre[0]
+    near = before & (seq >= centre[0] - 2 * rate)
+    assert np.all(d.temp[near] == temps[0]) and np.isnan(d.temp[before & ~near]).all()
+    after = seq > centre[-1]
+    near = after & (seq <= centre[-1] + 2 * rate)
+    assert np.all(d.temp[near] == temps[-1]) and np.isnan(d.temp[after & ~near]).all()
+
+
+def check_temperature_roundtrip(target, migrated_from=None):
+    """What every backend must do with temperatures: an import's per-row
+    values come back exactly, a live writer's readings once each, sessions
+    without any load with temp None (used for sqlite, PostgreSQL, MariaDB)."""
+    with open_store(target, create=True) as st:
+        assert st.schema_version == SCHEMA_VERSION
+        data = _session("tw", n=400, motes=(1, 3))
+        data.temp = np.round(np.linspace(18.25, 31.5, len(data)), 6)
+        st.save_session(data)
+        want = data.temp[np.lexsort((data.seq, data.mote))]
+        assert np.array_equal(st.load_session("tw").temp, want)
+        st.save_session(_session("plain"))
+        assert st.load_session("plain").temp is None
+        w = st.open_session("live", kind="free", meta={"rate_hz": 125})
+        w.add_samples(np.full(500, 2), np.arange(500), np.zeros(500), np.zeros(500, int),
+                      np.ones((500, 9), int))
+        w.add_temp(2, 124, 1.0, 25.5, 125)
+        w.add_temp(2, 249, 2.0, 26.5, 125)
+        w.add_temp(2, 249, 2.0, 26.5, 125)
+        w.end()
+        r = st.temps("live")
+        assert r.tolist() == [[2, 124, 1.0, 25.5, 125], [2, 249, 2.0, 26.5, 125]]
+        d = st.load_session("live")
+        assert d.temp[62] == 25.5 and d.temp[187] == d.temp[437] == 26.5
+        assert np.isnan(d.temp[438:]).all() and np.isclose(d.temp[124], 25.5 + 62 / 125)
+        st.save_session(_session("tw", seed=3), replace=True)      # replacing drops them
+        assert st.load_session("tw").temp is None
+
+
+def test_temperature_roundtrip_sqlite(tmp_path):
+    check_temperature_roundtrip(str(tmp_path / "t.db"))
 
 
 def test_export_csv_format_and_atomic(tmp_path, monkeypatch):
@@ -368,6 +484,10 @@ def test_postgres_sessions_calibrations_atomic(pg_url, monkeypatch):
             st.load_session("pg2")
     with pytest.raises(UserError, match="cannot connect"):
         open_store(pg_url.replace("/motecal?", "/nosuchdb?"))
+
+
+def test_postgres_temperature_roundtrip(pg_url):
+    check_temperature_roundtrip(pg_url)
 
 
 def test_postgres_two_base_stations_log_into_one_server(pg_url, tmp_path):

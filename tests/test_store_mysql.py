@@ -17,7 +17,7 @@ from motecal.sessions import store_mysql as M
 from motecal.sessions.store import SCHEMA_VERSION, open_store
 from motecal.sim.serve import serve_in_thread, write_file
 from motecal.sim.world import World
-from test_store import _same, _session
+from test_store import _same, _session, check_temperature_roundtrip
 
 
 def _motecal(*args, timeout=180):
@@ -162,6 +162,26 @@ def test_connection_problems_are_one_line(mariadb, fresh_db):
         open_store(fresh_db)
     r = _motecal("sessions", "--db", fresh_db)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_temperature_roundtrip(fresh_db):
+    check_temperature_roundtrip(fresh_db)
+
+
+def test_schema_5_migrates_to_6(fresh_db):
+    b = M.MysqlBackend(fresh_db, True)
+    cur = b.cursor()
+    for v in range(1, 6):
+        for stmt in store_mod.MIGRATIONS[v]:
+            cur.execute(stmt.format(**b.types))
+    cur.execute("INSERT INTO schema_version VALUES (?)", (5,))
+    cur.execute("INSERT INTO sessions (name, kind, started, scales, chips, meta) VALUES "
+                "('five', 'free', 0, '{}', '{}', '{}')")
+    b.close()
+    with open_store(fresh_db) as st:
+        assert st.schema_version == SCHEMA_VERSION == 6
+        assert "temps" in st._tables and st.load_session("five").temp is None
+    check_temperature_roundtrip(fresh_db)
 
 
 def test_old_schema_migrated_newer_refused(fresh_db):

@@ -321,6 +321,7 @@ def test_stuck_viewers_cost_nothing_and_the_last_state_is_the_database(run):
         c = stats["motes"][m["id"]]
         for k in ("samples", "lost", "duplicates", "reordered", "frames"):
             assert m["link"][k] == c[k], (m["id"], k)
+        assert -40 <= m["link"]["temp_c"] <= 85          # the mote's temperature message
         assert m["static"]["pose"] == 80 and len(m["static"]["accepted"]) == 80
     for k in ("frames", "crc_errors", "garbage_bytes", "disconnects"):
         assert last["line"][k] == stats["line"][k]

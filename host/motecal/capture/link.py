@@ -16,6 +16,7 @@ from ..sessions.store import LINE_COUNTERS, LINK_COUNTERS
 REORDER_WINDOW = 2048        # samples back: further is a restart (or corruption)
 MAX_JUMP = 1000              # samples ahead (8 s): further is held until confirmed
 CONFIRM_GAP = 64             # the next frame may follow a suspect one this far on
+TEMP_WAIT_MAX = 64           # temperature readings kept until a mote's first samples
 
 
 def _wrapdiff(a, b):
@@ -69,6 +70,13 @@ class MoteLink:
         # the records of the last REORDER_WINDOW sequence numbers received
         self.recent = np.zeros((REORDER_WINDOW, 9), np.int16)
         self.recent_u = np.full(REORDER_WINDOW, -1, np.int64)
+        # the board temperature (ninedof_mote_temp_msg): latest degrees C, messages
+        # received, and readings waiting for the mote's first samples (to unwrap)
+        self.temp_c: float | None = None
+        self.temp_range: tuple[float, float] | None = None   # lowest, highest seen
+        self.temp_msgs = 0
+        self.temp_rejected = 0                  # readings whose seq fits no sample of the mote
+        self._temp_wait: list[tuple[int, float, int]] = []
 
     def _remember(self, u: np.ndarray, rec: np.ndarray) -> None:
         if len(u) > REORDER_WINDOW:
@@ -206,6 +214,36 @@ class MoteLink:
                 return True
         return False
 
+    def temperature(self, msg: dict) -> None:
+        """A temperature message: ``temp_sum`` of ``count`` raw TEMP_OUT
+        readings, the newest of the sample with 16-bit number ``seq``.  A
+        message with no reading (count 0) is counted, nothing else."""
+        self.temp_msgs += 1
+        if msg["count"] < 1:
+            return
+        c = float(P.temp_c(msg["temp_sum"] / msg["count"]))
+        self.temp_c = c
+        lo, hi = self.temp_range or (c, c)
+        self.temp_range = (min(lo, c), max(hi, c))
+        if len(self._temp_wait) < TEMP_WAIT_MAX:
+            self._temp_wait.append((int(msg["seq"]), c, int(msg["count"])))
+
+    def take_temps(self) -> list[tuple[int, float, int]]:
+        """Readings ready to store: (unwrapped seq, degrees C, count).  The
+        16-bit seq is unwrapped against the mote's samples, so a reading waits
+        until the mote's first samples are accepted."""
+        if self.last16 is None or not self._temp_wait:
+            return []
+        out = []
+        for s, c, n in self._temp_wait:
+            u = self.last_u + int(_wrapdiff(s, self.last16))
+            if self.end - REORDER_WINDOW <= u <= self.end + MAX_JUMP:
+                out.append((u, c, n))
+            else:                    # not near the mote's samples (a reboot not yet confirmed)
+                self.temp_rejected += 1
+        self._temp_wait = []
+        return out
+
     @property
     def seen(self) -> bool:
         """Anything of this mote was accepted (not only suspect frames)."""
@@ -317,9 +355,16 @@ class LinkTracker:
                 line["bad_msgs"] += 1
             elif am.am_type == P.AM_NINEDOF_MOTE_STATUS_MSG:
                 self.mote(am.src).status(msg)
+            elif am.am_type == P.AM_NINEDOF_MOTE_TEMP_MSG:
+                self.mote(am.src).temperature(msg)
             elif am.am_type == P.AM_NINEDOF_BS_STATUS_MSG:
                 line["bs_status_msgs"] += 1
                 line.update({"bs_" + k: v for k, v in msg.items()})
+
+    def take_temps(self) -> list[tuple[int, int, float, int]]:
+        """Temperature readings ready to store: (mote, unwrapped seq, degrees C, count)."""
+        return [(m, u, c, n) for m, link in self.motes.items() if link._temp_wait
+                for u, c, n in link.take_temps()]
 
     def decoder(self, stats: P.DecoderStats, closed: bool = False) -> None:
         """Take the current source's decoder counters (``closed``: it is done)."""

@@ -7,7 +7,8 @@ decoded together (``decode_sample_frames``) -> sequence numbers unwrapped and
 checked per mote (``LinkTracker``: gaps = lost samples, duplicates dropped,
 late ones filling gaps counted as reordered) -> ``store.SessionWriter``, which
 commits a transaction every 0.25 s.  Other messages (mote and BaseStation
-status) go into the link statistics; anything unusable is counted and skipped.
+status) go into the link statistics, the motes' temperature messages into the
+session's temperature readings; anything unusable is counted and skipped.
 
 The port may vanish (unplugged, TCP closed): the logger commits, records a
 ``disconnect`` event, retries with backoff and resumes.  Ctrl-C and SIGTERM
@@ -175,6 +176,8 @@ class Logger:
         if others:
             self.tracker.other(others)
         rows = self.tracker.samples(batch)
+        for mote, seq, temp, count in self.tracker.take_temps():
+            self.writer.add_temp(mote, seq, self.writer.now(), temp, count)
         if not len(rows):
             return
         t = np.full(len(rows), self.writer.now())
@@ -255,6 +258,9 @@ class Logger:
             c = link.c
             line = (f"  mote {m}: {c['samples']} samples, lost {c['lost']}, "
                     f"duplicates {c['duplicates']}, reordered {c['reordered']}")
+            if link.temp_range is not None:
+                lo, hi = link.temp_range
+                line += f", temperature {lo:.1f}..{hi:.1f} C"
             cap = self.guide.captures.get(m) if self.guide else None
             if cap is not None and cap.kind == "static80":
                 line += f", poses {len(cap.accepted)}/{cap.poses}"

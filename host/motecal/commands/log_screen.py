@@ -61,9 +61,12 @@ class PlainDisplay(NullDisplay):
                         parts.append(f"mote {st['mote']} {st['count']}/{st['samples']} "
                                      f"cov {st['coverage']:.0%}")
                 extra = "; " + ", ".join(parts)
+            temps = ", ".join(f"mote {m} {link.temp_c:.1f} C" for m, link in tr.seen().items()
+                              if link.temp_c is not None)
             self._print(f"[{logger.elapsed:6.1f} s] {total} samples, "
                         f"{tr.line['crc_errors']} CRC errors"
-                        + ("" if logger.connected else ", reconnecting") + extra)
+                        + ("" if logger.connected else ", reconnecting")
+                        + (f"; {temps}" if temps else "") + extra)
 
     def stop(self, logger):
         for line in logger.summary_lines():
@@ -118,12 +121,13 @@ class RichDisplay(NullDisplay):
         from rich.text import Text
         tr = logger.tracker
         table = Table(box=None, pad_edge=False)
-        for col in ("mote", "samples", "rate/s", "lost", "dup", "reord", "status"):
+        for col in ("mote", "samples", "rate/s", "lost", "dup", "reord", "temp", "status"):
             table.add_column(col, justify="right")
         for m, link in tr.seen().items():
             c = link.c
             table.add_row(str(m), str(c["samples"]), f"{self._rate(m, c['samples']):.0f}",
                           str(c["lost"]), str(c["duplicates"]), str(c["reordered"]),
+                          "-" if link.temp_c is None else f"{link.temp_c:.1f} C",
                           f"drop {c['mote_dropped']} late {c['mote_late']}")
         ln = tr.line
         state = "[green]connected[/]" if logger.connected else "[red]reconnecting[/]"

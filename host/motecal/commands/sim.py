@@ -65,6 +65,9 @@ def register(subparsers) -> None:
                    help="pace the bytes at the line rate in wall time")
     p.add_argument("--speed", type=positive(float, 1e6), default=None, metavar="X",
                    help="pace at X times real time (implies pacing)")
+    p.add_argument("--no-temp", dest="temperature", action="store_false",
+                   help="motes running an image built before the temperature message "
+                        "(they send none)")
     p.add_argument("--quiet", action="store_true", help="no summary on stderr")
     p.set_defaults(func=run)
 
@@ -78,7 +81,8 @@ def _summary(world, wall: float) -> str:
         lines.append(f"  mote {m}: {d['generated']} samples, {d['delivered']} delivered, "
                      f"{lost} lost (queue {d['dropped']}, radio {d['radio_lost']}, "
                      f"BaseStation {d['bs_dropped']}); {d['frames']} frames, "
-                     f"{d['retries']} retries, {d['collided']} collided")
+                     f"{d['retries']} retries, {d['collided']} collided"
+                     + (f"; {d['temp_sent']} temperature messages" if d["temp_sent"] else ""))
     bs = st["basestation"]
     lines.append(f"  BaseStation: {bs['radio_rx']} packets forwarded, {bs['radio_drops']} "
                  f"dropped (queue full), {bs['serial_rx']} from the PC, "
@@ -103,7 +107,7 @@ def run(args) -> int:
     speed = args.speed if args.speed is not None else (1.0 if args.realtime else None)
     world = World(motes=args.motes, session=args.session, seed=args.seed, baud=args.baud,
                   loss=args.loss, model=args.model, batch=args.batch,
-                  duration=args.duration, eeprom=args.eeprom)
+                  duration=args.duration, eeprom=args.eeprom, temperature=args.temperature)
     if args.truth:
         write_text(args.truth, json.dumps(world.truth(), indent=1) + "\n",
                    inputs=inputs + [args.out], what="--truth")

@@ -28,7 +28,8 @@ import numpy as np
 
 from ..errors import UserError
 from ..inputs import check_input_file, read_input_bytes
-from ..line.protocol import NINEDOF_RATE_HZ
+from ..line.protocol import (ITG3200_TEMP_AT_OFFSET_C, ITG3200_TEMP_LSB_PER_C,
+                             ITG3200_TEMP_OFFSET, NINEDOF_RATE_HZ)
 from .options import option_parts
 from .session import (ADXL345_LSB_PER_G, COLUMNS, HMC5883L_LSB_PER_GAUSS, HMC5883L_OVERFLOW,
                       ITG3200_LSB_PER_DPS, LABEL_MAX, LABEL_NONE, LABEL_ROT, NOMINAL_CHIPS, NOMINAL_SCALES,
@@ -39,6 +40,8 @@ from .still import StillThresholds, segment_recording, window_rows
 FORMATS = ("csv", "razor-text", "razor-float", "timestamped-csv")
 KINDS = ("auto", "static", "rotation", "idle")
 CSV_HEADER = ("mote",) + ("seq", "t", "label") + COLUMNS
+CSV_TEMP = "temp"               # optional last column: board temperature, degrees C
+TEMP_RANGE_C = (-100.0, 200.0)  # what an ITG3200-style sensor can report (int16 raw: -82..199)
 RAZOR_RATE_HZ = 50.0            # Razor AHRS firmware output: one sample every 20 ms
 IMPORT_MOTE = 1                 # mote id given to rows of formats without one
 AUTO_ROTATION_BELOW = 0.5       # auto kind: rotation when the still fraction is lower
@@ -160,6 +163,23 @@ def _count(tok: str, path, line, what: str, allow_empty=False) -> float:
     if not -32768 <= v <= 32768:
         raise _fail(path, line, f"{what} = {tok.strip()} is outside the 16-bit range of raw counts")
     return v
+
+
+def temperature_cell(tok: str, path, line, what: str = CSV_TEMP, factor: float = 1.0,
+                     offset: float = 0.0) -> float:
+    """A temperature cell in degrees C (empty: unknown, NaN); ``factor`` and
+    ``offset`` convert a file's own unit (C = value * factor + offset).  Not
+    a number, not finite or outside ``TEMP_RANGE_C``: one line naming file
+    and line."""
+    v = _number(tok, path, line, what, allow_empty=True)
+    if v != v:
+        return v
+    c = v * factor + offset
+    lo, hi = TEMP_RANGE_C
+    if not lo <= c <= hi:
+        raise _fail(path, line, f"{what} = {tok.strip()[:40]} is {c:g} degrees C, outside "
+                    f"{lo:g}..{hi:g}")
+    return c
 
 
 SEQ_MAX = 2 ** 53 - 1      # sequence numbers: exact as float64 too
@@ -370,10 +390,11 @@ def read_csv(path, chip=None, kind="auto") -> SessionData:
     if i == len(lines):
         raise _fail(path, i + 1 if lines else 1, "empty file: no CSV header")
     header = [h.strip() for h in next(csv.reader([lines[i]]))]
-    if tuple(header) != CSV_HEADER:
+    has_temp = tuple(header) == CSV_HEADER + (CSV_TEMP,)
+    if tuple(header) != CSV_HEADER and not has_temp:
         raise _fail(path, i + 1, f"bad header {lines[i].strip()[:80]!r}, expected "
-                    f"{','.join(CSV_HEADER)!r}")
-    ncol = len(CSV_HEADER)
+                    f"{','.join(CSV_HEADER)!r} (and optionally ,{CSV_TEMP})")
+    ncol = len(header)
     rows = []
     reader = csv.reader(lines[i + 1:])
     while True:
@@ -401,6 +422,8 @@ def read_csv(path, chip=None, kind="auto") -> SessionData:
                         f"{row[3][:40]!r}") from None
         vals = [_count(v, path, lineno, name, allow_empty=True)
                 for v, name in zip(row[4:], COLUMNS)]
+        if has_temp:
+            vals.append(temperature_cell(row[13], path, lineno))
         rows.append((mote, seq, t, label, vals, lineno))
     if not rows:
         raise _fail(path, len(lines), "no samples after the header")
@@ -408,7 +431,9 @@ def read_csv(path, chip=None, kind="auto") -> SessionData:
     seq = np.array([r[1] for r in rows], np.int64)
     t = np.array([r[2] for r in rows], float)
     label = np.array([r[3] for r in rows], np.int32)
-    raw = np.array([r[4] for r in rows], float)
+    raw = np.array([r[4] for r in rows], float).reshape(len(rows), ncol - 4)
+    temp = raw[:, 9].copy() if has_temp else None
+    raw = raw[:, :9]
     lines_of = np.array([r[5] for r in rows])
     if mote.min() < 0 or mote.max() > 0xFFFF:
         bad = int(np.flatnonzero((mote < 0) | (mote > 0xFFFF))[0])
@@ -431,7 +456,8 @@ def read_csv(path, chip=None, kind="auto") -> SessionData:
             "rates_by_mote_hz": {str(k): v for k, v in rates.items()},
             "clocks": "shared", "axis_frame": CSV_FRAME}
     data = SessionData(name=Path(path).stem, raw=raw, mote=mote, seq=seq, t=t, label=label,
-                       flags=np.zeros(len(rows), np.uint8), kind="imported", meta=meta)
+                       flags=np.zeros(len(rows), np.uint8), kind="imported", meta=meta,
+                       temp=temp)
     has_labels = bool((label != LABEL_NONE).any())
     if has_labels:
         return _finish(data, chip, kind, None, has_labels=True)
@@ -452,18 +478,23 @@ def write_csv(data: SessionData, path) -> None:
     ``t`` is when each sample was taken: ``SessionData.sample_times`` when the
     stored ``t`` is batch receive times (a logged session: rows of a batch
     share the time the host got it, compressed when the line is read faster
-    than real time), else ``t`` as stored, empty where unknown."""
+    than real time), else ``t`` as stored, empty where unknown.  A session
+    with a temperature (``data.temp`` not None) gets the ``temp`` column
+    (degrees C, empty where unknown) after the nine sensor columns."""
     times = data.sample_times() if batch_times(data.t) else data.t
+    temp = data.temp
     if hasattr(path, "write"):          # an open text file (motecal.outputs.open_output)
         f = contextlib.nullcontext(path)
     else:
         f = open(path, "w", newline="")
     with f as f:
         w = csv.writer(f, lineterminator="\n")
-        w.writerow(CSV_HEADER)
+        w.writerow(CSV_HEADER + ((CSV_TEMP,) if temp is not None else ()))
         for i in range(len(data)):
             vals = ["" if np.isnan(v) else (str(int(v)) if float(v).is_integer() else repr(float(v)))
                     for v in data.raw[i]]
+            if temp is not None:
+                vals.append("" if np.isnan(temp[i]) else repr(float(temp[i])))
             t = "" if np.isnan(times[i]) else f"{times[i]:.6f}"
             w.writerow([int(data.mote[i]), int(data.seq[i]), t, label_to_text(int(data.label[i]))]
                        + vals)
@@ -606,15 +637,32 @@ def read_razor_float(path, chip="hmc5883l", kind="auto") -> SessionData:
 
 _TS_COLUMNS = {"acc_x": 0, "acc_y": 1, "acc_z": 2, "gyr_x": 3, "gyr_y": 4, "gyr_z": 5,
                "mag_x": 6, "mag_y": 7, "mag_z": 8}
+# A temperature column (MPU6050-style logs carry the chip's die temperature),
+# its unit in its name: degrees C = value * factor + offset.
+_TS_TEMP = {"temp_c": (1.0, 0.0), "temp_f": (5.0 / 9.0, -32.0 * 5.0 / 9.0), "temp_raw": None}
+# raw TEMP_OUT -> degrees C of the chips that have one (datasheets; the ITG3200's is protocol's)
+TEMP_RAW_C = {"MPU6050": (1.0 / 340.0, 36.53),
+              "ITG3200": (1.0 / ITG3200_TEMP_LSB_PER_C,
+                          ITG3200_TEMP_AT_OFFSET_C - ITG3200_TEMP_OFFSET / ITG3200_TEMP_LSB_PER_C)}
+TEMP_RAW_C["ITG3205"] = TEMP_RAW_C["ITG3200"]
 
 
 def _timestamped_header(path, line: str):
     cols_part, _, comment = line.partition("(")
     cols = [c.strip() for c in cols_part.strip().split(",")]
+    temps = [c for c in cols if c in _TS_TEMP or c.startswith("temp")]
+    if any(c not in _TS_TEMP for c in temps):
+        raise _fail(path, 1, f"temperature column {temps[0]!r}: name its unit "
+                    f"({', '.join(_TS_TEMP)})")
+    if len(temps) > 1:
+        raise _fail(path, 1, f"more than one temperature column ({', '.join(temps)})")
+    temp_col = cols.index(temps[0]) - 1 if temps else None
+    cols = [c for c in cols if c not in temps]
     if not cols or cols[0] != "t_s" or len(cols) < 4 or any(c not in _TS_COLUMNS for c in cols[1:]) \
             or len(set(cols)) != len(cols):
         raise _fail(path, 1, f"bad header {line.strip()[:80]!r}: expected t_s followed by "
-                    f"mag_x,mag_y,mag_z and/or acc_x..gyr_z columns")
+                    f"mag_x,mag_y,mag_z and/or acc_x..gyr_z columns (and optionally one of "
+                    f"{', '.join(_TS_TEMP)})")
     idx = [_TS_COLUMNS[c] for c in cols[1:]]
     sensors = sorted({s for s, sl in SENSOR_SLICES.items() for j in idx
                       if sl.start <= j < sl.stop}, key=list(SENSOR_SLICES).index)
@@ -630,16 +678,28 @@ def _timestamped_header(path, line: str):
             if found:
                 chips[s] = max(found, key=len)
                 break
-    return idx, sensors, chips
+    temp = None
+    if temp_col is not None:
+        unit = temps[0]
+        conv = _TS_TEMP[unit]
+        if conv is None:                  # raw counts: the conversion of the chip that has it
+            chip = next((chips[s] for s in ("gyro", "accel") if chips.get(s) in TEMP_RAW_C), None)
+            if chip is None:
+                raise _fail(path, 1, f"{unit}: no chip with a known temperature sensor named in "
+                            f"the header or file name ({', '.join(TEMP_RAW_C)}); give temp_c")
+            conv = TEMP_RAW_C[chip]
+            unit = f"{unit} ({chip}: C = raw * {conv[0]:.6g} + {conv[1]:.6g})"
+        temp = (temp_col, temps[0], conv, unit)
+    return idx, sensors, chips, temp
 
 
 def _parse_timestamped(path):
     lines = _read_text_lines(path)
     if not lines or not lines[0].strip():
         raise _fail(path, 1, "empty file: no header")
-    idx, sensors, chips = _timestamped_header(path, lines[0])
-    ncol = 1 + len(idx)
-    t, vals = [], []
+    idx, sensors, chips, temp = _timestamped_header(path, lines[0])
+    ncol = 1 + len(idx) + (temp is not None)
+    t, vals, temps = [], [], []
     for lineno, line in enumerate(lines[1:], start=2):
         if not line.strip():
             continue
@@ -647,12 +707,17 @@ def _parse_timestamped(path):
         if len(parts) != ncol:
             raise _fail(path, lineno, f"expected {ncol} columns, found {len(parts)}")
         t.append(_number(parts[0], path, lineno, "t_s"))
-        vals.append([_count(p, path, lineno, f"column {j + 2}") for j, p in enumerate(parts[1:])])
+        parts = parts[1:]
+        if temp is not None:
+            col, name, (factor, offset), _ = temp
+            temps.append(temperature_cell(parts.pop(col), path, lineno, name, factor, offset))
+        vals.append([_count(p, path, lineno, f"column {j + 2}") for j, p in enumerate(parts)])
     if not t:
         raise _fail(path, len(lines), "no samples after the header")
     raw = np.full((len(t), 9), np.nan)
     raw[:, idx] = np.array(vals)
-    return np.array(t), raw, sensors, chips
+    celsius = np.array(temps, float) if temp is not None else None
+    return np.array(t), raw, sensors, chips, celsius, (temp[3] if temp else None)
 
 
 def _timestamped_files(dir_or_files) -> list[Path]:
@@ -674,7 +739,11 @@ def _timestamped_files(dir_or_files) -> list[Path]:
 
 def read_timestamped(dir_or_files, chip=None, kind="auto") -> SessionData:
     """Timestamped CSV pairs (``hmc5883l_counts.csv`` + ``mpu6050_counts.csv``):
-    header ``t_s,<axis columns>  (comment naming the chip)``, counts.
+    header ``t_s,<axis columns>  (comment naming the chip)``, counts; one
+    optional temperature column, its unit in its name (``temp_c``,
+    ``temp_f``, or ``temp_raw``: the named chip's TEMP_OUT, ``TEMP_RAW_C``),
+    becomes ``SessionData.temp`` in degrees C (NaN in the rows of files
+    without one).
 
     Each sensor keeps its own time base: a row holds one sensor's sample (NaN
     for the others), ``t`` is the file's ``t_s``, rows sorted by time.  Rates
@@ -682,8 +751,12 @@ def read_timestamped(dir_or_files, chip=None, kind="auto") -> SessionData:
     """
     files = _timestamped_files(dir_or_files)
     ts, raws, chips, rates, owner, fileinfo = [], [], {}, {}, {}, []
+    temps, temp_units = [], {}
     for f in files:
-        t, raw, sensors, fchips = _parse_timestamped(f)
+        t, raw, sensors, fchips, celsius, unit = _parse_timestamped(f)
+        temps.append(np.full(len(t), np.nan) if celsius is None else celsius)
+        if unit is not None:
+            temp_units[str(f)] = unit
         for s in sensors:
             if s in owner:
                 raise UserError(f"{f}: {s} already read from {owner[s]}; give one run "
@@ -700,15 +773,20 @@ def read_timestamped(dir_or_files, chip=None, kind="auto") -> SessionData:
                          "rate_hz": rates[sensors[0]]})
     t = np.concatenate(ts)
     raw = np.vstack(raws)
+    temp = np.concatenate(temps)
     order = np.argsort(t, kind="stable")
-    t, raw = t[order], raw[order]
+    t, raw, temp = t[order], raw[order], temp[order]
     first = Path(files[0])
     meta = {"format": "timestamped-csv", "source": SOURCE_SEP.join(map(str, files)),
             "files": fileinfo,
             "rate_hz": max(rates.values()), "rates_hz": rates,
             "clocks": "separate: each sensor on its own time base, t from the files",
             "axis_frame": TIMESTAMPED_FRAME}
+    if temp_units:
+        meta["temp_from"] = temp_units
     data = _session(first.parent.name or first.stem, raw, t, meta=meta)
+    if temp_units:
+        data.temp = temp
     data.chips = {s: None for s in SENSOR_SLICES}
     for s in owner:
         name = chips.get(s, NOMINAL_CHIPS[s])
@@ -759,7 +837,8 @@ def detect_format(path) -> str:
                 continue
             if _RAZOR_LINE.match(s):
                 return "razor-text"
-            if [h.strip() for h in s.split(",")] == list(CSV_HEADER):
+            if [h.strip() for h in s.split(",")] in (list(CSV_HEADER),
+                                                     list(CSV_HEADER) + [CSV_TEMP]):
                 return "csv"
             if s.startswith("t_s,"):
                 return "timestamped-csv"

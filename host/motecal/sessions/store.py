@@ -35,8 +35,9 @@ import numpy as np
 from ..errors import UserError
 from .session import (COLUMNS, NOMINAL_CHIPS, NOMINAL_SCALES, SessionData, label_from_text,
                       label_to_text)
+from .temperature import rows_from_readings
 
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 
 SAMPLE_COLUMNS = ("session", "mote", "seq", "t", "label", "flags") + COLUMNS
 
@@ -96,7 +97,8 @@ SIGNATURE = {
                 "gz", "mx", "my", "mz"},
     "calibrations": {"id", "session", "mote", "created", "cal"},
 }
-SIGNATURE_SINCE = {2: ("link_stats", "line_stats", "events"), 5: ("writers", "sample_conflicts")}
+SIGNATURE_SINCE = {2: ("link_stats", "line_stats", "events"), 5: ("writers", "sample_conflicts"),
+                   6: ("temps",)}
 _NULL = 1 << 40                    # a stored NULL, when samples are compared
 
 # A live session waits this long for a write lock another process holds,
@@ -235,6 +237,22 @@ MIGRATIONS = {
              writer TEXT NOT NULL,
              found {real} NOT NULL)""",
         "CREATE INDEX sample_conflicts_key ON sample_conflicts (session, mote, seq)",
+    ],
+    # 6: the board temperature (issue 16).  One row per reading: a mote's
+    # temperature message (seq = unwrapped sequence number of the newest
+    # sample in its sum, count = readings averaged, t = host time it came)
+    # or an imported row's temperature (count 1, the row's seq); temp_c is
+    # the mean in degrees C.  SessionData.temp is interpolated from these
+    # when a session is loaded (sessions/temperature.py).
+    6: [
+        """CREATE TABLE temps (
+             session BIGINT NOT NULL,
+             mote INTEGER NOT NULL,
+             seq BIGINT NOT NULL,
+             t {real},
+             temp_c {real} NOT NULL,
+             count INTEGER NOT NULL DEFAULT 1,
+             PRIMARY KEY (session, mote, seq)){wr}""",
     ],
 }
 
@@ -715,7 +733,7 @@ class Store:
 
     def _delete_session(self, cur, sid: int):
         for table in ("samples", "calibrations", "link_stats", "line_stats", "events",
-                      "writers", "sample_conflicts"):
+                      "writers", "sample_conflicts", "temps"):
             cur.execute(self._b.sql(f"DELETE FROM {table} WHERE session = ?"), (sid,))
         cur.execute(self._b.sql("DELETE FROM sessions WHERE id = ?"), (sid,))
 
@@ -764,6 +782,13 @@ class Store:
                 self._b_insert(cur, zip(itertools.repeat(sid), data.mote[sl].tolist(),
                                         data.seq[sl].tolist(), tcol, labels[sl],
                                         data.flags[sl].tolist(), *cols))
+            if data.temp is not None:
+                has = np.isfinite(data.temp)
+                tt = t[has]
+                cur.executemany(self._b.sql(_INSERT_TEMPS), zip(
+                    itertools.repeat(sid), data.mote[has].tolist(), data.seq[has].tolist(),
+                    np.where(np.isnan(tt), None, tt).tolist(), data.temp[has].tolist(),
+                    itertools.repeat(1)))
 
     def _b_insert(self, cur, rows):
         """Insert full sample rows (session, mote, seq, t, label, flags, 9 values)."""
@@ -799,10 +824,38 @@ class Store:
         meta["started"] = _iso(started)
         if ended is not None:
             meta["ended"] = _iso(ended)
-        return SessionData(name=name, raw=num[:, 4:13], mote=num[:, 0].astype(np.int32),
+        data = SessionData(name=name, raw=num[:, 4:13], mote=num[:, 0].astype(np.int32),
                            seq=num[:, 1].astype(np.int64), t=num[:, 2], label=labels,
                            flags=num[:, 3].astype(np.uint8), kind=kind,
                            scales=json.loads(scales), chips=json.loads(chips), meta=meta)
+        data.temp = self._temps_of(info.id, data, mote)
+        return data
+
+    def temps(self, session: str, mote: int | None = None) -> np.ndarray:
+        """A session's temperature readings as stored: (k, 5) float array of
+        mote, seq, t (NaN unknown), degrees C, readings averaged; ordered by
+        mote and seq."""
+        return self._readings(self._require(session).id, mote)
+
+    def _readings(self, sid: int, mote: int | None) -> np.ndarray:
+        if "temps" not in self._tables:        # an older schema, opened read-only
+            return np.zeros((0, 5))
+        sql = "SELECT mote, seq, t, temp_c, count FROM temps WHERE session = ?"
+        params: tuple = (sid,)
+        if mote is not None:
+            sql += " AND mote = ?"
+            params += (int(mote),)
+        rows = self._query(sql + " ORDER BY mote, seq", params)
+        return np.array([[np.nan if v is None else v for v in r] for r in rows],
+                        dtype=float).reshape(-1, 5)
+
+    def _temps_of(self, sid: int, data: SessionData, mote: int | None):
+        """SessionData.temp from the stored readings (None when there are none)."""
+        r = self._readings(sid, mote)
+        if not len(r):
+            return None
+        return rows_from_readings(data.mote, data.seq, r[:, 0], r[:, 1], r[:, 3], r[:, 4],
+                                  data.rate())
 
     # -- calibrations ----------------------------------------------------------
     def save_calibration(self, session: str, mote: int, cal: dict) -> int:
@@ -923,6 +976,10 @@ class Store:
             "SELECT mote, MAX(seq) FROM samples WHERE session = ? GROUP BY mote", (info.id,))}
 
 
+_INSERT_TEMPS = ("INSERT INTO temps (session, mote, seq, t, temp_c, count) "
+                 "VALUES (?, ?, ?, ?, ?, ?) ON CONFLICT DO NOTHING")
+
+
 class SessionWriter:
     """Batched writer of one live session; the logger's side of the store.
 
@@ -956,6 +1013,7 @@ class SessionWriter:
         self._rows: list[tuple] = []    # (mote, seq, t, flags, raw) arrays
         self._labels: list[tuple] = []
         self._events: list[tuple] = []
+        self._temps: list[tuple] = []   # (session, mote, seq, t, temp_c, count)
         self._link: dict[int, dict] = {}
         self._line: dict | None = None
         self._last_commit = time.monotonic()
@@ -979,6 +1037,13 @@ class SessionWriter:
         if len(seq):
             self._rows.append((np.asarray(mote), np.asarray(seq), np.asarray(t, float),
                                np.asarray(flags), np.asarray(raw)))
+
+    def add_temp(self, mote: int, seq: int, t: float, temp_c: float, count: int) -> None:
+        """Queue one temperature reading of a mote: the mean of ``count`` readings,
+        in degrees C, the newest of the sample with unwrapped sequence number
+        ``seq``; ``t`` when it came (the ``t`` column's clock).  A reading
+        stored already (the same message twice) is kept once."""
+        self._temps.append((self.id, int(mote), int(seq), float(t), float(temp_c), int(count)))
 
     def set_label(self, mote: int, seq_lo: int, seq_hi: int, label: int) -> None:
         """Label the stored records of one mote with seq_lo <= seq <= seq_hi."""
@@ -1032,14 +1097,14 @@ class SessionWriter:
     def discard(self) -> int:
         """Drop what is queued (it cannot be stored); returns the samples dropped."""
         n = self.pending
-        self._rows, self._labels, self._events = [], [], []
+        self._rows, self._labels, self._events, self._temps = [], [], [], []
         self._link, self._line = {}, None
         return n
 
     def _commit(self) -> None:
         st = self.store
         b = st._b
-        rows, labels, events = self._rows, self._labels, self._events
+        rows, labels, events, temps = self._rows, self._labels, self._events, self._temps
         link, line = self._link, self._line
         n = 0
         with st._tx() as cur:
@@ -1053,6 +1118,8 @@ class SessionWriter:
                 self._writer_row(cur, n, dups, clash)
             elif self.commits == 0:
                 self._writer_row(cur, 0, 0, 0)
+            if temps:
+                cur.executemany(b.sql(_INSERT_TEMPS), temps)
             if labels:
                 cur.executemany(b.sql("UPDATE samples SET label = ? WHERE session = ? AND "
                                       "mote = ? AND seq BETWEEN ? AND ?"), labels)
@@ -1063,7 +1130,7 @@ class SessionWriter:
                 self._upsert(cur, "link_stats", {"session": self.id, "mote": mote_id}, c)
             if line is not None:
                 self._upsert(cur, "line_stats", {"session": self.id}, line)
-        self._rows, self._labels, self._events = [], [], []
+        self._rows, self._labels, self._events, self._temps = [], [], [], []
         self._link, self._line = {}, None
         self.committed_samples += n
         self.commits += 1

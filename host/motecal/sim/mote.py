@@ -30,6 +30,13 @@
   - Status: a ninedof_mote_status_msg every 2 s (mote time, random phase)
     from its own buffer, to the BaseStation, no ack, no retry; one still on
     its way when the next is due is skipped (``status_dropped``).
+  - Temperature: a ninedof_mote_temp_msg every NINEDOF_TEMP_PERIOD_MS (1 s,
+    mote time, random phase), sent as status is (own buffer, no ack, no
+    retry, skipped while the last is on its way: ``temp_dropped``): the sum
+    of the raw ITG3200 TEMP_OUT of every sample read since the last message
+    (``round(temp_raw(T))`` of the board temperature ``T`` at the sample's
+    time, ``board_temperature``), their count, and the seq of the newest.
+    ``temperature=False`` is an image built before that message: it sends none.
   - Calibration: frames addressed to this mote (or broadcast) go to
     ``CalReceiver.handle`` (the firmware's C code through ctypes); the reply
     goes to the frame's AM source from its own buffer, sent as a sample
@@ -58,8 +65,11 @@ from .radio import Mac, UniqueFilter
 
 QUEUE_LEN = 4             # NINEDOF_SEND_QUEUE
 MAX_RETRIES = 2           # NINEDOF_RETRIES
-SAMPLES, STATUS, REPLY = range(3)     # the radio's clients, in round-robin order
+SAMPLES, STATUS, TEMP, REPLY = range(4)     # the radio's clients, in round-robin order
+CLIENTS = 4
 STATUS_PERIOD = P.NINEDOF_STATUS_PERIOD_MS / 1000.0
+TEMP_PERIOD = P.NINEDOF_TEMP_PERIOD_MS / 1000.0
+DEFAULT_TEMP_C = 25.0     # a board whose model has no temperature of its own
 BS_ADDR = 0
 READ_BLOCK = 1250         # samples asked from the physics at a time
 _EPS = 1e-9
@@ -87,6 +97,17 @@ class Message:
         self.at_bs = False        # the BaseStation received it (even if unacked)
 
 
+def board_temperature(sampler):
+    """The board temperature of a sampler's board as a function of time (s
+    since power-on, the session's start) -> degrees C: the board model's
+    ``temperature_c(t)`` (sim.model, the thermal model), or a constant
+    ``DEFAULT_TEMP_C`` for a sampler without a board that has one."""
+    f = getattr(getattr(sampler, "board", None), "temperature_c", None)
+    if f is not None:
+        return f
+    return lambda t: np.full(np.shape(t), DEFAULT_TEMP_C)
+
+
 def _cal_value(cal, name):
     v = getattr(cal, name, None)
     if callable(v):
@@ -97,7 +118,7 @@ def _cal_value(cal, name):
 class SimMote:
     def __init__(self, net, mote_id: int, sampler, clock_ppm: float, rng, *,
                  batch: int, rate_hz: float, duration: float, cal=None,
-                 eeprom: bytearray | None = None):
+                 eeprom: bytearray | None = None, temperature: bool = True):
         self.net = net
         self.loop = net.loop
         self.id = int(mote_id)
@@ -134,6 +155,7 @@ class SimMote:
         net.channel.attach(self.id, self)
         self.queue: deque[Message] = deque()   # sample messages
         self.status_msg: Message | None = None  # its own buffer
+        self.temp_msg: Message | None = None    # its own buffer
         self.reply_msg: Message | None = None   # its own buffer
         self._turn = REPLY                      # client served last (round robin)
         self._unique = UniqueFilter()
@@ -150,8 +172,16 @@ class SimMote:
         self.replies_dropped = 0             # reply buffer still busy
         self.replies_failed = 0              # replies never acked
         self.send_fail = 0                   # sample messages given up (as the firmware)
+        self.temp_sent = 0                   # temperature messages handed to the radio
+        self.temp_dropped = 0                # ... skipped: the last one still on its way
+        self.temps: list[tuple] = []         # (newest sample k, count, temp_sum) of each
+        self._temp_k = 0                     # first sample not yet in a temperature sum
+        self.temperature_c = board_temperature(sampler)
         self._schedule_batch()
         self.loop.at(rng.random() * self.status_period, self._status, None)
+        if temperature:
+            self.temp_period = TEMP_PERIOD / scale
+            self.loop.at(rng.random() * self.temp_period, self._temperature, None)
 
     # ------------------------------------------------------------------ samples
     def generated(self, now: float | None = None) -> int:
@@ -208,6 +238,8 @@ class SimMote:
     def _pending(self, client: int) -> Message | None:
         if client == SAMPLES:
             return self.queue[0] if self.queue else None
+        if client == TEMP:
+            return self.temp_msg
         return self.status_msg if client == STATUS else self.reply_msg
 
     def _kick(self) -> None:
@@ -215,13 +247,13 @@ class SimMote:
         that has a message (AMQueueP's round robin)."""
         if self.mac.busy:
             return
-        for k in (1, 2, 3):
-            client = (self._turn + k) % 3
+        for k in range(1, CLIENTS + 1):
+            client = (self._turn + k) % CLIENTS
             m = self._pending(client)
             if m is None:
                 continue
             self._turn = client
-            if client == STATUS:            # no ack, no retry
+            if client in (STATUS, TEMP):    # no ack, no retry
                 self.mac.send(BS_ADDR, P.DEFAULT_GROUP, m.am_type, m.payload, False, m,
                               self._sent)
             else:
@@ -232,6 +264,8 @@ class SimMote:
     def _sent(self, msg: Message, ok: bool) -> None:
         if msg is self.status_msg:
             self.status_msg = None
+        elif msg is self.temp_msg:
+            self.temp_msg = None
         elif not ok and self.mac.ebusy and msg.busy_tries < MAX_RETRIES:
             msg.busy_tries += 1           # the channel was busy: the app sends it again
         elif msg is self.reply_msg:
@@ -303,6 +337,32 @@ class SimMote:
             self._kick()
         self.loop.at(now + self.status_period, self._status, None)
 
+    # ------------------------------------------------------------- temperature
+    def _temperature(self, _) -> None:
+        """The temperature message: every sample read since the last one
+        contributed its raw TEMP_OUT reading (the burst read of the gyroscope)."""
+        now = self.loop.now
+        if now >= self.duration:
+            return
+        k1 = self.generated(now)
+        k0 = self._temp_k
+        self._temp_k = k1
+        raw = np.clip(np.rint(P.temp_raw(self.temperature_c(self.sample_times(k0, k1)))),
+                      -32768, 32767).astype(np.int64)
+        count = min(k1 - k0, 255)
+        total = int(raw[len(raw) - count:].sum())
+        newest = k1 - 1
+        payload = P.MOTE_TEMP.pack(seq=max(newest, 0) & 0xFFFF, count=count, reserved=0,
+                                   temp_sum=total)
+        if self.temp_msg is not None:                 # the last one is still on its way
+            self.temp_dropped += 1
+        else:
+            self.temp_msg = Message(self.id, P.AM_NINEDOF_MOTE_TEMP_MSG, payload)
+            self.temps.append((newest, count, total))
+            self.temp_sent += 1
+            self._kick()
+        self.loop.at(now + self.temp_period, self._temperature, None)
+
     # ------------------------------------------------------------------ stats
     def counters(self) -> dict:
         d = dict(generated=self.generated(), dropped=self.dropped,
@@ -310,6 +370,7 @@ class SimMote:
                  status_sent=self.status_sent, status_dropped=self.status_dropped,
                  replies=self.replies, replies_dropped=self.replies_dropped,
                  replies_failed=self.replies_failed, eeprom_writes=self.eeprom_writes,
+                 temp_sent=self.temp_sent, temp_dropped=self.temp_dropped,
                  queued=sum(m.count for m in self.queue), clock_ppm=self.clock_ppm)
         d.update(self.mac.counters())
         d["send_fail"] = self.send_fail          # sample messages, as the firmware counts

@@ -124,7 +124,7 @@ class Network:
     def __init__(self, samplers: dict, clock_ppm: dict, *, duration: float,
                  baud: int = 250000, loss: float = 0.0, batch: int = P.NINEDOF_BATCH,
                  seed: int = 1, rate_hz: float = P.NINEDOF_RATE_HZ, cal_factory="auto",
-                 eeprom: dict | None = None):
+                 eeprom: dict | None = None, temperature: bool = True):
         if not 0.0 <= loss <= 1.0:
             raise ValueError("loss must be within 0..1")
         if not 1 <= batch <= 255:
@@ -151,7 +151,7 @@ class Network:
             m = SimMote(self, mote_id, samplers[mote_id], clock_ppm.get(mote_id, 0.0),
                         random.Random(rng.getrandbits(64)), batch=self.batch,
                         rate_hz=rate_hz, duration=self.duration, cal=cal,
-                        eeprom=(eeprom or {}).get(mote_id))
+                        eeprom=(eeprom or {}).get(mote_id), temperature=temperature)
             m.bs_dropped = 0
             m.line_duplicates = 0           # sample messages the line carried twice
             self.motes[mote_id] = m

@@ -60,7 +60,8 @@ class World(Network):
     def __init__(self, motes: int = 3, session: str = "static80", seed: int = 1,
                  baud: int = 250000, loss: float = 0.0, model=None,
                  batch: int = P.NINEDOF_BATCH, duration: float | None = None,
-                 *, cal_factory="auto", eeprom: str | os.PathLike | None = None):
+                 *, cal_factory="auto", eeprom: str | os.PathLike | None = None,
+                 temperature: bool = True):
         check_options(motes, session, baud, loss, batch, duration)
         self.eeprom_path = Path(eeprom) if eeprom is not None else None
         self.eeproms = _load_eeproms(self.eeprom_path, motes)
@@ -75,7 +76,7 @@ class World(Network):
         ppm = {m: b.clock_ppm for m, b in self.boards.items()}
         super().__init__(samplers, ppm, duration=dur, baud=baud, loss=loss, batch=batch,
                          seed=self.seed, rate_hz=self.model.rate_hz, cal_factory=cal_factory,
-                         eeprom=self.eeproms)
+                         eeprom=self.eeproms, temperature=temperature)
 
     def eeprom_written(self, mote_id: int) -> None:
         if self.eeprom_path is not None:

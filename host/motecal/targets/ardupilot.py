@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import Export, fmt_float, polar, rotation_deg
+from .common import Export, cross_axis_lost, fmt_float, gyro_scale_lost, polar, rotation_deg
 
 G0 = 9.80665
 OFS_MAX_MG = 1800.0           # COMPASS_OFFS_MAX default in recent ArduPilot
@@ -107,15 +107,12 @@ def write(board) -> Export:
     text = "\n".join(lines) + "\n"
     lost, notes = {}, []
     if board.accel is not None:
-        off = board.accel.A - np.diag(np.diag(board.accel.A))
-        if np.abs(off).max() > 0:
-            lost["accel"] = [f"offset and scale per axis: cross-axis terms dropped (largest "
-                             f"{np.abs(off).max() * board.accel.lsb_per_unit:.4f} of the "
-                             f"nominal scale)"]
+        note = cross_axis_lost(board, "offset and scale per axis")
+        if note:
+            lost["accel"] = [note]
     if board.gyro is not None:
-        G = board.gyro.A * board.gyro.lsb_per_unit
         lost["gyro"] = [f"offsets only: no gyroscope scale parameter (largest |G - I| "
-                        f"{np.abs(G - np.eye(3)).max():.4f} is lost); ArduPilot re-learns the "
+                        f"{gyro_scale_lost(board):.4f} is lost); ArduPilot re-learns the "
                         f"offsets at boot"]
     if board.mag is not None:
         U, _ = polar(board.mag.A)

@@ -95,6 +95,23 @@ def cost_lines(exp: Export, cost: dict) -> list[str]:
     return lines + list(exp.notes)
 
 
+def cross_axis_lost(board, what: str) -> str | None:
+    """The note for a format that keeps ``what`` per accelerometer axis and so
+    drops the fitted cross-axis terms; None when there are none."""
+    off = board.accel.A - np.diag(np.diag(board.accel.A))
+    if np.abs(off).max() == 0:
+        return None
+    return (f"{what}: cross-axis terms dropped (largest "
+            f"{np.abs(off).max() * board.accel.lsb_per_unit:.4f} of the nominal scale)")
+
+
+def gyro_scale_lost(board) -> float:
+    """Largest |G - I| of the gyroscope's fitted matrix in nominal units: what a
+    format that keeps only the gyro offsets loses."""
+    G = board.gyro.A * board.gyro.lsb_per_unit
+    return float(np.abs(G - np.eye(3)).max())
+
+
 def polar(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A = U P: U orthogonal, P symmetric positive definite."""
     W, s, Vt = np.linalg.svd(A)

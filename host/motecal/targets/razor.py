@@ -28,7 +28,7 @@ import re
 import numpy as np
 
 from ..sessions.session import NOMINAL_SCALES
-from .common import Export, fmt_float
+from .common import Export, cross_axis_lost, fmt_float, gyro_scale_lost
 
 GRAVITY = 256.0                    # the firmware's 1 g
 FIRMWARE_GYRO_GAIN = 0.06957       # deg/s per LSB, ITG-3200 / ITG-3205
@@ -67,16 +67,13 @@ def constants(board) -> dict:
 def _lost(board) -> dict:
     lost = {}
     if board.accel is not None:
-        off = board.accel.A - np.diag(np.diag(board.accel.A))
-        if np.abs(off).max() > 0:
-            lost["accel"] = ["min/max per axis cannot hold the cross-axis terms "
-                             f"(largest {np.abs(off).max() * board.accel.lsb_per_unit:.4f} of the "
-                             f"nominal scale): dropped"]
+        note = cross_axis_lost(board, "min/max per axis")
+        if note:
+            lost["accel"] = [note]
     if board.gyro is not None:
-        G = board.gyro.A * board.gyro.lsb_per_unit
         lost["gyro"] = [f"offsets only: the firmware's one GYRO_GAIN ({fmt_float(gyro_gain(board), 6)} "
                         f"deg/s per LSB) replaces the fitted scale and misalignment "
-                        f"(largest |G - I| {np.abs(G - np.eye(3)).max():.4f})"]
+                        f"(largest |G - I| {gyro_scale_lost(board):.4f})"]
     return lost
 
 

@@ -150,6 +150,7 @@ class LiveView:
                 hist.popleft()
             t0, s0 = hist[0]
             c["rate"] = (c["samples"] - s0) / (now - t0) if now > t0 else 0.0
+            c["temp_c"] = link.temp_c          # latest temperature message (None: none yet)
             seen = self._last_seen.get(m)
             motes[m] = dict(id=m, link=c, row=self._last_rows.get(m),
                             state="receiving" if seen is not None and now - seen < SILENT_S

@@ -340,7 +340,7 @@
       if (!panels[m.id]) {
         panels[m.id] = panel(m);
         var tr = el("tr", { id: P + "link" });
-        ["id", "state", "samples", "rate", "lost", "duplicates", "reordered", "mote_dropped", "guide"].forEach(function (k) {
+        ["id", "state", "samples", "rate", "lost", "duplicates", "reordered", "mote_dropped", "temp_c", "guide"].forEach(function (k) {
           tr.appendChild(el("td", { id: P + k }));
         });
         tb.appendChild(tr);
@@ -354,6 +354,7 @@
       ["lost", "duplicates", "reordered", "mote_dropped"].forEach(function (k) {
         setText(P + k, c[k] == null ? "-" : c[k], c[k]);
       });
+      setText(P + "temp_c", c.temp_c == null ? "-" : fmt(c.temp_c, 1) + " C", c.temp_c);
       var guide = m.static ? "pose " + m.static.pose + "/" + m.static.poses + ", " + pct(m.static.coverage)
         : m.sweep ? "sweep " + pct(m.sweep.coverage) : "";
       setText(P + "guide", guide);

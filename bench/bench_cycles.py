@@ -46,6 +46,8 @@ def measure(defines=()) -> dict:
 
 
 GOAL = ("all three sensors read, per sample", "<= 1.2 ms (#5)")
+TEMP_GOAL = ("I2C time added by the ITG-3200 temperature (8-byte burst from 0x1B)",
+             "measured (#16)")
 
 
 def emulated_i2c(tmp: Path) -> None:
@@ -61,6 +63,8 @@ def emulated_i2c(tmp: Path) -> None:
               "`make emulate` / docs/emulation.md)")
         record(*GOAL, None, note=f"needs the nesC build in the emulator harness ({e}); "
                "run make bench with TINYOS_ROOT_DIR and nesC >= 1.4.0 (docs/emulation.md)")
+        record(*TEMP_GOAL, None, note=f"not measured: needs the nesC build in the emulator "
+               f"harness ({e}); make bench with TINYOS_ROOT_DIR (docs/emulation.md)")
         return
     print("I2C per sample of the nesC build, measured on the emulated bus (ninedof-emu, "
           "1 mote, 12 s emulated, counted from 4 s; goal <= 1200 us read() to readDone)")
@@ -86,6 +90,7 @@ def emulated_i2c(tmp: Path) -> None:
                   f"{n['wire_us_mean']:.1f} us and SCL held for the CPU {n['held_us_mean']:.1f} us; "
                   f"{n['reads_per_s']:.3f} reads/s, {n['missing_periods']} periods without a read, "
                   f"CPU load {100 * n['cpu_load']:.1f} %, ROM {n['rom']} B / RAM {n['ram']} B")
+    temperature_burst(tmp, emulate, got)
     if (False, 8.0) not in got:
         record(*GOAL, None, note="the emulated mote did not sample (no RF230 model in this "
                "harness, or no read() -> readDone in the image)")
@@ -99,6 +104,46 @@ def emulated_i2c(tmp: Path) -> None:
         lean = got[True, 8.0] / 1000
         record("the same with the lean TWI master (NINEDOF_LEAN_I2C=1)", GOAL[1], lean, "ms",
                lean <= 1.2, note="read() -> readDone, 8.00 MHz, emulated (ninedof-emu)")
+
+
+def temperature_burst(tmp: Path, emulate, got: dict) -> None:
+    """The I2C time per sample before (ITG-3200 rates alone, 6 bytes from
+    0x1D: the comparison build NINEDOF_ITG_RATES_ONLY=1) and after (8 bytes
+    from 0x1B: temperature and rates), both masters, 8.00 MHz, and the
+    temperature the emulated chip gave (temp=31.5 C) as the image read it."""
+    print("ITG-3200 temperature in the rates' burst: before (6 bytes from 0x1D, "
+          "NINEDOF_ITG_RATES_ONLY=1) and after (8 bytes from 0x1B), 8.00 MHz, board at 31.5 C")
+    rows = {}
+    for lean, name in ((False, "stock"), (True, "lean")):
+        for before in (True, False):
+            elf = emulate.build_image("tinyos", tmp / f"mote-{int(lean)}-{int(before)}.elf",
+                                      lean=lean,
+                                      make_vars=["NINEDOF_ITG_RATES_ONLY=1"] if before else [])
+            n = emulate.measure(tmp, motes=1, seconds=12, settle=4, mhz=(8.0,), lean=lean,
+                                base=False, mote=elf, temp_c=(31.5,))["nodes"][0]
+            sp = n.get("span")
+            if not n["samples"] or not sp:
+                print(f"  {name} {'before' if before else 'after'}: no reads")
+                continue
+            itg = n["chips"]["itg3200"]
+            rows[lean, before] = (sp["us_mean"], n["i2c_us_mean"], n["wire_us_mean"])
+            print(f"  {name}, {'before' if before else 'after '}: read() -> readDone "
+                  f"{sp['us_mean']:.1f} us, first START -> last STOP {n['i2c_us_mean']:.1f} us "
+                  f"(on the wire {n['wire_us_mean']:.1f} us, SCL held for the CPU "
+                  f"{n['held_us_mean']:.1f} us); TEMP_OUT read {itg['temp_reads']} times, "
+                  f"last {itg['last_temp']}; {n['reads_per_s']:.3f} reads/s, "
+                  f"{n['missing_periods']} periods without a read; ROM {n['rom']} B, "
+                  f"RAM {n['ram']} B")
+    if (False, True) not in rows or (False, False) not in rows:
+        record(*TEMP_GOAL, None, note="the emulated mote did not sample")
+        return
+    b, a = rows[False, True], rows[False, False]
+    note = (f"read() -> readDone {b[0]:.0f} -> {a[0]:.0f} us (stock master, 8.00 MHz, "
+            f"emulated); I2C {b[1]:.0f} -> {a[1]:.0f} us, on the wire {b[2]:.0f} -> {a[2]:.0f} us")
+    if (True, True) in rows and (True, False) in rows:
+        lb, la = rows[True, True], rows[True, False]
+        note += f"; lean master {lb[0]:.0f} -> {la[0]:.0f} us"
+    record(*TEMP_GOAL, (a[0] - b[0]) / 1000, "ms", None, note=note)
 
 
 def main() -> int:
@@ -116,6 +161,14 @@ def main() -> int:
         ("correction per record in a batch of 5", asm["correct_block5"] / BATCH, "<= 1500"),
         ("  same, portable C kernel", c["correct_block5"] / BATCH, "reference"),
         ("correction, shift 13 set (rescaled to Q14)", asm["correct_9axes_q13"], "rare path"),
+        ("correction with temperature terms, 9 axes, one record", asm["correct_9axes_temp"],
+         "<= 1500"),
+        ("  same, per record in a batch of 5", asm["correct_block5_temp"] / BATCH, "<= 1500"),
+        ("  offsets only (no gain change): one record", asm["correct_9axes_temp_offsets"],
+         "<= 1500"),
+        ("  offsets only, per record in a batch of 5",
+         asm["correct_block5_temp_offsets"] / BATCH, "<= 1500"),
+        ("temperature terms at a new temperature (once a second)", asm["cal_set_temp"], ""),
         ("no sensor corrected (raw copy)", asm["correct_raw"], ""),
         ("chip bytes -> record (3 chips)", asm["board_record"], ""),
         ("one instant per record (align the magnetometer)", asm["align_push"], ""),
@@ -144,6 +197,19 @@ def main() -> int:
            "cycles", asm["correct_9axes"] <= 1500, digits=4,
            note=f"{asm['correct_block5'] / BATCH:.0f} per record in a batch of {BATCH}; "
                 "avr-gcc -Os in Debian's simavr")
+    record("correction of 9 axes with temperature offsets (bias vs temperature), one record",
+           "<= 1500 cycles (#5)", asm["correct_9axes_temp_offsets"], "cycles",
+           asm["correct_9axes_temp_offsets"] <= 1500, digits=4,
+           note=f"{asm['correct_block5_temp_offsets'] / BATCH:.0f} per record in a batch of "
+                f"{BATCH}: the assembly kernel with c + O(T); new temperature "
+                f"{asm['cal_set_temp']} cycles once a second")
+    record("correction of 9 axes with temperature gain and offset terms, one record",
+           "<= 1500 cycles (#5)", asm["correct_9axes_temp"], "cycles",
+           asm["correct_9axes_temp"] <= 1500, digits=4,
+           note=f"gain terms on all 9 axes: {asm['correct_block5_temp'] / BATCH:.0f} per record "
+                f"in a batch of {BATCH}, the kernel's sums exact then the gain in C "
+                f"({100 * asm['correct_block5_temp'] / BATCH * 125 / avrsim.F_CPU:.1f} % of "
+                "the CPU at 125 Hz)")
     period = avrsim.F_CPU / 125
     print(f"per-sample work is {100 * per_sample / period:.1f}% of the 8 ms period "
           f"({period:.0f} cycles); commit status {asm['commit_status']} (0 = accepted)")

@@ -60,6 +60,48 @@ def run(motes, baud, batch, duration, seed, temperature=True, line=None):
     return got / gen, why
 
 
+def line_load(motes: int, baud: int, temp: bool, seed: int = 1) -> tuple[float, float]:
+    """Share of the serial line (8N1: 10 bits a byte) and of the radio
+    channel's airtime that 125 Hz of batched samples, the status message
+    (every 2 s) and, with ``temp``, the temperature message (every 1 s) of
+    ``motes`` motes take, by construction: the frames as protocol.py encodes
+    them (HDLC escapes of random records included) and the 802.15.4 frames
+    with their acks (sim.radio); no repeats, no collisions."""
+    from motecal.sim import radio
+    rng = np.random.default_rng(seed)
+    recs = rng.integers(-2048, 2048, (P.NINEDOF_BATCH, 9)).astype(np.int16)
+    sample = P.pack_samples(1, 0, recs)
+    msgs = [(sample, P.NINEDOF_RATE_HZ / P.NINEDOF_BATCH),
+            (P.MOTE_STATUS.pack(), 1000 / P.NINEDOF_STATUS_PERIOD_MS)]
+    if temp:
+        msgs.append((P.MOTE_TEMP.pack(seq=1, count=125, temp_sum=-2_000_000),
+                     1000 / P.NINEDOF_TEMP_PERIOD_MS))
+    serial = sum(len(P.encode_am(P.AMPacket(0xFFFF, 1, P.DEFAULT_GROUP, 0x60, pl))) * rate
+                 for pl, rate in msgs) * 10 / baud
+    air = sum((radio.data_airtime(len(pl)) + radio.ACK_AIRTIME) * rate for pl, rate in msgs)
+    return motes * serial, motes * air
+
+
+def temperature_budget() -> None:
+    """Message sizes and the link budget with the temperature message."""
+    sample = P.samples_payload_size(P.NINEDOF_BATCH)
+    print(f"\nMessage sizes (payload bytes, tinyos/NineDofMsg.h): sample message {sample} "
+          f"({P.NINEDOF_BATCH} records of {P.NINEDOF_RECORD_SIZE}, unchanged by the "
+          f"temperature), status {P.MOTE_STATUS.size}, temperature {P.MOTE_TEMP.size} "
+          f"(every {P.NINEDOF_TEMP_PERIOD_MS} ms)")
+    record("sample message payload with the temperature read", "unchanged (#16)", sample, "B",
+           sample == 4 + 18 * P.NINEDOF_BATCH, digits=3,
+           note=f"{P.NINEDOF_BATCH} records of {P.NINEDOF_RECORD_SIZE} B; the temperature "
+                f"travels in its own {P.MOTE_TEMP.size}-byte message (AM 0x"
+                f"{P.AM_NINEDOF_MOTE_TEMP_MSG:02x}) once a second")
+    s0, a0 = line_load(GOAL_MOTES, GOAL_BAUD, False)
+    s1, a1 = line_load(GOAL_MOTES, GOAL_BAUD, True)
+    print(f"{GOAL_MOTES} motes at {GOAL_BAUD} baud, by construction (frames as encoded, no "
+          f"repeats): serial line {100 * s0:.2f}% -> {100 * s1:.2f}% busy with the temperature "
+          f"message, radio airtime {100 * a0:.2f}% -> {100 * a1:.2f}% (a cross-check of the "
+          f"simulated figures above)")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=60.0)
@@ -133,6 +175,7 @@ def main():
         for b in range(1, 7):
             f, w = run(GOAL_MOTES, GOAL_BAUD, b, a.duration, a.seed)
             print(f"  batch {b}: loss {100 * (1 - f):.3f}% {w}")
+    temperature_budget()
     print(f"({time.monotonic() - t0:.0f} s wall)")
 
 

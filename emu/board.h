@@ -13,6 +13,8 @@ typedef struct emu_board {
     long nrows;           /* 0: the synthetic board */
     int16_t (*rows)[9];
     float *temp_c;        /* per row (table), NaN-free */
+    int temp_set;         /* 1: temp_c_set replaces the board's temperature */
+    double temp_c_set;    /* the harness's temp= option, degrees C */
 } emu_board_t;
 
 /* The synthetic board (no table given): for t in whole ms k = t_ns / 1e6,
@@ -26,6 +28,11 @@ emu_board_t *board_synthetic(void);
  * temperature in C.  After the last row the last row holds.
  * NULL (message on stderr) on a bad file. */
 emu_board_t *board_load(const char *path);
+
+/* The temperature board_truth reports from now on, whatever the board or
+ * table says (ninedof-emu --mote ELF,temp=C): what the ITG-3200 model's
+ * TEMP_OUT registers read. */
+void board_set_temp(emu_board_t *b, double temp_c);
 
 /* The true counts at time t_ns (row floor(t * rate)). */
 void board_truth(const emu_board_t *b, uint64_t t_ns, int16_t out[9], double *temp_c);

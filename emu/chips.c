@@ -304,6 +304,12 @@ uint8_t chip_read(emu_chip_t *c, uint64_t now)
     case CHIP_ITG3200:
         if (reg == 0x1A)
             c->regs[0x1A] &= (uint8_t)~0x01;
+        if (reg == 0x1B)
+            c->temp_hi = 1;              /* TEMP_OUT_H read in this transaction */
+        if (reg == 0x1C && c->temp_hi) {
+            c->temp_reads++;
+            c->last_temp = (int16_t)(uint16_t)((c->regs[0x1B] << 8) | c->regs[0x1C]);
+        }
         break;
     case CHIP_HMC5883L:
         if (reg >= 0x03 && reg <= 0x08) {
@@ -338,5 +344,6 @@ int chip_stop(emu_chip_t *c, uint64_t now)
     c->reading = 0;
     c->first = 0;
     c->read_mask = 0;
+    c->temp_hi = 0;
     return done ? 1 << c->kind : 0;
 }

@@ -33,6 +33,7 @@ typedef struct emu_chip {
     int16_t trig_val[3];
     uint8_t locked;         /* HMC: data registers being read */
     uint8_t read_mask;      /* data bytes read in this transaction (bit per byte) */
+    uint8_t temp_hi;        /* ITG-3200: TEMP_OUT_H read in this transaction */
     /* faults (ns windows, from <= t < until) */
     uint64_t nack_from, nack_until;
     uint64_t off_from, off_until;
@@ -42,6 +43,8 @@ typedef struct emu_chip {
     uint32_t stale_reads;   /* data reads that got the same sample as the read before */
     uint64_t prev_read_sample_ns;
     int16_t last_data[3];   /* counts of the last complete data read */
+    uint32_t temp_reads;    /* ITG-3200: TEMP_OUT_H and _L read in one transaction */
+    int16_t last_temp;      /* ... the last such raw TEMP_OUT */
 } emu_chip_t;
 
 void chip_init(emu_chip_t *c, int kind, const emu_board_t *board);

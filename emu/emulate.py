@@ -54,12 +54,14 @@ def toolchain() -> Path:
     return Path(root)
 
 
-def build_image(app: str, out: Path, *, lean: bool = False) -> Path:
+def build_image(app: str, out: Path, *, lean: bool = False, make_vars=()) -> Path:
     """`make -C <app> iris` (the TinyOS make system, build/iris in the app's
-    folder), the ELF copied to out."""
+    folder), the ELF copied to out.  make_vars: more VAR=value settings
+    (e.g. NINEDOF_ITG_RATES_ONLY=1)."""
     cmd = ["make", "-C", str(REPO / app), "iris", f"TINYOS_ROOT_DIR={os.environ['TINYOS_ROOT_DIR']}"]
     if lean:
         cmd.append("NINEDOF_LEAN_I2C=1")
+    cmd += list(make_vars)
     res = subprocess.run(cmd, capture_output=True, text=True)
     if res.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{res.stdout[-3000:]}{res.stderr[-3000:]}")
@@ -95,9 +97,11 @@ def run_harness(exe: Path, args: list[str], echo=None) -> dict:
 
 def measure(out: Path, *, motes: int = 1, seconds: float = 20, settle: float = 5,
             mhz=(8.0,), lean: bool = False, base: bool = True, serial: str = "null",
-            faults=(), boards=(), echo=None, mote: Path | None = None, xtal_ppm=(0.0,)) -> dict:
+            faults=(), boards=(), echo=None, mote: Path | None = None, xtal_ppm=(0.0,),
+            temp_c=()) -> dict:
     """Build both images (the mote's unless given) and the harness into out,
-    run; the report.  mhz: one clock per mote (cycled)."""
+    run; the report.  mhz: one clock per mote (cycled); temp_c: each mote's
+    board temperature in C (cycled; none: the board's own)."""
     if mote is None:
         mote = build_image("tinyos", out / ("mote-lean.elf" if lean else "mote.elf"), lean=lean)
     exe = build_harness(out / "emu-build")
@@ -108,6 +112,8 @@ def measure(out: Path, *, motes: int = 1, seconds: float = 20, settle: float = 5
             spec += f",xtal_ppm={xtal_ppm[i % len(xtal_ppm)]}"
         if i < len(boards):
             spec += f",board={boards[i]}"
+        if temp_c:
+            spec += f",temp={temp_c[i % len(temp_c)]}"
         args += ["--mote", spec]
     if base:
         bs = build_image("basestation", out / "basestation.elf")
@@ -150,6 +156,10 @@ def print_report(rep: dict, master: str) -> None:
               f"max {n['i2c_us_max']:.1f}); on the wire {n['wire_us_mean']:.1f} us, "
               f"SCL held low for the CPU {n['held_us_mean']:.1f} us")
         bad = {k: n[k] for k in ("addr_nacks", "data_nacks", "arb_lost", "hang_waits") if n[k]}
+        itg = n.get("chips", {}).get("itg3200", {})
+        if itg.get("temp_reads"):
+            print(f"  ITG-3200 TEMP_OUT read {itg['temp_reads']} times (in the rates' burst), "
+                  f"last {itg['last_temp']} = {35 + (itg['last_temp'] + 13200) / 280:.2f} C")
         chips = ", ".join(f"{c} {v['data_reads']} reads ({v['stale_reads']} stale, "
                           f"{v['nacked']} NACKed, {v['resets']} power-on resets)"
                           for c, v in n["chips"].items())
@@ -179,6 +189,9 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=1, help="simulator seed for --session")
     ap.add_argument("--model", help="simulator error model for --session (file or name)")
     ap.add_argument("--out", help="folder for images and the harness (default: a temp folder)")
+    ap.add_argument("--temp", default="",
+                    help="board temperature of each mote in C, comma-separated, cycled "
+                         "(what the ITG-3200 model's TEMP_OUT reads; default: the board's, 25 C)")
     ap.add_argument("--json", action="store_true", help="print the harness's JSON report")
     a = ap.parse_args(argv)
     try:
@@ -192,6 +205,9 @@ def main(argv=None) -> int:
         xtal = [float(x) for x in a.xtal_ppm.split(",")]
         if not all(-1000 <= x <= 1000 for x in xtal):
             raise ValueError(f"--xtal-ppm must be -1000..1000, not {a.xtal_ppm}")
+        temps = [float(x) for x in a.temp.split(",")] if a.temp else []
+        if not all(-40 <= x <= 125 for x in temps):
+            raise ValueError(f"--temp must be -40..125 C, not {a.temp}")
         toolchain()
     except (ValueError, Unavailable) as e:
         print(f"emulate: {e}", file=sys.stderr)
@@ -228,7 +244,7 @@ def main(argv=None) -> int:
 
             rep = measure(out, motes=a.motes, seconds=a.seconds, settle=a.settle, mhz=mhz,
                           lean=a.lean, serial=a.serial, faults=a.fault, boards=boards,
-                          echo=echo, xtal_ppm=xtal)
+                          echo=echo, xtal_ppm=xtal, temp_c=temps)
         except RuntimeError as e:
             print(f"emulate: {e}", file=sys.stderr)
             return 1

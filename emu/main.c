@@ -1,7 +1,7 @@
 /*
  * emu/main.c -- ninedof-emu: N sensor motes (+ a BaseStation) in lockstep.
  *
- *   ninedof-emu --mote ELF[,id=N,mhz=F,xtal_ppm=P,board=FILE] ... [--base ELF[,...]]
+ *   ninedof-emu --mote ELF[,id=N,mhz=F,xtal_ppm=P,board=FILE,temp=C] ... [--base ELF[,...]]
  *               [--serial pty|tcp:PORT|null] [--loss P] [--seed N] [--seconds S]
  *               [--fault SPEC] ... [--settle S] [--twi-log FILE] [--console FILE]
  *               [--reset T[@I]] ... [--control] [--report json|text]
@@ -48,7 +48,7 @@ uint64_t emu_global_now_ns(void)
 static void usage(void)
 {
     fprintf(stderr,
-            "usage: ninedof-emu --mote ELF[,id=N,mhz=F,xtal_ppm=P,board=FILE] ...\n"
+            "usage: ninedof-emu --mote ELF[,id=N,mhz=F,xtal_ppm=P,board=FILE,temp=C] ...\n"
             "       [--base ELF[,id=N,mhz=F,xtal_ppm=P]]\n"
             "       [--serial pty|tcp:PORT|null] [--loss P] [--seed N] [--seconds S]\n"
             "       [--fault SPEC] ... [--settle S] [--twi-log FILE] [--console FILE]\n"
@@ -67,6 +67,8 @@ typedef struct {
     double mhz;
     double xtal_ppm;
     char board[1024];
+    int temp_set;
+    double temp_c;
 } node_spec_t;
 
 static int parse_node(const char *arg, node_spec_t *s, int default_id)
@@ -79,6 +81,7 @@ static int parse_node(const char *arg, node_spec_t *s, int default_id)
     s->mhz = 8.0;
     s->xtal_ppm = 0;
     s->board[0] = 0;
+    s->temp_set = 0;
     char *save = NULL;
     char *tok = strtok_r(buf, ",", &save);
     if (!tok || strlen(tok) >= sizeof s->elf)
@@ -101,6 +104,12 @@ static int parse_node(const char *arg, node_spec_t *s, int default_id)
             if (*end || !(v >= -1000 && v <= 1000))
                 return -1;
             s->xtal_ppm = v;
+        } else if (!strncmp(tok, "temp=", 5)) {
+            double v = strtod(tok + 5, &end);
+            if (*end || !(v >= -40.0 && v <= 125.0))
+                return -1;
+            s->temp_set = 1;
+            s->temp_c = v;
         } else if (!strncmp(tok, "board=", 6) && strlen(tok + 6) < sizeof s->board) {
             strcpy(s->board, tok + 6);
         } else {
@@ -319,6 +328,8 @@ int main(int argc, char **argv)
             emu_board_t *b = specs[i].board[0] ? board_load(specs[i].board) : board_synthetic();
             if (!b)
                 return 2;
+            if (specs[i].temp_set)
+                board_set_temp(b, specs[i].temp_c);
             nodes[i]->board = b;
             twi_attach(nodes[i], b, log);
             nodes[i]->twi->st.settle_ns = (uint64_t)(settle * 1e9);
@@ -468,9 +479,10 @@ int main(int argc, char **argv)
                 for (int c = 0; c < CHIP_COUNT; c++) {
                     emu_chip_t *cp = &t->chips[c];
                     fprintf(out, "%s\"%s\": {\"data_reads\": %u, \"nacked\": %u, \"resets\": %u, "
-                            "\"stale_reads\": %u, \"last\": [%d, %d, %d]}", c ? ", " : "", cp->name,
+                            "\"stale_reads\": %u, \"last\": [%d, %d, %d], \"temp_reads\": %u, "
+                            "\"last_temp\": %d}", c ? ", " : "", cp->name,
                             cp->data_reads, cp->nacked, cp->resets, cp->stale_reads, cp->last_data[0], cp->last_data[1],
-                            cp->last_data[2]);
+                            cp->last_data[2], cp->temp_reads, cp->last_temp);
                 }
                 fprintf(out, "}");
                 if (n->span_from)

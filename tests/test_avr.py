@@ -30,6 +30,7 @@ def _vectors(rng):
         return FP.FixedSensor(fs.a >> k, fs.c >> k, shift)
 
     big = FP.FixedSensor(np.diag([32767] * 3), np.array([2**26, -2**26, 123457]), 14)
+    temps = [None] * 6                   # temperature of each set below (None: none)
     calsets = [
         FP.pack_calset(MOTE, 1, {n: fixed() for n in P.SENSORS}),
         FP.pack_calset(MOTE, 2, {n: fixed() for n in P.SENSORS}),
@@ -40,6 +41,15 @@ def _vectors(rng):
     # a set that is decodable but not valid: Q8 entries too big for Q14
     wild = FP.FixedSensor(np.array([[30000, -30000, 20000]] * 3), np.array([2**30, 0, -5]), 8)
     calsets.append(FP.pack_calset(MOTE + 1, 6, {"accel": wild, "gyro": fixed(), "mag": wild}))
+    # temperature terms (164-byte set), corrected at three temperatures: at
+    # the reference, inside the range and clamped beyond it
+    tf = FP.FixedTemp(-16000, -19000, -12000, [30000, -20000, 111], [9000, -30000, 5],
+                      22, 30)
+    temp_sensors = {n: fixed() for n in P.SENSORS}
+    for v, t in ((7, None), (8, -17500), (9, 20000)):
+        calsets.append(FP.pack_calset(MOTE, v, temp_sensors,
+                                      {"gyro": tf, "mag": tf, "accel": tf}))
+        temps.append(t)
     raw = rng.integers(-32768, 32768, (NREC, 9))
     raw[:8] = np.array([-32768, 32767, 0, -1, 1, -32767, 16384, -16384])[:, None]
     raw[8:40, 6:] = rng.integers(-2100, 2100, (32, 3))
@@ -75,7 +85,7 @@ def _vectors(rng):
     commit(1, binascii.crc_hqx(good, 0))          # staged set still there: back in force
     msgs.append((0x42, b"\0" * 10))                # not ours: no reply
     msgs.append((P.AM_NINEDOF_CAL_FRAG_MSG, b"\0" * 5))
-    return calsets, raw, msgs
+    return calsets, temps, raw, msgs
 
 
 @pytest.fixture(scope="module")
@@ -84,15 +94,18 @@ def avr_run(tmp_path_factory):
     if missing:
         pytest.fail(f"missing {missing}: run `make sysdeps` (gcc-avr, avr-libc, simavr)")
     rng = np.random.default_rng(20240611)
-    calsets, raw, msgs = _vectors(rng)
+    calsets, temps, raw, msgs = _vectors(rng)
     d = tmp_path_factory.mktemp("avr")
     script = b"".join(bytes((t, len(p))) + p for t, p in msgs)
     (d / "vectors.h").write_text(
         "#include <avr/pgmspace.h>\n"
         f"#define MOTE_ID {MOTE}\n#define NCAL {len(calsets)}\n#define NREC {NREC}\n"
         f"#define MSGS_LEN {len(script)}\n"
-        f"static const uint8_t CALSETS[NCAL][{P.CALSET_SIZE}] PROGMEM = {{\n"
+        f"static const uint8_t CALSETS[NCAL][{P.CALSET_TEMP_SIZE}] PROGMEM = {{\n"
         + ",\n".join("{" + ",".join(map(str, c)) + "}" for c in calsets) + "};\n"
+        + _c_array("CALSET_LEN", "uint8_t", [len(c) for c in calsets])
+        + _c_array("CAL_HAS_TEMP", "uint8_t", [int(t is not None) for t in temps])
+        + _c_array("CAL_TEMP", "int16_t", [t or 0 for t in temps])
         + _c_array("RAW", "int16_t", raw.reshape(-1))
         + _c_array("MSGS", "uint8_t", script))
     elf = avrsim.build([avrsim.CSRC / "avr_cal_main.c", avrsim.TINYOS / "ninedof_cal.c"],
@@ -100,7 +113,7 @@ def avr_run(tmp_path_factory):
     text = avrsim.run(elf)
     assert "END" in text, text[-300:]
     tokens = text[:text.index("END")].split(";")[:-1]
-    return calsets, raw, msgs, tokens
+    return calsets, temps, raw, msgs, tokens
 
 
 def _hex16(s):
@@ -108,13 +121,21 @@ def _hex16(s):
 
 
 def test_correction_is_bit_identical_on_the_avr(avr_run):
-    calsets, raw, _, tokens = avr_run
-    for cs, tok in zip(calsets, tokens[:len(calsets)]):
+    calsets, temps, raw, _, tokens = avr_run
+    for cs, t, tok in zip(calsets, temps, tokens[:len(calsets)]):
         assert tok[0] == "C"
         decode, valid = int(tok[1:3], 16), int(tok[3:5], 16)
         assert decode == 0 and valid == M.validate(cs, MOTE)
         got = _hex16(tok[5:]).reshape(-1, 9)
-        np.testing.assert_array_equal(got, M.correct(cs, raw))
+        np.testing.assert_array_equal(got, M.correct(cs, raw, t))
+    # the temperature terms changed the output, and stay within 1 LSB of the
+    # float reference wherever it is not saturated
+    assert len(calsets[-1]) == P.CALSET_TEMP_SIZE and M.validate(calsets[-1], MOTE) == 0
+    assert not np.array_equal(M.correct(calsets[-1], raw, 20000), M.correct(calsets[-1], raw))
+    for cs, t in zip(calsets[-3:], temps[-3:]):
+        ref = FP.reference_correct(cs, raw, t)
+        ok = np.abs(ref) < 32000
+        assert np.abs(M.correct(cs, raw, t) - ref)[ok].max() <= 1.0
     # the vectors did exercise saturation, overflow passthrough and raw sensors
     sat = M.correct(calsets[3], raw)
     assert np.any(sat[:, :6] == 32767) and np.any(sat[:, :6] == -32768)
@@ -123,7 +144,7 @@ def test_correction_is_bit_identical_on_the_avr(avr_run):
 
 
 def test_receiver_replies_are_identical_on_the_avr(avr_run):
-    calsets, raw, msgs, tokens = avr_run
+    calsets, _, raw, msgs, tokens = avr_run
     rx = M.CalReceiver(MOTE)
     rest = tokens[len(calsets):]
     statuses = []
@@ -188,11 +209,14 @@ def test_logic_outputs_identical_and_readable_by_the_host(logic_outputs):
     assert st == dict(seq=0x1234, version=0x25, sensors=1, reserved=0, dropped=5,
                       send_fail=0, i2c_errors=7, late=9, i2c_nacks=3, bus_resets=0xFFFF,
                       chip_reinits=2)
+    # the C-packed temperature message decodes with protocol.py
+    assert P.MOTE_TEMP.unpack(digests[3]) == dict(seq=(0xFFC0 + 124) & 0xFFFF, count=125, reserved=0,
+                                                  temp_sum=-16000 * 125 - 124)
+    assert abs(float(P.temp_c(-16001)) - 25.0) < 0.01
     # EEPROM: slot 0 holds generation 1 (version 0x25), slot 1 generation 2 (0x27)
-    ee = digests[3]
-    assert M.image_check(ee[:P.CALSET_SIZE + 6], 3) == 1
-    assert M.image_check(ee[0x80:0x80 + P.CALSET_SIZE + 6], 3) == 2
-    assert P.BS_STATUS.unpack(digests[4]) == dict(radio_rx=1, radio_drops=2, serial_rx=3,
+    assert M.image_check(digests[4], 3) == 1 and len(digests[4]) == P.CALSET_SIZE + 6
+    assert M.image_check(digests[5], 3) == 2
+    assert P.BS_STATUS.unpack(digests[6]) == dict(radio_rx=1, radio_drops=2, serial_rx=3,
                                                   serial_drops=4, radio_fail=5,
                                                   serial_fail=0xFFFF)
 

@@ -304,7 +304,7 @@ def test_rejects_leave_the_set_in_force():
     assert send_frag(rx, 5, 0, good[:20], mote=MOTE + 1) == \
         dict(mote=MOTE, version=5, offset=0, status=E_MOTE)
     assert send_frag(rx, 0, 0, good[:20])["status"] == E_VERSION
-    assert send_frag(rx, 5, 90, good[:20])["status"] == E_FRAG
+    assert send_frag(rx, 5, 150, good[:20])["status"] == E_FRAG   # past the 164-byte set
     assert send_frag(rx, 5, 0, b"")["status"] == E_FRAG
     bad_len = bytearray(frag(5, 0, good[:20]))
     bad_len[5] = 21

@@ -30,10 +30,11 @@ def built(tmp_path_factory):
     return d, exe, elf
 
 
-def run_program(built, name, *args, mhz=8.0, board=None):
+def run_program(built, name, *args, mhz=8.0, board=None, temp=None):
     d, exe, elf = built
     con, log = d / f"{name}.txt", d / f"{name}.log"
-    spec = f"{elf},mhz={mhz}" + (f",board={board}" if board else "")
+    spec = f"{elf},mhz={mhz}" + (f",board={board}" if board else "") + \
+        (f",temp={temp}" if temp is not None else "")
     rep = emusim.run(exe, ["--mote", spec, "--seconds", "3", "--console", str(con),
                            "--twi-log", str(log), *args])
     text = con.read_text()
@@ -106,6 +107,24 @@ def check_reads(run, truth):
 
 def test_burst_reads_follow_the_board_at_the_data_ready_instants(plain):
     check_reads(plain, emusim.synthetic)
+
+
+def test_settable_temperature_in_the_itg3200_burst(built, plain):
+    """temp=C sets what TEMP_OUT (0x1B-0x1C) reads: the 8-byte burst from
+    0x1B carries it before the rates; the report counts the reads."""
+    assert plain[0]["chips"]["itg3200"]["temp_reads"] == 20
+    assert plain[0]["chips"]["itg3200"]["last_temp"] == -16000          # the board's 25 C
+    for temp, raw in ((31.5, -14180), (-10.0, -25800), (60.25, -6130)):
+        node, lines, _ = run_program(built, f"temp{raw}", temp=temp)
+        samples = [ln.split() for ln in lines if ln.startswith("S ")]
+        assert len(samples) == 20
+        assert {be(bytes.fromhex(s[3]), 0) for s in samples} == {raw}
+        itg = node["chips"]["itg3200"]
+        assert (itg["temp_reads"], itg["last_temp"], itg["data_reads"]) == (20, raw, 20)
+    d, exe, elf = built
+    res = subprocess.run([str(exe), "--mote", f"{elf},temp=200", "--seconds", "1"],
+                         capture_output=True, text=True)
+    assert res.returncode == 2 and "bad" in res.stderr
 
 
 def test_board_table_from_the_simulator(built):

@@ -63,6 +63,23 @@ def test_calset_layout(hdr):
     assert hdr.sizeof("ninedof_calset_t") == P.CALSET_SIZE
 
 
+def test_calset_temp_layout(hdr):
+    """The set with temperature terms: the plain set, then the temperature
+    block; its size and format constants."""
+    s = hdr.structs["ninedof_calset_temp"]
+    assert [(f.name, f.ctype, f.dim) for f in s.fields[:1]] == [P.CALSET_TEMP_BASE]
+    lead = s.fields[1:1 + len(P.CALSET_TEMP_HEADER.fields)]
+    assert [(f.name, f.ctype) for f in lead] == \
+        [(f.name, f.ctype) for f in P.CALSET_TEMP_HEADER.fields]
+    tail = s.fields[1 + len(P.CALSET_TEMP_HEADER.fields):]
+    assert [(f.name, f.ctype, f.dim) for f in tail] == [P.CALSET_TEMP_ARRAY]
+    assert hdr.sizeof("ninedof_calset_temp_t") == P.CALSET_TEMP_SIZE == 164
+    assert hdr.sizeof("ninedof_cal_temp_t") == P.CAL_TEMP.size == 20
+    assert hdr.constants["NINEDOF_CALSET_PLAIN"] == P.CALSET_PLAIN == 0
+    assert hdr.constants["NINEDOF_CALSET_TEMP"] == P.CALSET_TEMP
+    assert P.CALSET_SIZES == {P.CALSET_PLAIN: 102, P.CALSET_TEMP: 164}
+
+
 def test_constants_match_header(hdr):
     for name in ("NINEDOF_RATE_HZ", "NINEDOF_RECORD_SIZE", "NINEDOF_FRAG_DATA",
                  "NINEDOF_STATUS_PERIOD_MS", "NINEDOF_TEMP_PERIOD_MS"):
@@ -83,7 +100,8 @@ def test_constants_match_header(hdr):
 def test_c_compiler_agrees_on_sizes(tmp_path):
     """gcc, through nx_plain.h, lays the header out as the host expects."""
     src = tmp_path / "sz.c"
-    names = ["ninedof_record_t", "ninedof_samples_msg_t", "ninedof_calset_t"] + \
+    names = ["ninedof_record_t", "ninedof_samples_msg_t", "ninedof_calset_t",
+             "ninedof_calset_temp_t"] + \
         [s.name + "_t" for s in P.FIXED_MESSAGES.values()]
     src.write_text('#include <stdio.h>\n#include "NineDofMsg.h"\nint main(void){\n' +
                    "".join(f'printf("%zu\\n", sizeof({n}));\n' for n in names) + "return 0;}\n")
@@ -92,6 +110,6 @@ def test_c_compiler_agrees_on_sizes(tmp_path):
                     str(src), "-o", str(exe)], check=True)
     sizes = [int(x) for x in subprocess.run([str(exe)], capture_output=True, text=True,
                                             check=True).stdout.split()]
-    expect = [18, P.samples_payload_size(P.NINEDOF_BATCH), P.CALSET_SIZE] + \
+    expect = [18, P.samples_payload_size(P.NINEDOF_BATCH), P.CALSET_SIZE, P.CALSET_TEMP_SIZE] + \
         [s.size for s in P.FIXED_MESSAGES.values()]
     assert sizes == expect

@@ -152,14 +152,14 @@ def test_bad_sets_are_rejected_and_the_old_set_stays(cal, case):
             up.stage(good, 2)
             up.apply(3, crc)
         else:
-            up.stage(good, 2, pieces=[(100, good[:20])])
+            up.stage(good, 2, pieces=[(150, good[:20])])    # past the 164-byte set
     code = CASES[case]
     assert exc.value.status == code
     msg = str(exc.value)
     name, text = P.CAL_REASONS[code]
     assert f"{text} ({name})" in msg and "\n" not in msg
     if case == "fragment outside the set":
-        assert "rejected fragment 1/1 (offset 100) of version 2" in msg
+        assert "rejected fragment 1/1 (offset 150) of version 2" in msg
         assert msg.endswith("the set in force is unchanged")
     else:
         assert msg.startswith("mote 1 rejected calibration version ")

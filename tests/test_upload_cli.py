@@ -208,11 +208,11 @@ def test_upload_show_reset_and_a_silent_mote_over_tcp(served, cal_path, capsys):
 
     r = _upload("--show", "--mote", 9, "--port", url, "--timeout", 0.1, "--retries", 2)
     assert r.returncode == 1 and "Traceback" not in r.stderr
-    assert r.stderr == ("motecal: error: no answer from mote 9 to read-back 1/6 (offset 0) "
+    assert r.stderr == ("motecal: error: no answer from mote 9 to read-back 1 (offset 0) "
                         "after 3 tries of 0.1 s: is it switched on, in range of the "
                         "BaseStation and running the motecal firmware with ID 9?\n")
     assert r.stdout.splitlines() == [
-        f"  no answer to read-back 1/6 (offset 0) within 0.1 s; sending it again (try {k} of 3)"
+        f"  no answer to read-back 1 (offset 0) within 0.1 s; sending it again (try {k} of 3)"
         for k in (2, 3)]
 
 

@@ -19,10 +19,12 @@ implementation
   components ActiveMessageC as Radio;
   components new AMSenderC(AM_NINEDOF_SAMPLES_MSG) as SampleSend;
   components new AMSenderC(AM_NINEDOF_MOTE_STATUS_MSG) as StatusSend;
+  components new AMSenderC(AM_NINEDOF_MOTE_TEMP_MSG) as TempSend;
   components NineDofCalibrationC as Calibration;
   components new PoolC(message_t, NINEDOF_SEND_QUEUE) as SamplePool;
   components new QueueC(message_t*, NINEDOF_SEND_QUEUE) as SendQueue;
   components new TimerMilliC() as StatusTimer;
+  components new TimerMilliC() as TempTimer;
   components new TimerMilliC() as RetryTimer;
   components new TimerMilliC() as FlashTimer;
 
@@ -37,12 +39,14 @@ implementation
   App.RadioControl -> Radio;
   App.SampleSend -> SampleSend;
   App.StatusSend -> StatusSend;
+  App.TempSend -> TempSend;
   App.Calibration -> Calibration;
   App.Acks -> SampleSend;
   App.PacketLink -> Radio;
   App.SamplePool -> SamplePool;
   App.SendQueue -> SendQueue;
   App.StatusTimer -> StatusTimer;
+  App.TempTimer -> TempTimer;
   App.RetryTimer -> RetryTimer;
   App.FlashTimer -> FlashTimer;
 }

@@ -18,7 +18,13 @@
  * sent to the BaseStation (address 0) through a queue of NINEDOF_SEND_QUEUE
  * messages; when the queue is full the batch is dropped and counted.  A
  * ninedof_mote_status_msg goes out every 2 s from its own buffer, without
- * acknowledgement (the next one replaces a lost one).  The calibration
+ * acknowledgement (the next one replaces a lost one).  Every read also
+ * brings the board temperature (the ITG-3200's TEMP_OUT, same I2C burst as
+ * the rates); the readings of each second are summed (ninedof_temp_add)
+ * and sent as a ninedof_mote_temp_msg every NINEDOF_TEMP_PERIOD_MS, from
+ * its own buffer without acknowledgement, and the second's mean becomes
+ * the temperature of the on-mote correction (Calibration.setTemperature)
+ * for the next second.  The calibration
  * upload, the set in force and its EEPROM image are NineDofCalibrationC's
  * (lib/calibration); this module only reads the set in force
  * (NineDofCalibration) to correct and flag each batch.
@@ -66,12 +72,14 @@ module NineDofAppP @safe()
     interface SplitControl as RadioControl;
     interface AMSend as SampleSend;
     interface AMSend as StatusSend;
+    interface AMSend as TempSend;
     interface NineDofCalibration as Calibration;
     interface PacketAcknowledgements as Acks;
     interface PacketLink;
     interface Pool<message_t> as SamplePool;
     interface Queue<message_t*> as SendQueue;
     interface Timer<TMilli> as StatusTimer;
+    interface Timer<TMilli> as TempTimer;
     interface Timer<TMilli> as RetryTimer;
     interface Timer<TMilli> as FlashTimer;
   }
@@ -82,6 +90,8 @@ implementation
     BASESTATION = NINEDOF_BASESTATION_ADDR,
     /* binary milliseconds: 2000 ms = 2048 TMilli ticks */
     STATUS_TICKS = (uint32_t)NINEDOF_STATUS_PERIOD_MS * 1024UL / 1000UL,
+    /* 1000 ms = 1024 binary ms: 128 periods of 8 binary ms */
+    TEMP_TICKS = (uint32_t)NINEDOF_TEMP_PERIOD_MS * 1024UL / 1000UL,
     RETRY_TICKS = 1024,
     FLASH_TICKS = 51,            /* red flash for a failed read: 50 ms */
     /* Alarm32khz32C's counter: timer 1 (16 bits) / 2^MICA_DIVIDE_ONE_FOR_32KHZ_LOG2
@@ -106,6 +116,7 @@ implementation
   bool reading = FALSE;
   uint16_t readSeq;
   ninedof_align_t align;             /* the read waiting for its field */
+  ninedof_temp_acc_t temps;          /* TEMP_OUT readings of this second */
   ninedof_raw_t pending[PENDING];
   uint16_t pendingSeq[PENDING];
   uint8_t pendingHead, pendingCount;
@@ -116,6 +127,8 @@ implementation
   uint16_t heartbeat;
   message_t statusMsg;
   bool statusBusy = FALSE;
+  message_t tempMsg;
+  bool tempBusy = FALSE;
 
   task void processSamples();
   task void sendNext();
@@ -125,6 +138,7 @@ implementation
   event void Boot.booted() {
     ninedof_counters_init(&counters);
     ninedof_align_init(&align);
+    ninedof_temp_init(&temps);
     ninedof_batch_init(&batch);
 
     call RadioControl.start();
@@ -166,6 +180,7 @@ implementation
      * (status messages, no samples, i2c_nacks growing) from a mote that
      * is off (nothing) */
     call StatusTimer.startPeriodic(STATUS_TICKS);
+    call TempTimer.startPeriodic(TEMP_TICKS);
     startSampling();
   }
 
@@ -228,6 +243,10 @@ implementation
     uint16_t recSeq;
     atomic {
       reading = FALSE;
+#ifndef NINEDOF_ITG_RATES_ONLY   /* (a comparison build without the temperature) */
+      if (err == SUCCESS)
+        ninedof_temp_add(&temps, readSeq, val.temp);   /* the temperature of sample readSeq */
+#endif
       if (err != SUCCESS) {
         counters.i2c_errors++;
         ninedof_align_lost(&align);           /* its trigger may not have gone out */
@@ -378,5 +397,31 @@ implementation
 
   event void StatusSend.sendDone(message_t *m, error_t err) {
     statusBusy = FALSE;
+  }
+
+  /* The second's temperature readings: one message, and their mean for the
+   * correction of the next second.  A message still on its way: this
+   * second's readings are dropped (the next message carries the next). */
+  event void TempTimer.fired() {
+    ninedof_mote_temp_msg_t msg, *p;
+    int16_t mean;
+    uint8_t have;
+    atomic have = ninedof_temp_pack(&temps, &msg, &mean);
+    if (have)
+      call Calibration.setTemperature(mean);
+    if (tempBusy)
+      return;
+    p = (ninedof_mote_temp_msg_t *)call TempSend.getPayload(
+      &tempMsg, sizeof(ninedof_mote_temp_msg_t));
+    if (p == NULL)
+      return;
+    memcpy(p, &msg, sizeof(msg));
+    call PacketLink.setRetries(&tempMsg, 0);            /* no ack: the next one follows */
+    if (call TempSend.send(BASESTATION, &tempMsg, sizeof(ninedof_mote_temp_msg_t)) == SUCCESS)
+      tempBusy = TRUE;
+  }
+
+  event void TempSend.sendDone(message_t *m, error_t err) {
+    tempBusy = FALSE;
   }
 }

@@ -101,9 +101,46 @@ typedef nx_struct ninedof_calset {
   nx_uint16_t mote;        /* target mote id (TOS_NODE_ID) */
   nx_uint16_t version;     /* 1..65535; low 4 bits go into every sample's flags */
   nx_uint8_t sensors;      /* bit NINEDOF_SENSOR_x set: that sensor is corrected */
-  nx_uint8_t reserved;     /* 0 */
+  nx_uint8_t format;       /* NINEDOF_CALSET_PLAIN (0; "reserved, 0" in images
+                              built before the temperature terms) or _TEMP */
   ninedof_cal_sensor_t s[NINEDOF_SENSORS];
 } ninedof_calset_t;
+
+/* ---------------------------------------------------------------------- */
+/* Calibration set with temperature terms (format NINEDOF_CALSET_TEMP).    */
+/* The plain set followed by a temperature block; a set without            */
+/* temperature terms is the plain set alone, byte for byte what images    */
+/* built before the temperature terms accept.  Those images refuse the     */
+/* longer set: its fragments past byte 102 get NINEDOF_CAL_E_FRAG, and     */
+/* nothing changes on the mote.  For sensor k with its bit in              */
+/* temp_sensors, T the board temperature (raw ITG-3200 TEMP_OUT) and       */
+/* dT = clamp(T, t_lo, t_hi) - t_ref (TEMP_OUT counts):                    */
+/*   out_i = sat(((1 + g_i dT / 2^gshift) (A_q raw)_i + c_q,i) / 2^shift   */
+/*               + o_i dT / 2^oshift)                                      */
+/* (the calibration's TempModel in counts: scale_per_c and offset_per_c    */
+/* per TEMP_OUT count).  See tinyos/ninedof_cal.h.                         */
+/* ---------------------------------------------------------------------- */
+enum {
+  NINEDOF_CALSET_PLAIN = 0,     /* ninedof_calset_t, 102 bytes */
+  NINEDOF_CALSET_TEMP = 1,      /* ninedof_calset_temp_t, 164 bytes */
+};
+
+typedef nx_struct ninedof_cal_temp {
+  nx_int16_t t_ref;        /* raw TEMP_OUT at which the plain correction holds */
+  nx_int16_t t_lo;         /* calibrated range, raw TEMP_OUT: T is clamped to it */
+  nx_int16_t t_hi;
+  nx_int16_t o[3];         /* offset change, counts per TEMP_OUT count, Q(oshift) */
+  nx_int16_t g[3];         /* relative gain change per TEMP_OUT count, Q(gshift) */
+  nx_uint8_t oshift;       /* 14..40 */
+  nx_uint8_t gshift;       /* 16..46 */
+} ninedof_cal_temp_t;
+
+typedef nx_struct ninedof_calset_temp {
+  ninedof_calset_t base;   /* base.format = NINEDOF_CALSET_TEMP */
+  nx_uint8_t temp_sensors; /* bit NINEDOF_SENSOR_x: that sensor has temperature terms */
+  nx_uint8_t reserved;     /* 0 */
+  ninedof_cal_temp_t t[NINEDOF_SENSORS];
+} ninedof_calset_temp_t;
 
 /* Reason codes in acks; the host prints their meaning (protocol.py). */
 enum {

@@ -37,6 +37,7 @@ enum {
   ITG3200_SMPLRT_DIV = 0x15,
   ITG3200_DLPF_FS = 0x16,
   ITG3200_INT_CFG = 0x17,
+  ITG3200_TEMP_OUT_H = 0x1B,  /* TH TL, then the rates: one burst of 8 */
   ITG3200_GYRO_XOUT_H = 0x1D, /* XH XL YH YL ZH ZL: big-endian */
   ITG3200_PWR_MGM = 0x3E,
   ITG3200_WHO_AM_I_VALUE = 0x68,
@@ -101,9 +102,11 @@ typedef struct {
   ninedof_reg_write_t sleep;          /* SplitControl.stop's write */
   /* a read: write these read_len bytes (register pointer, or the
    * HMC5883L's trigger, which leaves its pointer on the data), repeated
-   * start, NINEDOF_CHIP_DATA bytes */
+   * start, data_len bytes (NINEDOF_CHIP_DATA, or NINEDOF_CHIP_DATA_MAX for
+   * the ITG-3200: TEMP_OUT and the rates in one burst from 0x1B) */
   uint8_t read_cmd[2];
   uint8_t read_len;
+  uint8_t data_len;
   /* the witness: the config write whose register is read back on a
    * schedule; it differs from its power-on reset value (witness_reset,
    * datasheet), so a chip that lost power and came back answers with
@@ -116,8 +119,11 @@ extern const ninedof_chip_t NINEDOF_CHIP[NINEDOF_CHIPS];
 
 /* 1 if the id_len bytes read from id_reg are the expected chip's */
 uint8_t ninedof_chip_id_ok(uint8_t chip, const uint8_t *id);
-/* The NINEDOF_CHIP_DATA data bytes of a read -> x, y, z counts */
+/* The data_len data bytes of a read -> x, y, z counts */
 void ninedof_chip_xyz(uint8_t chip, const uint8_t *b, int16_t out[3]);
+/* The temperature in the data bytes of a read: the ITG-3200's raw TEMP_OUT
+ * (-13200 at 35 C, 280 LSB per C); 0 for the other chips */
+int16_t ninedof_chip_temp(uint8_t chip, const uint8_t *b);
 
 /* Identity checks (1 = the expected chip answered) */
 uint8_t ninedof_adxl345_id_ok(uint8_t devid);
@@ -128,7 +134,8 @@ uint8_t ninedof_hmc5883l_id_ok(const uint8_t id[3]);
 /* Data bytes -> counts                                                    */
 /* ---------------------------------------------------------------------- */
 enum {
-  NINEDOF_CHIP_DATA = 6,      /* data bytes read from each chip */
+  NINEDOF_CHIP_DATA = 6,      /* axis bytes read from each chip */
+  NINEDOF_CHIP_DATA_MAX = 8,  /* bytes of the longest read: ITG-3200 TEMP_OUT + rates */
   NINEDOF_HMC5883L_OVERFLOW = -4096,
 };
 
@@ -137,6 +144,8 @@ enum {
 void ninedof_adxl345_xyz(const uint8_t b[6], int16_t out[3]);
 /* ITG3200 GYRO_XOUT_H..GYRO_ZOUT_L (big-endian) -> gx, gy, gz */
 void ninedof_itg3200_xyz(const uint8_t b[6], int16_t out[3]);
+/* ITG3200 TEMP_OUT_H, TEMP_OUT_L (big-endian) -> raw temperature */
+int16_t ninedof_itg3200_temp(const uint8_t b[2]);
 /* HMC5883L data registers 0x03..0x08 (big-endian, X, Z, Y) -> mx, my, mz */
 void ninedof_hmc5883l_xyz(const uint8_t b[6], int16_t out[3]);
 /* All three into one record ax..mz */

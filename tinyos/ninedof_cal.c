@@ -48,15 +48,45 @@ uint16_t ninedof_crc16(uint16_t crc, const uint8_t *data, uint16_t len)
 /* Wire <-> native                                                         */
 /* ---------------------------------------------------------------------- */
 #define SENSOR_BITS ((1u << NINEDOF_SENSORS) - 1u)
+#define ROUND_Q14 (1L << (NINEDOF_SHIFT_MAX - 1))
 
-uint8_t ninedof_cal_decode(const ninedof_calset_t *wire, ninedof_cal_t *out)
+uint8_t ninedof_calset_len(uint8_t format)
 {
+  if (format == NINEDOF_CALSET_PLAIN)
+    return (uint8_t)sizeof(ninedof_calset_t);
+  if (format == NINEDOF_CALSET_TEMP)
+    return (uint8_t)sizeof(ninedof_calset_temp_t);
+  return 0;
+}
+
+/* No temperature in force: every sensor at its t_ref (dT = 0) */
+static void temp_none(ninedof_cal_t *cal)
+{
+  uint8_t k, i;
+
+  cal->temp = 0;
+  cal->temp_known = 0;
+  cal->gain_zero = (1u << NINEDOF_SENSORS) - 1u;
+  for (k = 0; k < NINEDOF_SENSORS; k++) {
+    cal->eff[k] = cal->s[k];
+    for (i = 0; i < 3; i++)
+      cal->tg[k][i] = 0;
+  }
+}
+
+uint8_t ninedof_cal_decode(const void *bytes, uint8_t len, ninedof_cal_t *out)
+{
+  const ninedof_calset_t *wire = (const ninedof_calset_t *)bytes;
   uint8_t k, i, bad = 0;
 
+  memset(out, 0, sizeof(*out));
+  if (len < sizeof(ninedof_calset_t))
+    return NINEDOF_CAL_E_FORMAT;
   out->mote = nxp_get_u16(&wire->mote);
   out->version = nxp_get_u16(&wire->version);
   out->sensors = nxp_get_u8(&wire->sensors);
-  if (nxp_get_u8(&wire->reserved) != 0 || (out->sensors & ~SENSOR_BITS) != 0)
+  out->format = nxp_get_u8(&wire->format);
+  if (ninedof_calset_len(out->format) != len || (out->sensors & ~SENSOR_BITS) != 0)
     bad = 1;
   for (k = 0; k < NINEDOF_SENSORS; k++) {
     const ninedof_cal_sensor_t *w = &wire->s[k];
@@ -70,17 +100,46 @@ uint8_t ninedof_cal_decode(const ninedof_calset_t *wire, ninedof_cal_t *out)
         nxp_get_u8(&w->reserved) != 0)
       bad = 1;
   }
-  return bad ? NINEDOF_CAL_E_FORMAT : NINEDOF_CAL_OK;
+  if (!bad && out->format == NINEDOF_CALSET_TEMP) {
+    const ninedof_calset_temp_t *wt = (const ninedof_calset_temp_t *)bytes;
+    out->temp_sensors = nxp_get_u8(&wt->temp_sensors);
+    if ((out->temp_sensors & ~SENSOR_BITS) != 0 || nxp_get_u8(&wt->reserved) != 0)
+      bad = 1;
+    for (k = 0; k < NINEDOF_SENSORS; k++) {
+      const ninedof_cal_temp_t *w = &wt->t[k];
+      ninedof_cal_temp_native_t *n = &out->t[k];
+      n->t_ref = nxp_get_i16(&w->t_ref);
+      n->t_lo = nxp_get_i16(&w->t_lo);
+      n->t_hi = nxp_get_i16(&w->t_hi);
+      for (i = 0; i < 3; i++)
+        n->o[i] = nxp_get_i16(&w->o[i]);
+      for (i = 0; i < 3; i++)
+        n->g[i] = nxp_get_i16(&w->g[i]);
+      n->oshift = nxp_get_u8(&w->oshift);
+      n->gshift = nxp_get_u8(&w->gshift);
+      if (out->temp_sensors & (1u << k)) {
+        if (n->oshift < NINEDOF_OSHIFT_MIN || n->oshift > NINEDOF_OSHIFT_MAX ||
+            n->gshift < NINEDOF_GSHIFT_MIN || n->gshift > NINEDOF_GSHIFT_MAX ||
+            out->s[k].shift != NINEDOF_SHIFT_MAX)
+          bad = 1;
+      }
+    }
+  }
+  if (bad)
+    return NINEDOF_CAL_E_FORMAT;
+  temp_none(out);
+  return NINEDOF_CAL_OK;
 }
 
-void ninedof_cal_encode(const ninedof_cal_t *cal, ninedof_calset_t *wire)
+uint8_t ninedof_cal_encode(const ninedof_cal_t *cal, void *bytes)
 {
-  uint8_t k, i;
+  ninedof_calset_t *wire = (ninedof_calset_t *)bytes;
+  uint8_t k, i, len = ninedof_calset_len(cal->format);
 
   nxp_set_u16(&wire->mote, cal->mote);
   nxp_set_u16(&wire->version, cal->version);
   nxp_set_u8(&wire->sensors, cal->sensors);
-  nxp_set_u8(&wire->reserved, 0);
+  nxp_set_u8(&wire->format, cal->format);
   for (k = 0; k < NINEDOF_SENSORS; k++) {
     ninedof_cal_sensor_t *w = &wire->s[k];
     const ninedof_cal_sensor_native_t *n = &cal->s[k];
@@ -90,6 +149,80 @@ void ninedof_cal_encode(const ninedof_cal_t *cal, ninedof_calset_t *wire)
       nxp_set_i32(&w->c[i], n->c[i]);
     nxp_set_u8(&w->shift, n->shift);
     nxp_set_u8(&w->reserved, 0);
+  }
+  if (cal->format == NINEDOF_CALSET_TEMP) {
+    ninedof_calset_temp_t *wt = (ninedof_calset_temp_t *)bytes;
+    nxp_set_u8(&wt->temp_sensors, cal->temp_sensors);
+    nxp_set_u8(&wt->reserved, 0);
+    for (k = 0; k < NINEDOF_SENSORS; k++) {
+      ninedof_cal_temp_t *w = &wt->t[k];
+      const ninedof_cal_temp_native_t *n = &cal->t[k];
+      nxp_set_i16(&w->t_ref, n->t_ref);
+      nxp_set_i16(&w->t_lo, n->t_lo);
+      nxp_set_i16(&w->t_hi, n->t_hi);
+      for (i = 0; i < 3; i++)
+        nxp_set_i16(&w->o[i], n->o[i]);
+      for (i = 0; i < 3; i++)
+        nxp_set_i16(&w->g[i], n->g[i]);
+      nxp_set_u8(&w->oshift, n->oshift);
+      nxp_set_u8(&w->gshift, n->gshift);
+    }
+  }
+  return len;
+}
+
+/* ---------------------------------------------------------------------- */
+/* Temperature terms                                                       */
+/* ---------------------------------------------------------------------- */
+/* round(v / 2^n), half up (arithmetic shift); |v| < 2^30, n <= 30 */
+static int32_t round_shift(int32_t v, uint8_t n)
+{
+  if (n == 0)
+    return v;
+  return (v + ((int32_t)1 << (n - 1))) >> n;
+}
+
+/* dT of sensor k at raw temperature T: clamp(T, t_lo, t_hi) - t_ref (int32) */
+static int32_t temp_delta(const ninedof_cal_temp_native_t *t, int16_t raw)
+{
+  int16_t c = raw < t->t_lo ? t->t_lo : raw > t->t_hi ? t->t_hi : raw;
+  return (int32_t)c - t->t_ref;
+}
+
+/* g16 (Q16) and O (Q14) of row i at dT (|dT| <= 32767: validated) */
+static int32_t temp_gain(const ninedof_cal_temp_native_t *t, uint8_t i, int32_t dt)
+{
+  return round_shift((int32_t)t->g[i] * (int16_t)dt, (uint8_t)(t->gshift - 16));
+}
+
+static int32_t temp_offset(const ninedof_cal_temp_native_t *t, uint8_t i, int32_t dt)
+{
+  return round_shift((int32_t)t->o[i] * (int16_t)dt, (uint8_t)(t->oshift - 14));
+}
+
+void ninedof_cal_set_temp(ninedof_cal_t *cal, int16_t raw)
+{
+  uint8_t k, i;
+
+  cal->temp = raw;
+  cal->temp_known = 1;
+  cal->gain_zero = 0;
+  for (k = 0; k < NINEDOF_SENSORS; k++) {
+    uint8_t zero = 1;
+    const ninedof_cal_temp_native_t *t = &cal->t[k];
+    uint8_t on = (cal->temp_sensors >> k) & 1;
+    int32_t dt = on ? temp_delta(t, raw) : 0;
+    /* an invalid set (never put in force) may not fit: keep it defined */
+    if (dt > 32767 || dt < -32767)
+      dt = 0;
+    cal->eff[k] = cal->s[k];
+    for (i = 0; i < 3; i++) {
+      cal->tg[k][i] = on ? (int16_t)temp_gain(t, i, dt) : 0;
+      zero &= cal->tg[k][i] == 0;
+      cal->eff[k].c[i] = (int32_t)((uint32_t)cal->s[k].c[i] +
+                                   (uint32_t)(on ? temp_offset(t, i, dt) : 0));
+    }
+    cal->gain_zero |= (uint8_t)(zero << k);
   }
 }
 
@@ -105,6 +238,7 @@ void ninedof_cal_identity(ninedof_cal_t *cal, uint16_t mote, uint16_t version)
     cal->s[k].a[0] = cal->s[k].a[4] = cal->s[k].a[8] = 1 << NINEDOF_SHIFT_MAX;
     cal->s[k].shift = NINEDOF_SHIFT_MAX;
   }
+  temp_none(cal);
 }
 
 /* ---------------------------------------------------------------------- */
@@ -146,6 +280,42 @@ static uint8_t sensor_in_range(const ninedof_cal_sensor_native_t *s)
   return 1;
 }
 
+/* Temperature terms of sensor k at both ends of its range (the terms are
+ * linear in dT, so the ends bound them). */
+static uint8_t temp_in_range(const ninedof_cal_t *cal, uint8_t k)
+{
+  const ninedof_cal_temp_native_t *t = &cal->t[k];
+  const ninedof_cal_sensor_native_t *s = &cal->s[k];
+  int32_t ends[2];
+  uint8_t e, r, j;
+
+  if (t->t_lo > t->t_hi)
+    return 0;
+  ends[0] = (int32_t)t->t_lo - t->t_ref;
+  ends[1] = (int32_t)t->t_hi - t->t_ref;
+  for (e = 0; e < 2; e++) {
+    int32_t dt = ends[e];
+    if (dt > 32767 || dt < -32767)
+      return 0;
+    for (r = 0; r < 3; r++) {
+      int32_t g = temp_gain(t, r, dt);
+      uint32_t sum = 0, acc, o = abs32(temp_offset(t, r, dt));
+      if (g > NINEDOF_LIMIT_GAIN_Q16 || g < -NINEDOF_LIMIT_GAIN_Q16)
+        return 0;
+      if (o > ((uint32_t)NINEDOF_LIMIT_OFFSET_COUNTS << NINEDOF_SHIFT_MAX))
+        return 0;
+      for (j = 0; j < 3; j++)
+        sum += abs32(s->a[3 * r + j]);
+      acc = sum * 32768UL;                  /* < 2^31: sensor_in_range */
+      acc += acc >> 3;                      /* |p g16 / 2^16| <= |p| / 8 */
+      acc += abs32(s->c[r]) + o + (uint32_t)ROUND_Q14 + 1UL;
+      if (acc >= 0x80000000UL)
+        return 0;
+    }
+  }
+  return 1;
+}
+
 uint8_t ninedof_cal_validate(const ninedof_cal_t *cal, uint16_t my_id)
 {
   uint8_t k;
@@ -160,8 +330,17 @@ uint8_t ninedof_cal_validate(const ninedof_cal_t *cal, uint16_t my_id)
     if (cal->s[k].shift < NINEDOF_SHIFT_MIN || cal->s[k].shift > NINEDOF_SHIFT_MAX)
       return NINEDOF_CAL_E_FORMAT;
   /* Only corrected sensors are range-checked: the others are never used. */
+  if (ninedof_calset_len(cal->format) == 0 || (cal->temp_sensors & ~cal->sensors) ||
+      (cal->format != NINEDOF_CALSET_TEMP && cal->temp_sensors))
+    return NINEDOF_CAL_E_FORMAT;
+  for (k = 0; k < NINEDOF_SENSORS; k++)
+    if ((cal->temp_sensors & (1u << k)) && cal->s[k].shift != NINEDOF_SHIFT_MAX)
+      return NINEDOF_CAL_E_FORMAT;
   for (k = 0; k < NINEDOF_SENSORS; k++)
     if ((cal->sensors & (1u << k)) && !sensor_in_range(&cal->s[k]))
+      return NINEDOF_CAL_E_RANGE;
+  for (k = 0; k < NINEDOF_SENSORS; k++)
+    if ((cal->temp_sensors & (1u << k)) && !temp_in_range(cal, k))
       return NINEDOF_CAL_E_RANGE;
   return NINEDOF_CAL_OK;
 }
@@ -175,7 +354,6 @@ uint8_t ninedof_cal_validate(const ninedof_cal_t *cal, uint16_t my_id)
 #define NINEDOF_ALWAYS_INLINE inline
 #endif
 
-#define ROUND_Q14 (1L << (NINEDOF_SHIFT_MAX - 1))
 
 /* int32 -> sat16(acc >> 14) */
 static NINEDOF_ALWAYS_INLINE int16_t sat_q14(int32_t acc)
@@ -305,6 +483,46 @@ static NINEDOF_ALWAYS_INLINE void sensor_q14(const ninedof_cal_sensor_native_t *
     : "r0", "r1", "memory");
   (void)acc0; (void)acc1; (void)acc2; (void)m; (void)x; (void)z; (void)p;
 }
+
+/* The same nine multiply-accumulates, the three int32 accumulators
+ * (c + 2^13 + A raw, Q14) stored as they are: for the temperature terms,
+ * which need A raw exactly (sensor_temp). */
+#define K_ST32(ACC)                                                     \
+  "st X+, %A[" #ACC "]\n\tst X+, %B[" #ACC "]\n\t"                     \
+  "st X+, %C[" #ACC "]\n\tst X+, %D[" #ACC "]\n\t"
+
+static NINEDOF_ALWAYS_INLINE void sensor_q14_acc(const ninedof_cal_sensor_native_t *s,
+                                                 const int16_t *in, int32_t *acc)
+{
+  int32_t acc0, acc1, acc2;
+  int16_t m, x;
+  uint8_t z;
+  const int16_t *p = in;
+
+  ninedof_kernel_out = (int16_t *)acc;
+  __asm__ volatile (
+    "clr %[z]\n\t"
+    K_LDC(acc0, 18, 19, 20, 21)
+    K_LDC(acc1, 22, 23, 24, 25)
+    K_LDC(acc2, 26, 27, 28, 29)
+    "ldi %A[m], 0x20\n\t"
+    K_ROUND(acc0) K_ROUND(acc1) K_ROUND(acc2)
+    K_LDX
+    K_LDM(0, 1) K_MAC(acc0) K_LDM(6, 7) K_MAC(acc1) K_LDM(12, 13) K_MAC(acc2)
+    K_LDX
+    K_LDM(2, 3) K_MAC(acc0) K_LDM(8, 9) K_MAC(acc1) K_LDM(14, 15) K_MAC(acc2)
+    K_LDX
+    K_LDM(4, 5) K_MAC(acc0) K_LDM(10, 11) K_MAC(acc1) K_LDM(16, 17) K_MAC(acc2)
+    "clr r1\n\t"
+    "lds r26, %[o]\n\t"
+    "lds r27, %[o]+1\n\t"
+    K_ST32(acc0) K_ST32(acc1) K_ST32(acc2)
+    : [acc0] "=&r" (acc0), [acc1] "=&r" (acc1), [acc2] "=&r" (acc2),
+      [m] "=&a" (m), [x] "=&a" (x), [z] "=&r" (z), [p] "+x" (p)
+    : [s] "z" (s), [o] "i" (&ninedof_kernel_out)
+    : "r0", "r1", "memory");
+  (void)acc0; (void)acc1; (void)acc2; (void)m; (void)x; (void)z; (void)p;
+}
 #else
 /* Same arithmetic in C, wrapping like the AVR code (only sets that were
  * never validated can wrap). */
@@ -326,6 +544,23 @@ static NINEDOF_ALWAYS_INLINE void sensor_q14(const ninedof_cal_sensor_native_t *
   out[0] = sat_q14(y[0]);
   out[1] = sat_q14(y[1]);
   out[2] = sat_q14(y[2]);
+}
+
+/* c + 2^13 + A raw per row (Q14), wrapping like the AVR code */
+static NINEDOF_ALWAYS_INLINE void sensor_q14_acc(const ninedof_cal_sensor_native_t *s,
+                                                 const int16_t *in, int32_t *acc)
+{
+  int16_t x0 = in[0], x1 = in[1], x2 = in[2];
+  uint8_t r;
+
+  for (r = 0; r < 3; r++) {
+    const int16_t *a = s->a + 3 * r;
+    uint32_t u = (uint32_t)s->c[r] + (uint32_t)ROUND_Q14;
+    u += (uint32_t)((int32_t)a[0] * x0);
+    u += (uint32_t)((int32_t)a[1] * x1);
+    u += (uint32_t)((int32_t)a[2] * x2);
+    acc[r] = (int32_t)u;
+  }
 }
 #endif
 
@@ -391,12 +626,47 @@ static __attribute__((noinline)) void sensor_other_shift(
   }
 }
 
+/* floor(p * g / 2^16), exact: p = ph 2^16 + pl */
+static NINEDOF_ALWAYS_INLINE int32_t mulhi16(int32_t p, int16_t g)
+{
+  int16_t ph = (int16_t)((uint32_t)p >> 16);
+  uint16_t pl = (uint16_t)p;
+  return (int32_t)ph * g + (((int32_t)pl * g) >> 16);
+}
+
+/* A sensor with temperature terms (shift 14, ninedof_cal.h):
+ * out = sat((p + floor(p g16 / 2^16) + c + O + 2^13) >> 14), wrapping like
+ * int32 hardware (only sets that were never validated can wrap). */
+static __attribute__((noinline)) void sensor_temp(const ninedof_cal_t *cal, uint8_t k,
+                                                  const int16_t *in, int16_t *out)
+{
+  const ninedof_cal_sensor_native_t *s = &cal->eff[k];     /* c + O */
+  const int16_t *g = cal->tg[k];
+  int32_t acc[3];
+  uint8_t r;
+
+  sensor_q14_acc(s, in, acc);          /* loads done: in and out may alias */
+  for (r = 0; r < 3; r++) {
+    uint32_t u = (uint32_t)acc[r];
+    int32_t p = (int32_t)(u - (uint32_t)s->c[r] - (uint32_t)ROUND_Q14);   /* A raw */
+    u += (uint32_t)mulhi16(p, g[r]);
+    out[r] = sat_q14((int32_t)u);
+  }
+}
+
 /* Sensor k of one record; returns 0 when the sensor passes raw. */
 static NINEDOF_ALWAYS_INLINE uint8_t correct_sensor(const ninedof_cal_t *cal, uint8_t k,
                                                     const int16_t *in, int16_t *out)
 {
   const ninedof_cal_sensor_native_t *s = &cal->s[k];
 
+  if ((cal->sensors & cal->temp_sensors & (1u << k)) && s->shift == NINEDOF_SHIFT_MAX) {
+    if (cal->gain_zero & (1u << k))
+      sensor_q14(&cal->eff[k], in, out);      /* offsets only: the kernel with c + O */
+    else
+      sensor_temp(cal, k, in, out);
+    return 1;
+  }
   if ((cal->sensors & (1u << k)) && s->shift == NINEDOF_SHIFT_MAX) {
     sensor_q14(s, in, out);
     return 1;
@@ -451,38 +721,42 @@ void ninedof_correct(const ninedof_cal_t *cal, const int16_t raw[9], int16_t out
 /* ---------------------------------------------------------------------- */
 /* Upload receiver                                                         */
 /* ---------------------------------------------------------------------- */
-#define CALSET_SIZE ((uint8_t)sizeof(ninedof_calset_t))
+#define CALSET_MAX NINEDOF_CALSET_MAX
 
-static void set_active(ninedof_calrx_t *rx, const ninedof_calset_t *wire,
+static void set_active(ninedof_calrx_t *rx, const uint8_t *wire, uint8_t len,
                        const ninedof_cal_t *cal)
 {
-  rx->active_wire = *wire;
+  memcpy(rx->active_wire, wire, len);
+  rx->active_len = len;
   rx->active = *cal;
-  rx->active_crc = ninedof_crc16(0, (const uint8_t *)wire, CALSET_SIZE);
+  rx->active_crc = ninedof_crc16(0, wire, len);
+  if (rx->temp_known)
+    ninedof_cal_set_temp(&rx->active, rx->temp);
 }
 
 static void active_identity(ninedof_calrx_t *rx, uint16_t version)
 {
   ninedof_cal_t cal;
-  ninedof_calset_t wire;
+  uint8_t wire[sizeof(ninedof_calset_t)];
+  uint8_t len;
 
   ninedof_cal_identity(&cal, rx->my_id, version);
-  ninedof_cal_encode(&cal, &wire);
-  set_active(rx, &wire, &cal);
+  len = ninedof_cal_encode(&cal, wire);
+  set_active(rx, wire, len, &cal);
 }
 
 static void staging_clear(ninedof_calrx_t *rx, uint16_t version)
 {
-  memset(&rx->staged, 0, sizeof(rx->staged));
+  memset(rx->staged, 0, sizeof(rx->staged));
   memset(rx->have, 0, sizeof(rx->have));
   rx->staged_version = version;
 }
 
-static uint8_t staging_complete(const ninedof_calrx_t *rx)
+static uint8_t staging_complete(const ninedof_calrx_t *rx, uint8_t len)
 {
   uint8_t i;
 
-  for (i = 0; i < CALSET_SIZE; i++)
+  for (i = 0; i < len; i++)
     if (!(rx->have[i >> 3] & (1u << (i & 7))))
       return 0;
   return 1;
@@ -495,6 +769,13 @@ void ninedof_calrx_init(ninedof_calrx_t *rx, uint16_t my_id)
   staging_clear(rx, 0);
   active_identity(rx, 0);
   rx->dirty = 0;
+}
+
+void ninedof_calrx_set_temp(ninedof_calrx_t *rx, int16_t raw)
+{
+  rx->temp = raw;
+  rx->temp_known = 1;
+  ninedof_cal_set_temp(&rx->active, raw);
 }
 
 static uint8_t handle_frag(ninedof_calrx_t *rx, const ninedof_cal_frag_msg_t *m,
@@ -511,13 +792,13 @@ static uint8_t handle_frag(ninedof_calrx_t *rx, const ninedof_cal_frag_msg_t *m,
   } else if (version == 0) {
     status = NINEDOF_CAL_E_VERSION;
   } else if (len == 0 || len > NINEDOF_FRAG_DATA ||
-             (uint16_t)offset + len > CALSET_SIZE) {
+             (uint16_t)offset + len > CALSET_MAX) {
     status = NINEDOF_CAL_E_FRAG;
   } else {
     uint8_t i;
     if (version != rx->staged_version)
       staging_clear(rx, version);          /* a new version restarts staging */
-    memcpy((uint8_t *)&rx->staged + offset, m->data, len);
+    memcpy(rx->staged + offset, m->data, len);
     for (i = offset; i < offset + len; i++)
       rx->have[i >> 3] |= (uint8_t)(1u << (i & 7));
   }
@@ -538,15 +819,15 @@ static uint8_t commit_apply(ninedof_calrx_t *rx, uint16_t version, uint8_t lengt
 
   if (version == 0 || version != rx->staged_version)
     return NINEDOF_CAL_E_VERSION;
-  if (length != CALSET_SIZE)
+  if (length != sizeof(ninedof_calset_t) && length != sizeof(ninedof_calset_temp_t))
     return NINEDOF_CAL_E_FORMAT;
-  if (!staging_complete(rx))
+  if (!staging_complete(rx, length))
     return NINEDOF_CAL_E_INCOMPLETE;
-  crc = ninedof_crc16(0, (const uint8_t *)&rx->staged, CALSET_SIZE);
+  crc = ninedof_crc16(0, rx->staged, length);
   *crc_out = crc;
   if (crc != crc_expected)
     return NINEDOF_CAL_E_CRC;
-  status = ninedof_cal_decode(&rx->staged, &cal);
+  status = ninedof_cal_decode(rx->staged, length, &cal);    /* length = format's */
   if (status != NINEDOF_CAL_OK)
     return status;
   status = ninedof_cal_validate(&cal, rx->my_id);
@@ -556,10 +837,10 @@ static uint8_t commit_apply(ninedof_calrx_t *rx, uint16_t version, uint8_t lengt
     return NINEDOF_CAL_E_VERSION;
   /* A repeated commit (its ack was lost) of the set already in force is
    * acknowledged again without another EEPROM write. */
-  if (crc == rx->active_crc &&
-      memcmp(&rx->staged, &rx->active_wire, CALSET_SIZE) == 0)
+  if (crc == rx->active_crc && length == rx->active_len &&
+      memcmp(rx->staged, rx->active_wire, length) == 0)
     return NINEDOF_CAL_OK;
-  set_active(rx, &rx->staged, &cal);
+  set_active(rx, rx->staged, length, &cal);
   rx->dirty = 1;
   return NINEDOF_CAL_OK;
 }
@@ -611,11 +892,11 @@ static uint8_t handle_query(ninedof_calrx_t *rx, const ninedof_cal_query_msg_t *
   if (nxp_get_u16(&m->mote) != rx->my_id)
     return 0;
   memset(rep, 0, sizeof(*rep));
-  if (offset < CALSET_SIZE) {
-    len = (uint8_t)(CALSET_SIZE - offset);
+  if (offset < rx->active_len) {
+    len = (uint8_t)(rx->active_len - offset);
     if (len > NINEDOF_FRAG_DATA)
       len = NINEDOF_FRAG_DATA;
-    memcpy(rep->data, (const uint8_t *)&rx->active_wire + offset, len);
+    memcpy(rep->data, rx->active_wire + offset, len);
   }
   nxp_set_u16(&rep->mote, rx->my_id);
   nxp_set_u16(&rep->version, rx->active.version);
@@ -666,14 +947,14 @@ void ninedof_calrx_correct_block(const ninedof_calrx_t *rx, const int16_t *raw,
 /* ---------------------------------------------------------------------- */
 /* Persistent image                                                        */
 /* ---------------------------------------------------------------------- */
-static uint16_t image_crc(const uint8_t *image)
+static uint16_t image_crc(const uint8_t *image, uint8_t set_len)
 {
   uint16_t crc = ninedof_crc16(0, image + 2, 2);           /* generation */
-  return ninedof_crc16(crc, image + 6, CALSET_SIZE);       /* the set */
+  return ninedof_crc16(crc, image + 6, set_len);           /* the set */
 }
 
-void ninedof_calrx_image(const ninedof_calrx_t *rx, uint16_t generation,
-                         uint8_t image[NINEDOF_IMAGE_SIZE])
+uint8_t ninedof_calrx_image(const ninedof_calrx_t *rx, uint16_t generation,
+                            uint8_t image[NINEDOF_IMAGE_MAX])
 {
   uint16_t crc;
 
@@ -681,22 +962,37 @@ void ninedof_calrx_image(const ninedof_calrx_t *rx, uint16_t generation,
   image[1] = '9';
   image[2] = (uint8_t)(generation >> 8);
   image[3] = (uint8_t)generation;
-  memcpy(image + 6, &rx->active_wire, CALSET_SIZE);
-  crc = image_crc(image);
+  memcpy(image + 6, rx->active_wire, rx->active_len);
+  crc = image_crc(image, rx->active_len);
   image[4] = (uint8_t)(crc >> 8);
   image[5] = (uint8_t)crc;
+  return (uint8_t)(6 + rx->active_len);
 }
 
-uint8_t ninedof_image_check(const uint8_t image[NINEDOF_IMAGE_SIZE], uint16_t my_id,
+/* Length of the set in a well-formed image of `avail` bytes, 0 if none */
+static uint8_t image_set_len(const uint8_t *image, uint8_t avail)
+{
+  uint8_t len;
+
+  if (avail < NINEDOF_IMAGE_SIZE || image[0] != 'N' || image[1] != '9')
+    return 0;
+  len = ninedof_calset_len(image[6 + 5]);                 /* the set's format byte */
+  if (len == 0 || 6 + len > avail)
+    return 0;
+  if (image_crc(image, len) != (uint16_t)((image[4] << 8) | image[5]))
+    return 0;
+  return len;
+}
+
+uint8_t ninedof_image_check(const uint8_t *image, uint8_t avail, uint16_t my_id,
                             uint16_t *generation)
 {
   ninedof_cal_t cal;
+  uint8_t len = image_set_len(image, avail);
 
-  if (image[0] != 'N' || image[1] != '9')
+  if (len == 0)
     return 0;
-  if (image_crc(image) != (uint16_t)((image[4] << 8) | image[5]))
-    return 0;
-  if (ninedof_cal_decode((const ninedof_calset_t *)(image + 6), &cal) != NINEDOF_CAL_OK)
+  if (ninedof_cal_decode(image + 6, len, &cal) != NINEDOF_CAL_OK)
     return 0;
   if (ninedof_cal_validate(&cal, my_id) != NINEDOF_CAL_OK)
     return 0;
@@ -706,33 +1002,37 @@ uint8_t ninedof_image_check(const uint8_t image[NINEDOF_IMAGE_SIZE], uint16_t my
 }
 
 uint8_t ninedof_calrx_restore(ninedof_calrx_t *rx,
-                              const uint8_t slot0[NINEDOF_IMAGE_SIZE],
-                              const uint8_t slot1[NINEDOF_IMAGE_SIZE],
+                              const uint8_t slot0[NINEDOF_IMAGE_MAX],
+                              const uint8_t slot1[NINEDOF_IMAGE_MAX],
+                              const uint8_t *legacy1,
                               uint8_t *next_slot, uint16_t *next_generation)
 {
-  uint16_t g0 = 0, g1 = 0;
-  uint8_t ok0 = ninedof_image_check(slot0, rx->my_id, &g0);
-  uint8_t ok1 = ninedof_image_check(slot1, rx->my_id, &g1);
-  uint8_t used;
-  const uint8_t *img;
-  uint16_t gen;
+  const uint8_t *img[3];
+  uint16_t gen[3] = { 0, 0, 0 };
+  uint8_t ok[3], i, used = 0xFF, len;
   ninedof_cal_t cal;
 
-  if (!ok0 && !ok1) {
+  img[0] = slot0;
+  img[1] = slot1;
+  img[2] = legacy1;
+  ok[0] = ninedof_image_check(slot0, NINEDOF_IMAGE_MAX, rx->my_id, &gen[0]);
+  ok[1] = ninedof_image_check(slot1, NINEDOF_IMAGE_MAX, rx->my_id, &gen[1]);
+  /* the old layout's slot 1 held only plain sets */
+  ok[2] = legacy1 && ninedof_image_check(legacy1, NINEDOF_IMAGE_SIZE, rx->my_id, &gen[2]);
+  for (i = 0; i < 3; i++)
+    if (ok[i] && (used == 0xFF || (int16_t)(uint16_t)(gen[i] - gen[used]) > 0))
+      used = i;                                         /* newest, wrap-aware */
+  if (used == 0xFF) {
     *next_slot = 0;
     *next_generation = 1;
     return 0xFF;
   }
-  if (ok0 && ok1)
-    used = ((int16_t)(uint16_t)(g1 - g0) > 0) ? 1 : 0;   /* wrap-aware */
-  else
-    used = ok1 ? 1 : 0;
-  img = used ? slot1 : slot0;
-  gen = used ? g1 : g0;
-  ninedof_cal_decode((const ninedof_calset_t *)(img + 6), &cal);
-  set_active(rx, (const ninedof_calset_t *)(img + 6), &cal);
+  len = image_set_len(img[used], used == 2 ? NINEDOF_IMAGE_SIZE : NINEDOF_IMAGE_MAX);
+  ninedof_cal_decode(img[used] + 6, len, &cal);
+  set_active(rx, img[used] + 6, len, &cal);
   rx->dirty = 0;
-  *next_slot = (uint8_t)(used ^ 1);
-  *next_generation = (uint16_t)(gen + 1);
+  /* slot 0 spans the old slot 1: after either old slot, write slot 1 */
+  *next_slot = (uint8_t)(used == 1 ? 0 : 1);
+  *next_generation = (uint16_t)(gen[used] + 1);
   return used;
 }

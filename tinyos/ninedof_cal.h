@@ -14,6 +14,20 @@
  * magnetometer sample with any axis at HMC5883L_OVERFLOW (-4096) stays
  * (-4096, -4096, -4096).  Sensors whose bit is clear in `sensors` pass raw.
  * Validation guarantees acc_i cannot overflow int32 for any int16 input.
+ *
+ * Temperature terms (a set of format NINEDOF_CALSET_TEMP, NineDofMsg.h):
+ * for a sensor with its bit in temp_sensors (its shift must be 14), with T
+ * the temperature in force (ninedof_cal_set_temp: raw TEMP_OUT; until one
+ * is set, each sensor's t_ref, i.e. no temperature term) and
+ * dT = clamp(T, t_lo, t_hi) - t_ref, per row i:
+ *   p_i   = sum_j a_ij raw_j                                (Q14, exact)
+ *   out_i = sat((p_i + floor(p_i * g16 / 2^16) + c_i + O + 2^13) >> 14)
+ * with g16 = round(g_i dT / 2^(gshift - 16)) (Q16, |g16| <= 2^13: at most
+ * 1/8) and O = round(o_i dT / 2^(oshift - 14)) (Q14), both recomputed only
+ * when T changes.  Against the exact value ((1 + g_i dT / 2^gshift) p_i + c_i)
+ * / 2^14 + o_i dT / 2^oshift this is off by at most 2^-17 |p_i| / 2^14
+ * (g16's rounding) + 2^-14 + 2^-15 before the final rounding, under 1 LSB
+ * wherever the output is not saturated (|p_i| / 2^14 < 47000 counts).
  */
 #ifndef NINEDOF_CAL_H
 #define NINEDOF_CAL_H
@@ -39,23 +53,62 @@ typedef struct {
   uint8_t shift;
 } ninedof_cal_sensor_native_t;
 
+/* Native form of one sensor's temperature terms (ninedof_cal_temp_t) */
+typedef struct {
+  int16_t t_ref, t_lo, t_hi;   /* raw TEMP_OUT */
+  int16_t o[3];          /* counts per TEMP_OUT count, Q(oshift) */
+  int16_t g[3];          /* relative per TEMP_OUT count, Q(gshift) */
+  uint8_t oshift, gshift;
+} ninedof_cal_temp_native_t;
+
+#define NINEDOF_OSHIFT_MIN 14
+#define NINEDOF_OSHIFT_MAX 40
+#define NINEDOF_GSHIFT_MIN 16
+#define NINEDOF_GSHIFT_MAX 46
+#define NINEDOF_LIMIT_GAIN_Q16 8192          /* |g dT| <= 1/8 over the range */
+
 /* Native form of a calibration set */
 typedef struct {
   uint16_t mote;
   uint16_t version;
   uint8_t sensors;       /* bit NINEDOF_SENSOR_x: corrected */
+  uint8_t format;        /* NINEDOF_CALSET_PLAIN or _TEMP */
   ninedof_cal_sensor_native_t s[NINEDOF_SENSORS];
+  uint8_t temp_sensors;  /* bit NINEDOF_SENSOR_x: temperature terms (format TEMP) */
+  ninedof_cal_temp_native_t t[NINEDOF_SENSORS];
+  /* the temperature terms at the temperature in force (ninedof_cal_set_temp) */
+  int16_t temp;          /* raw TEMP_OUT in force */
+  uint8_t temp_known;    /* 0: none set yet, each sensor at its t_ref */
+  /* per sensor with temperature terms: the correction at that temperature
+   * for the kernel (a, shift as in s[k]; c = c + O, Q14), and whether its
+   * gain terms are all 0 (then the kernel alone is the whole correction) */
+  ninedof_cal_sensor_native_t eff[NINEDOF_SENSORS];
+  uint8_t gain_zero;                /* bit k: tg[k] all 0 */
+  int16_t tg[NINEDOF_SENSORS][3];   /* g16, Q16 */
 } ninedof_cal_t;
+
+/* Bytes of a set of the given format (0 for an unknown format). */
+uint8_t ninedof_calset_len(uint8_t format);
+#define NINEDOF_CALSET_MAX ((uint8_t)sizeof(ninedof_calset_temp_t))   /* 164 */
 
 /* CRC-16-CCITT, XMODEM (poly 0x1021, no reflection); start with crc = 0.
  * Equals Python's binascii.crc_hqx(data, crc). */
 uint16_t ninedof_crc16(uint16_t crc, const uint8_t *data, uint16_t len);
 
-/* Wire (big-endian ninedof_calset_t) <-> native.  decode returns
- * NINEDOF_CAL_OK or NINEDOF_CAL_E_FORMAT (reserved bytes, unknown sensor bits,
- * shift outside NINEDOF_SHIFT_MIN..MAX). */
-uint8_t ninedof_cal_decode(const ninedof_calset_t *wire, ninedof_cal_t *out);
-void ninedof_cal_encode(const ninedof_cal_t *cal, ninedof_calset_t *wire);
+/* Wire (big-endian ninedof_calset_t, or ninedof_calset_temp_t) <-> native.
+ * decode takes the set's `len` bytes and returns NINEDOF_CAL_OK or
+ * NINEDOF_CAL_E_FORMAT (a length that is not the format's, an unknown
+ * format, reserved bytes, unknown sensor bits, shift outside
+ * NINEDOF_SHIFT_MIN..MAX, temperature terms on a sensor whose shift is not
+ * 14 or with shifts outside their ranges).  The decoded set has no
+ * temperature in force (each sensor at its t_ref).  encode writes
+ * ninedof_calset_len(cal->format) bytes and returns that length. */
+uint8_t ninedof_cal_decode(const void *wire, uint8_t len, ninedof_cal_t *out);
+uint8_t ninedof_cal_encode(const ninedof_cal_t *cal, void *wire);
+
+/* Put the board temperature `raw` (TEMP_OUT) in force for the temperature
+ * terms: recomputes tc and tg (a few multiplications per sensor). */
+void ninedof_cal_set_temp(ninedof_cal_t *cal, int16_t raw);
 
 /* The raw (identity) set: no sensor corrected. */
 void ninedof_cal_identity(ninedof_cal_t *cal, uint16_t mote, uint16_t version);
@@ -63,7 +116,10 @@ void ninedof_cal_identity(ninedof_cal_t *cal, uint16_t mote, uint16_t version);
 /* Everything a set must satisfy before it is put in force on mote `my_id`:
  * NINEDOF_CAL_OK, _E_MOTE, _E_VERSION (version 0), _E_FORMAT, _E_RANGE
  * (diagonal, off-diagonal and offset limits above, scaled to the set's
- * shift, and sum_j |a_ij| * 32768 + |c_i| < 2^31 for every row). */
+ * shift, and sum_j |a_ij| * 32768 + |c_i| < 2^31 for every row; with
+ * temperature terms, at both ends of the range: t_lo <= t_hi, |dT| <=
+ * 32767, |g dT| <= 1/8, |O| <= 4096 counts, and the accumulator
+ * (9/8) sum_j |a_ij| 32768 + |c_i| + |O| + 2^13 < 2^31). */
 uint8_t ninedof_cal_validate(const ninedof_cal_t *cal, uint16_t my_id);
 
 /* Correct one record (9 axes, ax..mz) / n records, raw and out may alias. */
@@ -77,14 +133,17 @@ void ninedof_correct_block(const ninedof_cal_t *cal, const int16_t *raw,
 typedef struct {
   uint16_t my_id;
   /* staging */
-  ninedof_calset_t staged;                          /* wire bytes being assembled */
-  uint8_t have[(sizeof(ninedof_calset_t) + 7) / 8]; /* bitmap of received bytes */
+  uint8_t staged[sizeof(ninedof_calset_temp_t)];    /* wire bytes being assembled */
+  uint8_t have[(sizeof(ninedof_calset_temp_t) + 7) / 8]; /* bitmap of received bytes */
   uint16_t staged_version;                          /* 0 = nothing staged */
   /* in force */
-  ninedof_calset_t active_wire;                     /* for read-back and CRC */
+  uint8_t active_wire[sizeof(ninedof_calset_temp_t)]; /* for read-back and CRC */
+  uint8_t active_len;                               /* bytes of active_wire in use */
   ninedof_cal_t active;                             /* used by correction */
   uint16_t active_crc;
   uint8_t dirty;                                    /* in force but not yet persisted */
+  int16_t temp;                                     /* board temperature (TEMP_OUT) */
+  uint8_t temp_known;                               /* ... once one was set */
 } ninedof_calrx_t;
 
 /* Start with the raw set, version 0. */
@@ -93,8 +152,10 @@ void ninedof_calrx_init(ninedof_calrx_t *rx, uint16_t my_id);
 /* Handle one received message addressed to this mote (AM type and payload).
  * Writes the reply payload into `reply` (at least 28 bytes) and its AM type
  * into *reply_type, and returns the reply length (0: no reply).
- *   CAL_FRAG   -> CAL_FRAG_ACK   (stages bytes; a new version restarts staging)
- *   CAL_COMMIT -> CAL_COMMIT_ACK (APPLY: complete + CRC + validate, then in force;
+ *   CAL_FRAG   -> CAL_FRAG_ACK   (stages bytes; a new version restarts staging;
+ *                                 bytes past NINEDOF_CALSET_MAX: E_FRAG)
+ *   CAL_COMMIT -> CAL_COMMIT_ACK (APPLY: length 102 or 152 as the set's
+ *                                 format says, complete + CRC + validate, then in force;
  *                                 RESET: raw set with the given version)
  *   CAL_QUERY  -> CAL_REPORT     (bytes of the set in force)
  * Messages of other types, or too short, get no reply.  A rejected set
@@ -112,32 +173,50 @@ uint8_t ninedof_calrx_flags(const ninedof_calrx_t *rx);
 void ninedof_calrx_correct_block(const ninedof_calrx_t *rx, const int16_t *raw,
                                  int16_t *out, uint16_t n);
 
+/* The board temperature (raw TEMP_OUT) for the set in force, and for every
+ * set put in force later. */
+void ninedof_calrx_set_temp(ninedof_calrx_t *rx, int16_t raw);
+
 /* ------------------------------------------------------------------------
  * Persistent image (internal EEPROM, two slots written alternately so a
  * reset during a write leaves the other slot valid).
  * Image: magic(2) 'N','9', generation(2), crc(2) over generation..set,
- * then the wire set (sizeof(ninedof_calset_t)).  Big-endian.
+ * then the wire set (its format byte gives its length: 102 or 152 bytes).
+ * Big-endian.  Slots of 256 bytes at 0x100 and 0x200.  Images built before
+ * the temperature terms wrote the 108-byte image of a plain set into slots
+ * at 0x100 and 0x180: the first is slot 0 here, the second
+ * (NINEDOF_EEPROM_LEGACY1) is read at boot and never written, so a set an
+ * old image saved stays in force after the update.
  * ---------------------------------------------------------------------- */
-#define NINEDOF_IMAGE_SIZE (6 + sizeof(ninedof_calset_t))
+#define NINEDOF_IMAGE_SIZE (6 + sizeof(ninedof_calset_t))        /* plain set */
+#define NINEDOF_IMAGE_MAX (6 + sizeof(ninedof_calset_temp_t))    /* largest */
 #define NINEDOF_EEPROM_SLOT0 0x100
-#define NINEDOF_EEPROM_SLOT1 0x180
+#define NINEDOF_EEPROM_SLOT1 0x200
+#define NINEDOF_EEPROM_LEGACY1 0x180
+#define NINEDOF_EEPROM_SLOT_SIZE 0x100
 
-/* Build the image of the set in force with the given generation number. */
-void ninedof_calrx_image(const ninedof_calrx_t *rx, uint16_t generation,
-                         uint8_t image[NINEDOF_IMAGE_SIZE]);
+/* Build the image of the set in force with the given generation number;
+ * returns its length (6 + the set's). */
+uint8_t ninedof_calrx_image(const ninedof_calrx_t *rx, uint16_t generation,
+                            uint8_t image[NINEDOF_IMAGE_MAX]);
 
-/* Check an image; returns 1 and its generation if valid (magic, CRC, decode,
- * validate for my_id), else 0. */
-uint8_t ninedof_image_check(const uint8_t image[NINEDOF_IMAGE_SIZE], uint16_t my_id,
+/* Check an image of which `avail` bytes are at hand; returns 1 and its
+ * generation if valid (magic, length within avail, CRC, decode, validate
+ * for my_id), else 0. */
+uint8_t ninedof_image_check(const uint8_t *image, uint8_t avail, uint16_t my_id,
                             uint16_t *generation);
 
-/* Restore at boot from two slot images (either may be invalid): the valid
- * one with the newer generation (wrap-aware) goes in force.  Returns the slot
- * used (0 or 1), or 0xFF if neither is valid (raw set stays). *next_slot
- * and *next_generation say where and with which number to write next. */
+/* Restore at boot from the slot images (NINEDOF_IMAGE_MAX bytes read at
+ * NINEDOF_EEPROM_SLOT0, _SLOT1 and _LEGACY1; any may be invalid, legacy1
+ * may be NULL and must hold a plain set): the valid one with the newest
+ * generation (wrap-aware) goes in force.  Returns the slot used (0, 1, or
+ * 2 for legacy1), or 0xFF if none is valid (raw set stays).  *next_slot
+ * and *next_generation say where and with which number to write next (the
+ * slot that does not hold, or overlap, the image in force). */
 uint8_t ninedof_calrx_restore(ninedof_calrx_t *rx,
-                              const uint8_t slot0[NINEDOF_IMAGE_SIZE],
-                              const uint8_t slot1[NINEDOF_IMAGE_SIZE],
+                              const uint8_t slot0[NINEDOF_IMAGE_MAX],
+                              const uint8_t slot1[NINEDOF_IMAGE_MAX],
+                              const uint8_t *legacy1,
                               uint8_t *next_slot, uint16_t *next_generation);
 
 /* ------------------------------------------------------------------------
@@ -148,14 +227,17 @@ uint8_t ninedof_calrx_restore(ninedof_calrx_t *rx,
 size_t ninedof_calrx_size(void);      /* sizeof(ninedof_calrx_t) */
 size_t ninedof_cal_size(void);        /* sizeof(ninedof_cal_t) */
 size_t ninedof_calset_size(void);     /* sizeof(ninedof_calset_t) */
-size_t ninedof_image_size(void);      /* NINEDOF_IMAGE_SIZE */
+size_t ninedof_calset_temp_size(void); /* sizeof(ninedof_calset_temp_t) */
+size_t ninedof_image_size(void);      /* NINEDOF_IMAGE_MAX */
+uint16_t ninedof_eeprom_legacy1(void); /* NINEDOF_EEPROM_LEGACY1 */
 /* Fields of the receiver state, without knowing its layout */
 uint16_t ninedof_calrx_version(const ninedof_calrx_t *rx);  /* version in force */
 uint8_t ninedof_calrx_sensors(const ninedof_calrx_t *rx);   /* sensors corrected */
 uint16_t ninedof_calrx_crc(const ninedof_calrx_t *rx);      /* CRC of the set in force */
 uint8_t ninedof_calrx_dirty(const ninedof_calrx_t *rx);
 void ninedof_calrx_set_dirty(ninedof_calrx_t *rx, uint8_t dirty);
-/* Wire bytes of the set in force (sizeof(ninedof_calset_t)) */
+/* Wire bytes of the set in force (ninedof_calrx_active_len of them) */
 void ninedof_calrx_active(const ninedof_calrx_t *rx, uint8_t *out);
+uint8_t ninedof_calrx_active_len(const ninedof_calrx_t *rx);
 
 #endif /* NINEDOF_CAL_H */

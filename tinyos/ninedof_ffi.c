@@ -10,8 +10,10 @@
 size_t ninedof_calrx_size(void) { return sizeof(ninedof_calrx_t); }
 size_t ninedof_cal_size(void) { return sizeof(ninedof_cal_t); }
 size_t ninedof_calset_size(void) { return sizeof(ninedof_calset_t); }
-size_t ninedof_image_size(void) { return NINEDOF_IMAGE_SIZE; }
+size_t ninedof_calset_temp_size(void) { return sizeof(ninedof_calset_temp_t); }
+size_t ninedof_image_size(void) { return NINEDOF_IMAGE_MAX; }
 size_t ninedof_eewriter_size(void) { return sizeof(ninedof_eewriter_t); }
+uint16_t ninedof_eeprom_legacy1(void) { return NINEDOF_EEPROM_LEGACY1; }
 
 uint16_t ninedof_calrx_version(const ninedof_calrx_t *rx) { return rx->active.version; }
 uint8_t ninedof_calrx_sensors(const ninedof_calrx_t *rx) { return rx->active.sensors; }
@@ -21,5 +23,7 @@ void ninedof_calrx_set_dirty(ninedof_calrx_t *rx, uint8_t dirty) { rx->dirty = d
 
 void ninedof_calrx_active(const ninedof_calrx_t *rx, uint8_t *out)
 {
-  memcpy(out, &rx->active_wire, sizeof(rx->active_wire));
+  memcpy(out, rx->active_wire, rx->active_len);
 }
+
+uint8_t ninedof_calrx_active_len(const ninedof_calrx_t *rx) { return rx->active_len; }

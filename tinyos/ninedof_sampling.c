@@ -25,6 +25,38 @@ void ninedof_status_pack(const ninedof_counters_t *c, const ninedof_fault_counte
   nxp_set_u16(&msg->chip_reinits, f->chip_reinits);
 }
 
+void ninedof_temp_init(ninedof_temp_acc_t *t)
+{
+  memset(t, 0, sizeof(*t));
+}
+
+void ninedof_temp_add(ninedof_temp_acc_t *t, uint16_t seq, int16_t raw)
+{
+  if (t->count == 0xFF)
+    return;                    /* the period's timer is late: keep the mean */
+  t->sum += raw;
+  t->count++;
+  t->seq = seq;
+}
+
+uint8_t ninedof_temp_pack(ninedof_temp_acc_t *t, ninedof_mote_temp_msg_t *msg,
+                          int16_t *mean)
+{
+  uint8_t n = t->count;
+
+  nxp_set_u16(&msg->seq, t->seq);
+  nxp_set_u8(&msg->count, n);
+  nxp_set_u8(&msg->reserved, 0);
+  nxp_set_i32(&msg->temp_sum, t->sum);
+  if (n) {
+    int32_t half = n / 2;
+    *mean = (int16_t)(t->sum >= 0 ? (t->sum + half) / n : -((-t->sum + half) / n));
+  }
+  t->sum = 0;
+  t->count = 0;
+  return n != 0;
+}
+
 void ninedof_align_lost(ninedof_align_t *a)
 {
   a->held = 0;
@@ -104,14 +136,14 @@ uint16_t ninedof_slot_addr(uint8_t slot)
 void ninedof_eewriter_init(ninedof_eewriter_t *w, uint8_t next_slot,
                            uint16_t next_generation)
 {
-  w->pos = NINEDOF_IMAGE_SIZE;
+  w->pos = w->len = 0;
   w->slot = next_slot & 1;
   w->generation = next_generation;
 }
 
 uint8_t ninedof_eewriter_busy(const ninedof_eewriter_t *w)
 {
-  return w->pos < NINEDOF_IMAGE_SIZE;
+  return w->pos < w->len;
 }
 
 uint8_t ninedof_eewriter_poll(ninedof_eewriter_t *w, ninedof_calrx_t *rx)
@@ -119,7 +151,7 @@ uint8_t ninedof_eewriter_poll(ninedof_eewriter_t *w, ninedof_calrx_t *rx)
   if (!rx->dirty)
     return 0;
   /* restart (same slot, same generation) if a write was in progress */
-  ninedof_calrx_image(rx, w->generation, w->image);
+  w->len = ninedof_calrx_image(rx, w->generation, w->image);
   rx->dirty = 0;
   w->pos = 0;
   return 1;
@@ -127,12 +159,12 @@ uint8_t ninedof_eewriter_poll(ninedof_eewriter_t *w, ninedof_calrx_t *rx)
 
 uint8_t ninedof_eewriter_next(ninedof_eewriter_t *w, uint16_t *addr, uint8_t *value)
 {
-  if (w->pos >= NINEDOF_IMAGE_SIZE)
+  if (w->pos >= w->len)
     return 0;
   *addr = (uint16_t)(ninedof_slot_addr(w->slot) + w->pos);
   *value = w->image[w->pos];
   w->pos++;
-  if (w->pos == NINEDOF_IMAGE_SIZE) {     /* image complete */
+  if (w->pos == w->len) {                 /* image complete */
     w->slot ^= 1;
     w->generation++;
   }

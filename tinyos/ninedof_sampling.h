@@ -76,6 +76,32 @@ uint8_t ninedof_align_push(ninedof_align_t *a, uint16_t seq, const int16_t rec[9
 void ninedof_align_lost(ninedof_align_t *a);
 
 /* ---------------------------------------------------------------------- */
+/* Board temperature                                                       */
+/* ---------------------------------------------------------------------- */
+/* Every successful read brings the ITG-3200's raw TEMP_OUT (same burst as
+ * the rates).  The readings of one NINEDOF_TEMP_PERIOD_MS are summed; at
+ * the end of the period the sum goes out in a ninedof_mote_temp_msg and
+ * its mean (rounded to the nearest count) is the temperature the on-mote
+ * correction uses for the next period (ninedof_calrx_set_temp). */
+typedef struct {
+  int32_t sum;                 /* raw TEMP_OUT readings summed this period */
+  uint8_t count;               /* readings in sum (saturates at 255) */
+  uint16_t seq;                /* sequence number of the newest reading's sample */
+} ninedof_temp_acc_t;
+
+void ninedof_temp_init(ninedof_temp_acc_t *t);
+
+/* The read of period `seq` gave TEMP_OUT `raw`. */
+void ninedof_temp_add(ninedof_temp_acc_t *t, uint16_t seq, int16_t raw);
+
+/* End of a period: fill the message, start the next period.  Returns 1 and
+ * the period's mean in *mean (rounded half away from zero) if it had a
+ * reading, else 0 (the message then has count 0 and the seq of the last
+ * reading ever made). */
+uint8_t ninedof_temp_pack(ninedof_temp_acc_t *t, ninedof_mote_temp_msg_t *msg,
+                          int16_t *mean);
+
+/* ---------------------------------------------------------------------- */
 /* Batching                                                                */
 /* ---------------------------------------------------------------------- */
 /* Records of consecutive periods, kept raw in host order; corrected and
@@ -112,8 +138,9 @@ uint8_t ninedof_batch_pack(ninedof_batch_t *b, const ninedof_calrx_t *rx,
  * commit during a write restarts the write of the newer image into the same
  * slot. */
 typedef struct {
-  uint8_t image[NINEDOF_IMAGE_SIZE];
-  uint8_t pos;                 /* next byte; == NINEDOF_IMAGE_SIZE when idle */
+  uint8_t image[NINEDOF_IMAGE_MAX];
+  uint8_t len;                 /* bytes of the image being written */
+  uint8_t pos;                 /* next byte; == len when idle */
   uint8_t slot;                /* slot being written / to write next */
   uint16_t generation;         /* generation being written / to write next */
 } ninedof_eewriter_t;

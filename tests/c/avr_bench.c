@@ -116,6 +116,30 @@ int main(void)
   }
   MEASURE("correct_9axes_q13", ninedof_correct(&cal, raw, out));
   make_cal();
+  /* temperature terms on all three sensors (format NINEDOF_CALSET_TEMP) */
+  cal.format = NINEDOF_CALSET_TEMP;
+  cal.temp_sensors = 7;
+  for (i = 0; i < 3; i++) {
+    uint8_t j;
+    cal.t[i].t_ref = -16000;
+    cal.t[i].t_lo = -19000;
+    cal.t[i].t_hi = -11000;
+    for (j = 0; j < 3; j++) {
+      cal.t[i].o[j] = (int16_t)(12000 - 9000 * (int16_t)j);
+      cal.t[i].g[j] = (int16_t)(-7000 + 6000 * (int16_t)j);
+    }
+    cal.t[i].oshift = 22;
+    cal.t[i].gshift = 32;
+  }
+  MEASURE("cal_set_temp", ninedof_cal_set_temp(&cal, -14100));
+  MEASURE("correct_9axes_temp", ninedof_correct(&cal, raw, out));
+  MEASURE("correct_block5_temp", ninedof_correct_block(&cal, raw, out, NINEDOF_BATCH));
+  for (i = 0; i < 3; i++)             /* offsets only: no gain change with temperature */
+    cal.t[i].g[0] = cal.t[i].g[1] = cal.t[i].g[2] = 0;
+  ninedof_cal_set_temp(&cal, -14100);
+  MEASURE("correct_9axes_temp_offsets", ninedof_correct(&cal, raw, out));
+  MEASURE("correct_block5_temp_offsets", ninedof_correct_block(&cal, raw, out, NINEDOF_BATCH));
+  make_cal();
 
   MEASURE("board_record", ninedof_board_record(bytes[0], bytes[1], bytes[2], out));
   ninedof_align_init(&align);

@@ -29,12 +29,12 @@ static void out_hex16(uint16_t v)
 
 static ninedof_calrx_t rx;
 static ninedof_cal_t cal;
-static ninedof_calset_t wire;
+static uint8_t wire[NINEDOF_CALSET_MAX];
 static int16_t raw[NINEDOF_BATCH * 9];
 static int16_t out[NINEDOF_BATCH * 9];
 static uint8_t msg[255];
 static uint8_t reply[32];
-static uint8_t img0[NINEDOF_IMAGE_SIZE], img1[NINEDOF_IMAGE_SIZE];
+static uint8_t img0[NINEDOF_IMAGE_MAX], img1[NINEDOF_IMAGE_MAX];
 
 int main(void)
 {
@@ -43,12 +43,16 @@ int main(void)
 
   out_init();
 
-  /* 1. every calibration set over every record: C<status><records>; */
+  /* 1. every calibration set over every record (at its temperature, if
+   * one is given): C<status><records>; */
   for (i = 0; i < NCAL; i++) {
-    memcpy_P(&wire, CALSETS[i], sizeof(wire));
+    uint8_t len = pgm_read_byte(&CALSET_LEN[i]);
+    memcpy_P(wire, CALSETS[i], len);
     out_c('C');
-    out_hex8(ninedof_cal_decode(&wire, &cal));
+    out_hex8(ninedof_cal_decode(wire, len, &cal));
     out_hex8(ninedof_cal_validate(&cal, MOTE_ID));
+    if (pgm_read_byte(&CAL_HAS_TEMP[i]))
+      ninedof_cal_set_temp(&cal, (int16_t)pgm_read_word(&CAL_TEMP[i]));
     for (r = 0; r < NREC; r++) {
       memcpy_P(raw, &RAW[r * 9], 18);
       ninedof_correct(&cal, raw, out);
@@ -89,16 +93,16 @@ int main(void)
   out_c(';');
 
   /* 4. image and restore: I<image>; S<slot><next slot><next generation><flags>; */
-  ninedof_calrx_image(&rx, 0x1234, img0);
+  k = ninedof_calrx_image(&rx, 0x1234, img0);
   out_c('I');
-  out_hex(img0, NINEDOF_IMAGE_SIZE);
+  out_hex(img0, k);
   out_c(';');
   memset(img1, 0xFF, sizeof(img1));
   {
     uint8_t slot, next_slot = 0;
     uint16_t next_gen = 0;
     ninedof_calrx_init(&rx, MOTE_ID);
-    slot = ninedof_calrx_restore(&rx, img1, img0, &next_slot, &next_gen);
+    slot = ninedof_calrx_restore(&rx, img1, img0, NULL, &next_slot, &next_gen);
     out_c('S');
     out_hex8(slot);
     out_hex8(next_slot);

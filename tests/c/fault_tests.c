@@ -182,6 +182,22 @@ static void test_chip_table(void)
   CHECK(a[0] == b[0] && a[1] == b[1] && a[2] == b[2]);
   ninedof_chip_xyz(NINEDOF_CHIP_ACCEL, bytes, a);
   CHECK(a[0] == 0x0201);
+  CHECK(ninedof_chip_temp(NINEDOF_CHIP_ACCEL, bytes) == 0 &&
+        ninedof_chip_temp(NINEDOF_CHIP_MAG, bytes) == 0);
+  /* ITG-3200: one burst of 8 from TEMP_OUT_H (0x1B), temperature then the
+   * rates (0x1D..0x22); the other chips 6 bytes from their data pointer */
+  {
+    const ninedof_chip_t *g = &NINEDOF_CHIP[NINEDOF_CHIP_GYRO];
+    static const uint8_t burst[8] = { 0xCC, 0x70, 0x01, 0x02, 0xFF, 0xFE, 0x80, 0x00 };
+    CHECK(g->read_len == 1 && g->read_cmd[0] == ITG3200_TEMP_OUT_H && ITG3200_TEMP_OUT_H == 0x1B);
+    CHECK(g->data_len == 8 && NINEDOF_CHIP_DATA_MAX == 8 && ITG3200_TEMP_OUT_H + 2 == ITG3200_GYRO_XOUT_H);
+    CHECK(NINEDOF_CHIP[NINEDOF_CHIP_ACCEL].data_len == 6 && NINEDOF_CHIP[NINEDOF_CHIP_MAG].data_len == 6);
+    ninedof_chip_xyz(NINEDOF_CHIP_GYRO, burst, a);
+    CHECK(a[0] == 0x0102 && a[1] == -2 && a[2] == -32768);
+    CHECK(ninedof_chip_temp(NINEDOF_CHIP_GYRO, burst) == -13200);   /* 0xCC70: 35 C */
+  }
+  for (chip = 0; chip < NINEDOF_CHIPS; chip++)
+    CHECK(NINEDOF_CHIP[chip].data_len <= NINEDOF_CHIP_DATA_MAX);
 }
 
 /* ---------------------------------------------------------------------- */

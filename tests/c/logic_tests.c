@@ -560,7 +560,44 @@ static void test_status(void)
 }
 
 /* ---------------------------------------------------------------------- */
-static uint8_t eeprom[0x200];
+/* Board temperature: readings summed per period, the message, the mean    */
+static void test_temp(void)
+{
+  ninedof_temp_acc_t t;
+  ninedof_mote_temp_msg_t m;
+  int16_t mean = 0x5555;
+  uint16_t i;
+
+  ninedof_temp_init(&t);
+  /* a period without a reading: count 0, no mean */
+  CHECK(!ninedof_temp_pack(&t, &m, &mean) && mean == 0x5555);
+  CHECK(nxp_get_u8(&m.count) == 0 && nxp_get_i32(&m.temp_sum) == 0 && sizeof(m) == 8);
+  /* 125 readings around 25 C (-16000): sum, newest seq, mean rounded */
+  for (i = 0; i < 125; i++)
+    ninedof_temp_add(&t, (uint16_t)(0xFFC0u + i), (int16_t)(-16000 - (int16_t)(i % 3)));
+  CHECK(ninedof_temp_pack(&t, &m, &mean));
+  CHECK(nxp_get_u8(&m.count) == 125 && nxp_get_u16(&m.seq) == (uint16_t)(0xFFC0u + 124));
+  CHECK(nxp_get_i32(&m.temp_sum) == -16000L * 125 - 124 && mean == -16001);
+  CHECK(nxp_get_u8(&m.reserved) == 0);
+  out_c('D');
+  out_hex((const uint8_t *)&m, sizeof(m));
+  out_c(';');
+  /* the next period starts empty; a late timer: the count stops at 255 */
+  for (i = 0; i < 300; i++)
+    ninedof_temp_add(&t, i, 32767);
+  CHECK(ninedof_temp_pack(&t, &m, &mean) && nxp_get_u8(&m.count) == 255);
+  CHECK(nxp_get_i32(&m.temp_sum) == 32767L * 255 && mean == 32767 && nxp_get_u16(&m.seq) == 254);
+  /* rounding half away from zero, both signs */
+  ninedof_temp_add(&t, 1, -3);
+  ninedof_temp_add(&t, 2, -4);
+  CHECK(ninedof_temp_pack(&t, &m, &mean) && mean == -4);
+  ninedof_temp_add(&t, 1, 3);
+  ninedof_temp_add(&t, 2, 4);
+  CHECK(ninedof_temp_pack(&t, &m, &mean) && mean == 4);
+}
+
+/* ---------------------------------------------------------------------- */
+static uint8_t eeprom[0x300];
 static ninedof_eewriter_t ew;
 
 /* Write up to `limit` bytes (a power cut after that); returns bytes written */
@@ -579,7 +616,8 @@ static uint8_t boot(ninedof_calrx_t *r, uint8_t *next_slot, uint16_t *next_gen)
 {
   ninedof_calrx_init(r, 3);
   return ninedof_calrx_restore(r, eeprom + NINEDOF_EEPROM_SLOT0,
-                               eeprom + NINEDOF_EEPROM_SLOT1, next_slot, next_gen);
+                               eeprom + NINEDOF_EEPROM_SLOT1, eeprom + NINEDOF_EEPROM_LEGACY1,
+                               next_slot, next_gen);
 }
 
 static void test_eeprom(void)
@@ -621,8 +659,22 @@ static void test_eeprom(void)
   /* nothing to do when nothing changed */
   CHECK(!ninedof_eewriter_poll(&ew, &rx) && ee_run(1000) == 0);
   out_c('D');
-  out_hex(eeprom + NINEDOF_EEPROM_SLOT0, 2 * 0x80);
+  out_hex(eeprom + NINEDOF_EEPROM_SLOT0, NINEDOF_IMAGE_SIZE);
   out_c(';');
+  out_c('D');
+  out_hex(eeprom + NINEDOF_EEPROM_SLOT1, NINEDOF_IMAGE_SIZE);
+  out_c(';');
+
+  /* a set an image before the temperature terms saved in its second slot
+   * (0x180, inside today's slot 0) is restored, and the next write goes to
+   * slot 1, which overlaps neither old slot */
+  memset(eeprom, 0xFF, sizeof(eeprom));
+  ninedof_calrx_image(&rx, 7, eeprom + NINEDOF_EEPROM_LEGACY1);
+  used = boot(&r2, &slot, &gen);
+  CHECK(used == 2 && slot == 1 && gen == 8 && r2.active.version == 0x27);
+  CHECK(NINEDOF_EEPROM_SLOT0 + NINEDOF_IMAGE_MAX <= NINEDOF_EEPROM_SLOT1 &&
+        NINEDOF_EEPROM_SLOT1 + NINEDOF_IMAGE_MAX <= 0x1000 &&
+        NINEDOF_IMAGE_MAX <= NINEDOF_EEPROM_SLOT_SIZE);
 }
 
 /* ---------------------------------------------------------------------- */
@@ -657,6 +709,7 @@ int main(void)
   test_batching();
   test_align();
   test_status();
+  test_temp();
   test_eeprom();
   test_basestation();
   check_summary();

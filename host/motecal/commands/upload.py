@@ -61,6 +61,9 @@ def register(sub) -> None:
     p.add_argument("--force", action="store_true",
                    help="upload a calibration the quality gate refused, or under a "
                         "--version not above the one in force")
+    p.add_argument("--no-temp", dest="no_temp", action="store_true",
+                   help="leave out cal.json's temperature models: the plain 102-byte set, "
+                        "for a mote whose firmware has no on-mote temperature correction")
     p.set_defaults(func=run)
 
 
@@ -76,14 +79,16 @@ def run(args) -> int:
     if cal is not None and cal.mote != mote and not args.show:
         raise UserError(f"{cal.path} calibrates the board of mote {cal.mote}, not mote {mote} "
                         f"(use that mote's cal.json, or --mote {cal.mote})")
+    if args.no_temp and cal is None:
+        raise UserError("--no-temp goes with a calibration file")
     if args.dry_run:
-        for line in dry_run_lines(cal, mote, args.version):
+        for line in dry_run_lines(cal, mote, args.version, not args.no_temp):
             print(line)
         sys.stdout.flush()
-        check_set(build_set(cal, mote, args.version or 1)[0], mote, cal.path)
+        check_set(build_set(cal, mote, args.version or 1, not args.no_temp)[0], mote, cal.path)
         return 0
     opts = Options(timeout=args.timeout, retries=args.retries, version=args.version,
-                   force=args.force)
+                   force=args.force, temperature=not args.no_temp)
     if not (args.show or args.reset):
         check_cal(cal, mote, opts)
     spec = S.parse_port(args.port, args.baud)

@@ -13,10 +13,18 @@ fractional bits (the largest of 8..14 that fits int16 / int32) into the
 (``tinyos/ninedof_cal.c``).  ``reference_correct`` is the same arithmetic in
 float64 (no rounding) that the C code is tested against; ``rounding_report``
 says how far the quantised set can be from the physical calibration.
+
+A sensor with a temperature model (``calib.result.TempModel``: calibrated =
+(1 + s dT) (A raw) + c + o dT, dT = clip(T, lo, hi) - t_ref) gets temperature
+terms in counts per raw ITG-3200 TEMP_OUT count (``FixedTemp``: t_ref, t_lo,
+t_hi as TEMP_OUT, ``o`` in Q(oshift), ``g`` in Q(gshift), int16), and the set
+becomes the 164-byte ``ninedof_calset_temp`` (format 1).  A set without any
+temperature model stays the 102-byte plain set, byte for byte.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import dataclasses
+from dataclasses import dataclass, field
 from typing import Mapping
 
 import numpy as np
@@ -33,6 +41,12 @@ MAG_LIMIT = 4095                    # corrected magnetometer saturates at +-4095
 # ADXL345 full resolution +-16 g is 13 bits; ITG3200 uses all 16 bits;
 # HMC5883L data registers span -2048..2047 (-4096 = overflow).
 INPUT_RANGE = {"accel": 4096, "gyro": 32768, "mag": 2048}
+
+
+OSHIFT_MIN, OSHIFT_MAX = 14, 40      # ninedof_cal.h: NINEDOF_OSHIFT_MIN/MAX
+GSHIFT_MIN, GSHIFT_MAX = 16, 46      # NINEDOF_GSHIFT_MIN/MAX
+GAIN_LIMIT_Q16 = 8192                # |g dT| <= 1/8 over the range (NINEDOF_LIMIT_GAIN_Q16)
+INT16_MIN = -32768
 
 
 class NotRepresentable(QualityError):
@@ -74,16 +88,67 @@ IDENTITY = FixedSensor(np.eye(3, dtype=np.int64) << SHIFT_MAX, np.zeros(3, np.in
 
 
 @dataclass(frozen=True)
+class FixedTemp:
+    """One sensor's temperature terms as the mote stores them
+    (``ninedof_cal_temp``): temperatures in raw TEMP_OUT counts, ``o`` (3,)
+    counts per TEMP_OUT count in Q(oshift), ``g`` (3,) relative gain per
+    TEMP_OUT count in Q(gshift)."""
+    t_ref: int
+    t_lo: int
+    t_hi: int
+    o: np.ndarray
+    g: np.ndarray
+    oshift: int
+    gshift: int
+
+    def __post_init__(self):
+        for name in ("o", "g"):
+            v = np.array(getattr(self, name), dtype=np.int64).reshape(3)
+            v.flags.writeable = False
+            object.__setattr__(self, name, v)
+        for name in ("t_ref", "t_lo", "t_hi", "oshift", "gshift"):
+            object.__setattr__(self, name, int(getattr(self, name)))
+
+    def dt(self, temp_raw) -> np.ndarray:
+        """clamp(T, t_lo, t_hi) - t_ref in TEMP_OUT counts."""
+        return np.clip(np.asarray(temp_raw, np.int64), self.t_lo, self.t_hi) - self.t_ref
+
+    @property
+    def offset_per_count(self) -> np.ndarray:
+        return np.asarray(self.o, np.float64) / 2.0**self.oshift
+
+    @property
+    def gain_per_count(self) -> np.ndarray:
+        return np.asarray(self.g, np.float64) / 2.0**self.gshift
+
+    def __eq__(self, other):
+        return (isinstance(other, FixedTemp) and
+                (self.t_ref, self.t_lo, self.t_hi, self.oshift, self.gshift) ==
+                (other.t_ref, other.t_lo, other.t_hi, other.oshift, other.gshift)
+                and np.array_equal(self.o, other.o) and np.array_equal(self.g, other.g))
+
+
+NO_TEMP = FixedTemp(0, 0, 0, np.zeros(3), np.zeros(3), OSHIFT_MIN, GSHIFT_MIN)
+
+
+@dataclass(frozen=True)
 class Calset:
-    """A decoded ``ninedof_calset``: only the corrected sensors are in ``sensors``."""
+    """A decoded ``ninedof_calset``: only the corrected sensors are in ``sensors``,
+    the temperature terms of those that have them in ``temps``."""
     mote: int
     version: int
     sensors: dict          # name -> FixedSensor
     stored: dict           # name -> FixedSensor for all three (what the bytes hold)
+    temps: dict = field(default_factory=dict)     # name -> FixedTemp
+    format: int = P.CALSET_PLAIN
 
     @property
     def mask(self) -> int:
         return sum(1 << P.SENSORS.index(n) for n in self.sensors)
+
+    @property
+    def temp_mask(self) -> int:
+        return sum(1 << P.SENSORS.index(n) for n in self.temps)
 
 
 # --------------------------------------------------------------------------
@@ -125,6 +190,40 @@ def fixed_from_physical(sensor: str, A, c) -> FixedSensor:
     return quantise(*counts_domain(sensor, A, c))
 
 
+def _quantise16(v: np.ndarray, lo: int, hi: int, what: str) -> tuple[np.ndarray, int]:
+    """int16 values of ``v`` with the largest shift in lo..hi that fits."""
+    for shift in range(hi, lo - 1, -1):
+        q = np.rint(v * 2.0**shift)
+        if np.all(np.abs(q) <= INT16_MAX):
+            return q.astype(np.int64), shift
+    raise NotRepresentable(f"temperature {what} up to {np.abs(v).max():.3g} per TEMP_OUT "
+                           f"count do not fit the mote's int16 even with {lo} fractional bits")
+
+
+def temp_counts(sensor: str, tm) -> tuple[np.ndarray, np.ndarray]:
+    """A TempModel's coefficients per raw TEMP_OUT count: offset (3,) in
+    counts, relative gain (3,).  A coefficient that was not fitted (NaN) is 0."""
+    per = P.ITG3200_TEMP_LSB_PER_C
+    o = np.nan_to_num(np.asarray(tm.offset_per_c, float), nan=0.0) * NOMINAL_SCALES[sensor]
+    g = np.nan_to_num(np.asarray(tm.scale_per_c, float), nan=0.0)
+    return o / per, g / per
+
+
+def fixed_temp(sensor: str, tm) -> FixedTemp:
+    """A ``calib.result.TempModel`` as the mote's temperature terms."""
+    o, g = temp_counts(sensor, tm)
+    if not (np.all(np.isfinite(o)) and np.all(np.isfinite(g))):
+        raise NotRepresentable("temperature coefficients are infinite")
+    t_ref, t_lo, t_hi = (int(np.rint(P.temp_raw(v)))
+                         for v in (tm.t_ref_c, *tm.range_c))
+    if not (-32768 <= t_lo <= t_hi <= 32767):
+        raise NotRepresentable(f"temperature range {tm.range_c} C is outside the "
+                               "ITG-3200's TEMP_OUT")
+    oq, oshift = _quantise16(o, OSHIFT_MIN, OSHIFT_MAX, "offsets")
+    gq, gshift = _quantise16(g, GSHIFT_MIN, GSHIFT_MAX, "gains")
+    return FixedTemp(t_ref, t_lo, t_hi, oq, gq, oshift, gshift)
+
+
 # --------------------------------------------------------------------------
 # Wire format
 # --------------------------------------------------------------------------
@@ -134,28 +233,48 @@ def _sensor_bytes(fs: FixedSensor) -> bytes:
                              shift=int(fs.shift), reserved=0)
 
 
-def pack_calset(mote: int, version: int, sensors: Mapping[str, FixedSensor]) -> bytes:
+def _temp_bytes(ft: FixedTemp) -> bytes:
+    return P.CAL_TEMP.pack(t_ref=ft.t_ref, t_lo=ft.t_lo, t_hi=ft.t_hi,
+                           o=[int(v) for v in ft.o], g=[int(v) for v in ft.g],
+                           oshift=ft.oshift, gshift=ft.gshift)
+
+
+def pack_calset(mote: int, version: int, sensors: Mapping[str, FixedSensor],
+                temps: Mapping[str, FixedTemp] | None = None) -> bytes:
     """``ninedof_calset`` bytes: the given sensors corrected, the others raw
-    (stored as the Q14 identity with their bit clear)."""
-    unknown = set(sensors) - set(P.SENSORS)
+    (stored as the Q14 identity with their bit clear).  With ``temps`` (a
+    FixedTemp for some of the corrected sensors) the 164-byte
+    ``ninedof_calset_temp``; without, the 102-byte plain set."""
+    temps = dict(temps or {})
+    unknown = (set(sensors) | set(temps)) - set(P.SENSORS)
     if unknown:
         raise ValueError(f"unknown sensors {sorted(unknown)}; expected {P.SENSORS}")
+    if set(temps) - set(sensors):
+        raise ValueError(f"temperature terms for uncorrected sensors {sorted(set(temps) - set(sensors))}")
     if not 1 <= version <= 0xFFFF:
         raise ValueError("version must be 1..65535")
     mask = sum(1 << i for i, n in enumerate(P.SENSORS) if n in sensors)
-    out = P.CALSET_HEADER.pack(mote=mote & 0xFFFF, version=version, sensors=mask,
-                               reserved=0)
+    fmt = P.CALSET_TEMP if temps else P.CALSET_PLAIN
+    out = P.CALSET_HEADER.pack(mote=mote & 0xFFFF, version=version, sensors=mask, format=fmt)
     for name in P.SENSORS:
         out += _sensor_bytes(sensors.get(name, IDENTITY))
-    assert len(out) == P.CALSET_SIZE
+    if temps:
+        tmask = sum(1 << i for i, n in enumerate(P.SENSORS) if n in temps)
+        out += P.CALSET_TEMP_HEADER.pack(temp_sensors=tmask, reserved=0)
+        for name in P.SENSORS:
+            out += _temp_bytes(temps.get(name, NO_TEMP))
+    assert len(out) == P.CALSET_SIZES[fmt]
     return out
 
 
 def unpack_calset(data: bytes) -> Calset:
     data = bytes(data)
-    if len(data) != P.CALSET_SIZE:
-        raise ValueError(f"calibration set is {len(data)} bytes, expected {P.CALSET_SIZE}")
+    if len(data) not in P.CALSET_SIZES.values():
+        raise ValueError(f"calibration set is {len(data)} bytes, expected {P.CALSET_SIZE} "
+                         f"(or {P.CALSET_TEMP_SIZE} with temperature terms)")
     hdr = P.CALSET_HEADER.unpack(data[:P.CALSET_HEADER.size])
+    if P.CALSET_SIZES.get(hdr["format"]) != len(data):
+        raise ValueError(f"calibration set of format {hdr['format']} is not {len(data)} bytes")
     stored = {}
     for i, name in enumerate(P.SENSORS):
         lo = P.CALSET_HEADER.size + i * P.CAL_SENSOR.size
@@ -163,26 +282,53 @@ def unpack_calset(data: bytes) -> Calset:
         stored[name] = FixedSensor(np.array(s["a"], np.int64).reshape(3, 3),
                                    np.array(s["c"], np.int64), s["shift"])
     enabled = {n: stored[n] for i, n in enumerate(P.SENSORS) if hdr["sensors"] >> i & 1}
-    return Calset(hdr["mote"], hdr["version"], enabled, stored)
+    temps = {}
+    if hdr["format"] == P.CALSET_TEMP:
+        lo = P.CALSET_SIZE
+        th = P.CALSET_TEMP_HEADER.unpack(data[lo:lo + P.CALSET_TEMP_HEADER.size])
+        lo += P.CALSET_TEMP_HEADER.size
+        for i, name in enumerate(P.SENSORS):
+            t = P.CAL_TEMP.unpack(data[lo + i * P.CAL_TEMP.size:lo + (i + 1) * P.CAL_TEMP.size])
+            if th["temp_sensors"] >> i & 1:
+                temps[name] = FixedTemp(t["t_ref"], t["t_lo"], t["t_hi"], t["o"], t["g"],
+                                        t["oshift"], t["gshift"])
+    return Calset(hdr["mote"], hdr["version"], enabled, stored, temps, hdr["format"])
+
+
+def without_temperature(data: bytes) -> bytes:
+    """The plain set of the same corrections (what an image without
+    temperature terms accepts): byte for byte the set built without them."""
+    cs = unpack_calset(data)
+    return pack_calset(cs.mote, cs.version, cs.sensors)
 
 
 # --------------------------------------------------------------------------
 # Reference correction (float64)
 # --------------------------------------------------------------------------
-def reference_correct(calset, raw) -> np.ndarray:
+def reference_correct(calset, raw, temp_raw=None) -> np.ndarray:
     """What the mote computes, in float64 and before its final rounding.
 
     ``calset`` is bytes or a ``Calset``; ``raw`` (n, 9) counts.  Corrected
     sensors: ``matrix @ raw + offset`` clipped to int16 (magnetometer to
     +-4095; a magnetometer sample with any axis at -4096 stays -4096 on all
-    three).  The mote's int16 output is this value rounded half up.
+    three).  The mote's int16 output is this value rounded half up.  A
+    sensor with temperature terms, at board temperature ``temp_raw`` (raw
+    TEMP_OUT, one value or one per row; None: each sensor at its t_ref):
+    ``(1 + g dT) (matrix @ raw) + offset + o dT`` with the stored
+    coefficients exactly; the mote is within 1 LSB of it (ninedof_cal.h).
     """
     cs = unpack_calset(calset) if isinstance(calset, (bytes, bytearray)) else calset
     raw = np.asarray(raw, np.float64).reshape(-1, 9)
     out = raw.copy()
     for name, fs in cs.sensors.items():
         sl = SENSOR_SLICES[name]
-        y = raw[:, sl] @ fs.matrix.T + fs.offset
+        y = raw[:, sl] @ fs.matrix.T
+        ft = cs.temps.get(name)
+        if ft is not None and temp_raw is not None:
+            dt = np.broadcast_to(ft.dt(temp_raw), (len(raw),)).astype(np.float64)[:, None]
+            y = y * (1.0 + ft.gain_per_count * dt) + fs.offset + ft.offset_per_count * dt
+        else:
+            y = y + fs.offset
         if name == "mag":
             y = np.clip(y, -MAG_LIMIT, MAG_LIMIT)
             over = np.any(raw[:, sl] == HMC5883L_OVERFLOW, axis=1)
@@ -212,6 +358,9 @@ class SensorRounding:
     worst_lsb: np.ndarray      # (3,) worst-case |out - K(A raw + c)| per axis over the
                                # chip's input range, counts, including output rounding
     input_range: int
+    temp: FixedTemp | None = None      # temperature terms, if the sensor has a model
+    temp_offset_error: float = 0.0     # max |o_q dT - o dT| over the range, counts
+    temp_gain_error: float = 0.0       # max |g_q dT - g dT| over the range, relative
 
     @property
     def worst_units(self) -> np.ndarray:
@@ -229,10 +378,35 @@ def rounding_report(sensor: str, A, c, fixed: FixedSensor | None = None) -> Sens
     return SensorRounding(sensor, fs, float(dM.max()), float(doff.max()), worst, R)
 
 
-def build_calset(mote: int, version: int, physical: Mapping[str, tuple]) -> tuple[bytes, dict]:
-    """Calset bytes and per-sensor ``SensorRounding`` from ``{sensor: (A, c)}``."""
+def temp_rounding(sensor: str, tm, ft: FixedTemp) -> tuple[float, float]:
+    """Largest error of the quantised temperature terms over the range:
+    offset (counts) and relative gain."""
+    o, g = temp_counts(sensor, tm)
+    dt = float(max(abs(ft.t_lo - ft.t_ref), abs(ft.t_hi - ft.t_ref)))
+    return (float(np.abs(ft.offset_per_count - o).max() * dt),
+            float(np.abs(ft.gain_per_count - g).max() * dt))
+
+
+def build_calset(mote: int, version: int, physical: Mapping[str, tuple],
+                 temps: Mapping | None = None) -> tuple[bytes, dict]:
+    """Calset bytes and per-sensor ``SensorRounding`` from ``{sensor: (A, c)}``
+    and, for sensors with a temperature model, ``temps`` ``{sensor: TempModel}``
+    (the 164-byte set; without any, the plain 102-byte set)."""
     report = {name: rounding_report(name, A, c) for name, (A, c) in physical.items()}
-    return pack_calset(mote, version, {n: r.fixed for n, r in report.items()}), report
+    fixed_temps = {}
+    for name, tm in (temps or {}).items():
+        if tm is None or name not in report:
+            continue
+        if report[name].fixed.shift != SHIFT_MAX:
+            raise NotRepresentable(f"{name}: temperature terms need the Q14 correction, "
+                                   f"and this one needs Q{report[name].fixed.shift}")
+        ft = fixed_temp(name, tm)
+        oe, ge = temp_rounding(name, tm, ft)
+        report[name] = dataclasses.replace(report[name], temp=ft, temp_offset_error=oe,
+                                           temp_gain_error=ge)
+        fixed_temps[name] = ft
+    return pack_calset(mote, version, {n: r.fixed for n, r in report.items()},
+                       fixed_temps), report
 
 
 def format_report(report: Mapping[str, SensorRounding]) -> list[str]:
@@ -252,4 +426,22 @@ def format_report(report: Mapping[str, SensorRounding]) -> list[str]:
                      + ", ".join(f"{v:.2f}" for v in r.worst_lsb)
                      + f" LSB (" + ", ".join(f"{v:.3g}" for v in r.worst_units)
                      + f" {UNITS[name]})")
+        if r.temp is not None:
+            lines += temp_lines(name, r.temp)
+            lines.append(f"  temperature rounding over the range: offset <= "
+                         f"{r.temp_offset_error:.2e} counts, gain <= {r.temp_gain_error:.2e}")
     return lines
+
+
+def temp_lines(name: str, ft: FixedTemp) -> list[str]:
+    """A sensor's temperature terms, stored and in physical units."""
+    per = P.ITG3200_TEMP_LSB_PER_C
+    k, unit = NOMINAL_SCALES[name], UNITS[name]
+    t = [float(P.temp_c(v)) for v in (ft.t_ref, ft.t_lo, ft.t_hi)]
+    return [f"  temperature: t_ref {t[0]:.2f} C, clamped to {t[1]:.2f}..{t[2]:.2f} C "
+            f"(TEMP_OUT {ft.t_ref}, {ft.t_lo}..{ft.t_hi})",
+            f"    offset o = {np.asarray(ft.o).tolist()} Q{ft.oshift} per TEMP_OUT count = "
+            "[" + ", ".join(f"{v * per / k:+.4g}" for v in ft.offset_per_count)
+            + f"] {unit}/C",
+            f"    gain g = {np.asarray(ft.g).tolist()} Q{ft.gshift} per TEMP_OUT count = "
+            "[" + ", ".join(f"{v * per:+.4g}" for v in ft.gain_per_count) + "] /C"]

@@ -102,7 +102,8 @@ def _declare(lib):
     u8p, i16p = c.POINTER(c.c_uint8), c.POINTER(c.c_int16)
     sig = {
         "ninedof_crc16": (c.c_uint16, [c.c_uint16, c.c_char_p, c.c_uint16]),
-        "ninedof_cal_decode": (c.c_uint8, [c.c_char_p, c.c_void_p]),
+        "ninedof_cal_decode": (c.c_uint8, [c.c_char_p, c.c_uint8, c.c_void_p]),
+        "ninedof_cal_set_temp": (None, [c.c_void_p, c.c_int16]),
         "ninedof_cal_validate": (c.c_uint8, [c.c_void_p, c.c_uint16]),
         "ninedof_correct_block": (None, [c.c_void_p, i16p, i16p, c.c_uint16]),
         "ninedof_calrx_init": (None, [c.c_void_p, c.c_uint16]),
@@ -110,14 +111,17 @@ def _declare(lib):
                                              u8p, u8p]),
         "ninedof_calrx_flags": (c.c_uint8, [c.c_void_p]),
         "ninedof_calrx_correct_block": (None, [c.c_void_p, i16p, i16p, c.c_uint16]),
-        "ninedof_calrx_image": (None, [c.c_void_p, c.c_uint16, u8p]),
-        "ninedof_image_check": (c.c_uint8, [c.c_char_p, c.c_uint16,
+        "ninedof_calrx_set_temp": (None, [c.c_void_p, c.c_int16]),
+        "ninedof_calrx_image": (c.c_uint8, [c.c_void_p, c.c_uint16, u8p]),
+        "ninedof_image_check": (c.c_uint8, [c.c_char_p, c.c_uint8, c.c_uint16,
                                             c.POINTER(c.c_uint16)]),
-        "ninedof_calrx_restore": (c.c_uint8, [c.c_void_p, c.c_char_p, c.c_char_p, u8p,
-                                              c.POINTER(c.c_uint16)]),
+        "ninedof_calrx_restore": (c.c_uint8, [c.c_void_p, c.c_char_p, c.c_char_p,
+                                              c.c_char_p, u8p, c.POINTER(c.c_uint16)]),
         "ninedof_calrx_size": (c.c_size_t, []),
         "ninedof_cal_size": (c.c_size_t, []),
         "ninedof_calset_size": (c.c_size_t, []),
+        "ninedof_calset_temp_size": (c.c_size_t, []),
+        "ninedof_eeprom_legacy1": (c.c_uint16, []),
         "ninedof_image_size": (c.c_size_t, []),
         "ninedof_calrx_version": (c.c_uint16, [c.c_void_p]),
         "ninedof_calrx_sensors": (c.c_uint8, [c.c_void_p]),
@@ -125,6 +129,7 @@ def _declare(lib):
         "ninedof_calrx_dirty": (c.c_uint8, [c.c_void_p]),
         "ninedof_calrx_set_dirty": (None, [c.c_void_p, c.c_uint8]),
         "ninedof_calrx_active": (None, [c.c_void_p, u8p]),
+        "ninedof_calrx_active_len": (c.c_uint8, [c.c_void_p]),
         "ninedof_eewriter_size": (c.c_size_t, []),
         "ninedof_eewriter_init": (None, [c.c_void_p, c.c_uint8, c.c_uint16]),
         "ninedof_eewriter_poll": (c.c_uint8, [c.c_void_p, c.c_void_p]),
@@ -144,7 +149,8 @@ def library():
     with _lock:
         if _lib is None:
             lib = _declare(ctypes.CDLL(str(build())))
-            if lib.ninedof_calset_size() != P.CALSET_SIZE:
+            if (lib.ninedof_calset_size(), lib.ninedof_calset_temp_size()) != \
+                    (P.CALSET_SIZE, P.CALSET_TEMP_SIZE):
                 raise RuntimeError("C and protocol.py disagree on the calibration set size")
             _lib = lib
         return _lib
@@ -187,10 +193,10 @@ def crc16(data: bytes, crc: int = 0) -> int:
 def _decode(calset: bytes):
     lib = library()
     calset = bytes(calset)
-    if len(calset) != P.CALSET_SIZE:
+    if len(calset) not in P.CALSET_SIZES.values():
         return E_FORMAT, None
     buf = ctypes.create_string_buffer(lib.ninedof_cal_size())
-    return lib.ninedof_cal_decode(calset, buf), buf
+    return lib.ninedof_cal_decode(calset, len(calset), buf), buf
 
 
 def validate(calset: bytes, mote_id: int) -> int:
@@ -201,26 +207,37 @@ def validate(calset: bytes, mote_id: int) -> int:
     return library().ninedof_cal_validate(buf, mote_id)
 
 
-def correct(calset: bytes, raw) -> np.ndarray:
+def correct(calset: bytes, raw, temp_raw: int | None = None) -> np.ndarray:
     """Correct ``(n, 9)`` int16 records with a set, as the mote would.
 
     The set is decoded (a badly formatted one raises ValueError) but not
     validated; an in-range set gives exactly the firmware's output.
+    ``temp_raw`` is the board temperature in force (raw ITG-3200 TEMP_OUT)
+    for a set with temperature terms; None: no temperature yet (each sensor
+    at its reference temperature).
     """
     code, buf = _decode(calset)
     if code != 0:
         raise ValueError(f"calibration set rejected: {P.cal_reason(code)}")
+    if temp_raw is not None:
+        library().ninedof_cal_set_temp(buf, _temp16(temp_raw))
     return _correct_with(library().ninedof_correct_block, buf, raw)
+
+
+def _temp16(temp_raw) -> int:
+    t = int(temp_raw)
+    if not -32768 <= t <= 32767:
+        raise ValueError(f"raw temperature {t} is not an int16 TEMP_OUT reading")
+    return t
 
 
 def image_check(image: bytes, mote_id: int) -> int | None:
     """Generation of a valid EEPROM image for this mote, None if invalid."""
     lib = library()
-    image = bytes(image)
-    if len(image) != lib.ninedof_image_size():
-        return None
+    image = bytes(image)[:lib.ninedof_image_size()]
     gen = ctypes.c_uint16()
-    return gen.value if lib.ninedof_image_check(image, mote_id, ctypes.byref(gen)) else None
+    return gen.value if lib.ninedof_image_check(image, len(image), mote_id,
+                                                ctypes.byref(gen)) else None
 
 
 # --------------------------------------------------------------------------
@@ -266,6 +283,11 @@ class CalReceiver:
     def correct(self, raw) -> np.ndarray:
         return _correct_with(self._lib.ninedof_calrx_correct_block, self._rx, raw)
 
+    def set_temperature(self, temp_raw: int) -> None:
+        """The board temperature (raw TEMP_OUT) the correction uses from now
+        on, as the firmware sets it once a second (ninedof_calrx_set_temp)."""
+        self._lib.ninedof_calrx_set_temp(self._rx, _temp16(temp_raw))
+
     @property
     def version(self) -> int:
         """Version of the set in force (0 = raw since boot)."""
@@ -283,9 +305,9 @@ class CalReceiver:
 
     def active_calset(self) -> bytes:
         """Wire bytes of the set in force (what read-back returns)."""
-        buf = (ctypes.c_uint8 * P.CALSET_SIZE)()
+        buf = (ctypes.c_uint8 * P.CALSET_TEMP_SIZE)()
         self._lib.ninedof_calrx_active(self._rx, buf)
-        return bytes(buf)
+        return bytes(buf[:self._lib.ninedof_calrx_active_len(self._rx)])
 
     @property
     def dirty(self) -> bool:
@@ -297,15 +319,18 @@ class CalReceiver:
 
     def image(self, generation: int) -> bytes:
         buf = (ctypes.c_uint8 * self._image_size)()
-        self._lib.ninedof_calrx_image(self._rx, generation & 0xFFFF, buf)
-        return bytes(buf)
+        n = self._lib.ninedof_calrx_image(self._rx, generation & 0xFFFF, buf)
+        return bytes(buf[:n])
 
-    def restore(self, slot0: bytes, slot1: bytes) -> Restored:
-        """Boot-time restore from two EEPROM slot images (either may be junk)."""
-        s0 = bytes(slot0).ljust(self._image_size, b"\xff")[:self._image_size]
-        s1 = bytes(slot1).ljust(self._image_size, b"\xff")[:self._image_size]
+    def restore(self, slot0: bytes, slot1: bytes, legacy1: bytes | None = None) -> Restored:
+        """Boot-time restore from the EEPROM slot images (any may be junk):
+        slot 0, slot 1 and the second slot of images built before the
+        temperature terms (``legacy1``, 2 in ``Restored.slot``)."""
+        n = self._image_size
+        s0, s1 = (bytes(s).ljust(n, b"\xff")[:n] for s in (slot0, slot1))
+        lg = None if legacy1 is None else bytes(legacy1).ljust(n, b"\xff")[:n]
         nslot, ngen = ctypes.c_uint8(), ctypes.c_uint16()
-        used = self._lib.ninedof_calrx_restore(self._rx, s0, s1, ctypes.byref(nslot),
+        used = self._lib.ninedof_calrx_restore(self._rx, s0, s1, lg, ctypes.byref(nslot),
                                                ctypes.byref(ngen))
         return Restored(None if used == 0xFF else int(used), int(nslot.value),
                         int(ngen.value))
@@ -329,7 +354,8 @@ class EepromWriter:
         self.eeprom = eeprom if eeprom is not None else bytearray(b"\xff" * self.SIZE)
         self._w = ctypes.create_string_buffer(self._lib.ninedof_eewriter_size())
         n = receiver._image_size
-        slots = [bytes(self.eeprom[a:a + n]) for a in (self.slot_addr(0), self.slot_addr(1))]
+        slots = [bytes(self.eeprom[a:a + n]) for a in (self.slot_addr(0), self.slot_addr(1),
+                                                       self._lib.ninedof_eeprom_legacy1())]
         self.restored = receiver.restore(*slots)
         self._lib.ninedof_eewriter_init(self._w, self.restored.next_slot,
                                         self.restored.next_generation)

@@ -174,9 +174,23 @@ CAL_SENSOR = MessageSpec("ninedof_cal_sensor", None, (
     _f("a", I16, 9), _f("c", I32, 3), _f("shift", U8), _f("reserved", U8)))
 
 CALSET_HEADER = MessageSpec("ninedof_calset", None, (
-    _f("mote", U16), _f("version", U16), _f("sensors", U8), _f("reserved", U8)))
+    _f("mote", U16), _f("version", U16), _f("sensors", U8), _f("format", U8)))
 CALSET_ARRAY = ("s", "ninedof_cal_sensor_t", "NINEDOF_SENSORS")
 CALSET_SIZE = CALSET_HEADER.size + 3 * CAL_SENSOR.size      # 102
+
+# The set with temperature terms (format CALSET_TEMP): the plain set, then
+# temp_sensors, reserved and one ninedof_cal_temp per sensor.  A set without
+# temperature terms is the plain set alone (format CALSET_PLAIN).
+CALSET_PLAIN, CALSET_TEMP = 0, 1
+CAL_TEMP = MessageSpec("ninedof_cal_temp", None, (
+    _f("t_ref", I16), _f("t_lo", I16), _f("t_hi", I16), _f("o", I16, 3), _f("g", I16, 3),
+    _f("oshift", U8), _f("gshift", U8)))
+CALSET_TEMP_HEADER = MessageSpec("ninedof_calset_temp", None, (
+    _f("temp_sensors", U8), _f("reserved", U8)))
+CALSET_TEMP_BASE = ("base", "ninedof_calset_t", None)
+CALSET_TEMP_ARRAY = ("t", "ninedof_cal_temp_t", "NINEDOF_SENSORS")
+CALSET_TEMP_SIZE = CALSET_SIZE + CALSET_TEMP_HEADER.size + 3 * CAL_TEMP.size   # 164
+CALSET_SIZES = {CALSET_PLAIN: CALSET_SIZE, CALSET_TEMP: CALSET_TEMP_SIZE}
 
 CAL_FRAG = MessageSpec("ninedof_cal_frag_msg", AM_NINEDOF_CAL_FRAG_MSG, (
     _f("mote", U16), _f("version", U16), _f("offset", U8), _f("len", U8),
@@ -233,7 +247,8 @@ def temp_raw(celsius):
 FIXED_MESSAGES = {m.am_type: m for m in (
     CAL_FRAG, CAL_FRAG_ACK, CAL_COMMIT, CAL_COMMIT_ACK, CAL_QUERY, CAL_REPORT,
     MOTE_STATUS, BS_STATUS, MOTE_TEMP)}
-ALL_SPECS = (RECORD, SAMPLES_HEADER, CAL_SENSOR, CALSET_HEADER) + tuple(FIXED_MESSAGES.values())
+ALL_SPECS = (RECORD, SAMPLES_HEADER, CAL_SENSOR, CALSET_HEADER, CAL_TEMP) + \
+    tuple(FIXED_MESSAGES.values())
 
 RECORD_DTYPE = np.dtype(">i2")
 

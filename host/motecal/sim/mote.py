@@ -354,6 +354,11 @@ class SimMote:
         newest = k1 - 1
         payload = P.MOTE_TEMP.pack(seq=max(newest, 0) & 0xFFFF, count=count, reserved=0,
                                    temp_sum=total)
+        if count and hasattr(self.cal, "set_temperature"):
+            # as the firmware: the period's mean (rounded half away from zero,
+            # ninedof_temp_pack) is the on-mote correction's temperature from now on
+            mean = (abs(total) + count // 2) // count
+            self.cal.set_temperature(mean if total >= 0 else -mean)
         if self.temp_msg is not None:                 # the last one is still on its way
             self.temp_dropped += 1
         else:

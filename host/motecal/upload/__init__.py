@@ -14,6 +14,7 @@ from .calfile import (CalFile, build_set, cal_from_board, check_set, load_cal,  
 from .describe import dry_run_lines, show_lines  # noqa: F401
 from .link import (SERIAL_ACK_TIMEOUT, SERIAL_RETRIES, Link, LinkStats, NoAnswer,  # noqa: F401
                    NullProgress, Rejected, UploadFailed)
-from .uploader import (MAX_VERSION, VERIFY_MESSAGES, InForce, Options, Result,  # noqa: F401
+from .uploader import (MAX_VERSION, VERIFY_MESSAGES, InForce, NoTemperature, Options,  # noqa: F401
+                       Result,
                        Uploader, check_cal, describe_flags, flags_for, fragments, next_version,
                        sensor_names, summary, upload_cal)

@@ -48,6 +48,7 @@ class CalFile:
     physical: dict                     # sensor -> (A (3, 3), c (3,)) in its unit
     session: str = ""
     gate: dict = field(default_factory=dict)
+    temps: dict = field(default_factory=dict)   # sensor -> calib.result.TempModel
 
     @property
     def refused(self) -> bool:
@@ -80,13 +81,37 @@ def load_cal(path) -> CalFile:
     gate = d.get("gate") or {}
     if not isinstance(gate, dict):
         raise UserError(f"{path}: \"gate\" is not an object")
-    return CalFile(str(path), mote, _physical(d, str(path)), str(d.get("session") or ""), gate)
+    return CalFile(str(path), mote, _physical(d, str(path)), str(d.get("session") or ""), gate,
+                   _temps(d, str(path)))
 
 
 def cal_from_board(board, where: str = "calibration") -> CalFile:
     d = board.to_json()
     return CalFile(where, int(board.mote), _physical(d, where), board.session,
-                   dict(board.gate or {}))
+                   dict(board.gate or {}), _temps(d, where))
+
+
+def _temps(d: dict, where: str) -> dict:
+    """Each calibrated sensor's temperature model (cal.json format 2)."""
+    from ..calib.result import TempModel
+    temps = {}
+    for name in P.SENSORS:
+        s = d.get(name)
+        t = s.get("temperature") if isinstance(s, dict) and s.get("A") is not None else None
+        if not t:
+            continue
+        if not isinstance(t, dict):
+            raise UserError(f"{where}: {name}: \"temperature\" is not an object")
+        try:
+            tm = TempModel.from_json(t)
+        except KeyError as e:
+            raise UserError(f"{where}: {name}: temperature: no {e}") from None
+        except (TypeError, ValueError) as e:
+            raise UserError(f"{where}: {name}: temperature: {e}") from None
+        if not (np.isfinite(tm.t_ref_c) and np.all(np.isfinite(tm.range_c))):
+            raise UserError(f"{where}: {name}: temperature: t_ref_c or range_c is not finite")
+        temps[name] = tm
+    return temps
 
 
 def _physical(d: dict, where: str) -> dict:
@@ -106,15 +131,23 @@ def _physical(d: dict, where: str) -> dict:
     return physical
 
 
-def build_set(cal: CalFile, mote: int, version: int) -> tuple[bytes, dict]:
-    """The set's bytes and fixedpoint's rounding report per sensor."""
+def build_set(cal: CalFile, mote: int, version: int,
+              temperature: bool = True) -> tuple[bytes, dict]:
+    """The set's bytes and fixedpoint's rounding report per sensor; with
+    the temperature terms of cal.json's temperature models unless
+    ``temperature`` is False (then the plain set, which every image takes)."""
     for name, (A, c) in cal.physical.items():
         try:
             FP.fixed_from_physical(name, A, c)
+            if temperature and name in cal.temps:
+                FP.fixed_temp(name, cal.temps[name])
         except FP.NotRepresentable as e:
             raise FP.NotRepresentable(f"{cal.path}: {name}: {e}") from None
     try:
-        return FP.build_calset(mote, version, cal.physical)
+        return FP.build_calset(mote, version, cal.physical,
+                               cal.temps if temperature else None)
+    except FP.NotRepresentable as e:
+        raise FP.NotRepresentable(f"{cal.path}: {e}") from None
     except ValueError as e:
         raise UserError(f"{cal.path}: {e}") from None
 

@@ -39,23 +39,31 @@ def show_lines(inf: InForce, cal: CalFile | None = None) -> list[str]:
         per = f"({unit})" if "/" in unit else unit
         lines.append(f"    scale {_fmt_row(np.diag(fs.matrix), '.5f')} x nominal "
                      f"{k:g} LSB/{per}")
+        if name in cs.temps:
+            lines += ["  " + ln for ln in FP.temp_lines(name, cs.temps[name])]
     if cal is not None:
-        mine, _ = build_set(cal, inf.mote, inf.version if inf.version else 1)
+        mine, _ = build_set(cal, inf.mote, inf.version if inf.version else 1,
+                            temperature=cs.format == P.CALSET_TEMP)
         same = inf.version and mine == inf.data
         lines.append(f"  {'equals' if same else 'differs from'} {cal.path} "
                      f"(quantised for mote {inf.mote}, version {inf.version})")
     return lines
 
 
-def dry_run_lines(cal: CalFile, mote: int, version: int | None) -> list[str]:
+def dry_run_lines(cal: CalFile, mote: int, version: int | None,
+                  temperature: bool = True) -> list[str]:
     v = version or 1
-    calset, report = build_set(cal, mote, v)
+    calset, report = build_set(cal, mote, v, temperature)
     lines = [f"{cal.path}: mote {cal.mote}" + (f", session {cal.session}" if cal.session else "")
              + (", refused by the quality gate" if cal.refused else "")]
     lines.append(f"set for mote {mote}, version {v}"
                  + ("" if version else " (at upload: the version in force + 1)")
                  + f": {len(calset)} bytes in {len(fragments(calset))} fragments, "
-                   f"CRC 0x{P.crc16(calset):04x}")
+                   f"CRC 0x{P.crc16(calset):04x}"
+                 + (" (with temperature terms: needs firmware with on-mote temperature "
+                    "correction)" if len(calset) > P.CALSET_SIZE else
+                    (" (temperature models left out: --no-temp)"
+                     if cal.temps and not temperature else "")))
     lines += FP.format_report(report)
     code = mote_check(calset, mote)
     if code is None:

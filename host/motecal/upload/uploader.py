@@ -6,12 +6,16 @@ Protocol (messages of ``tinyos/NineDofMsg.h``), one message at a time:
 
 1. CAL_QUERY offset 0 -> CAL_REPORT: the version in force; the new set gets
    that + 1 (65535 -> 1) unless ``--version``.
-2. The set (``fixedpoint.build_calset``, 102 bytes) in fragments of
-   NINEDOF_FRAG_DATA (20) bytes: CAL_FRAG -> CAL_FRAG_ACK (status) each.
+2. The set (``fixedpoint.build_calset``, 102 bytes, or 164 with temperature
+   terms) in fragments of NINEDOF_FRAG_DATA (20) bytes: CAL_FRAG ->
+   CAL_FRAG_ACK (status) each.  An image built before the temperature terms
+   refuses a fragment past byte 102 (NINEDOF_CAL_E_FRAG): ``NoTemperature``
+   says so, and ``--no-temp`` sends the plain set instead.
 3. CAL_COMMIT (APPLY, length, CRC-16 of the set) -> CAL_COMMIT_ACK (status,
    the CRC the mote computed, the version in force, sensors corrected).
-4. Read-back: CAL_QUERY offsets 0, 20, .. 100 -> CAL_REPORTs; the set in
-   force must equal the set sent byte for byte.
+4. Read-back: CAL_QUERY offsets 0, 20, .. -> CAL_REPORTs (the first one's
+   format byte gives the set's length); the set in force must equal the set
+   sent byte for byte.
 5. The mote's next sample messages must carry the corrected flag and the
    version's low 4 bits.
 
@@ -43,6 +47,7 @@ VERIFY_WAIT = 2.0            # s: for the mote's sample messages after the commi
 VERIFY_MESSAGES = 3          # consecutive sample messages with the new flags
 VERIFY_STALE_MAX = 12        # old-flag messages tolerated first (queued before the commit)
 MAX_VERSION = 0xFFFF
+E_FRAG = next(c for c, (n, _) in P.CAL_REASONS.items() if n == "NINEDOF_CAL_E_FRAG")
 
 
 def next_version(in_force: int) -> int:
@@ -63,6 +68,11 @@ def choose_version(mote: int, in_force: int, opts: "Options") -> int:
                         f"{opts.version} is not newer (versions strictly increase; "
                         "--force sends it anyway)")
     return opts.version
+
+
+class NoTemperature(Rejected):
+    """The mote's image predates the temperature terms (it refused bytes
+    past the plain set)."""
 
 
 def fragments(calset: bytes) -> list[tuple[int, bytes]]:
@@ -155,19 +165,28 @@ class Uploader:
         ``expect_version``: only reports of that version count (older ones
         still travelling are ignored).
         """
-        pieces = fragments(bytes(P.CALSET_SIZE))
         match = (lambda m: True) if expect_version is None else \
             (lambda m: m["version"] == expect_version)
         for _ in range(attempts):
-            self.progress.task("read-back", len(pieces))
             data = bytearray()
             head = None
+            first = self.query(0, "read-back 1 (offset 0)", match)
+            # the set's format byte (header byte 5) gives its length
+            size = P.CALSET_SIZES.get(first["data"][5]) if first["len"] > 5 else None
+            if size is None:
+                raise UploadFailed(f"mote {self.mote} reports a set of format "
+                                   f"{first['data'][5] if first['len'] > 5 else '?'}: not a "
+                                   f"set this motecal knows ({P.CALSET_SIZE} or "
+                                   f"{P.CALSET_TEMP_SIZE} bytes)")
+            pieces = fragments(bytes(size))
+            self.progress.task("read-back", len(pieces))
             for i, (off, chunk) in enumerate(pieces):
-                r = self.query(off, f"read-back {i + 1}/{len(pieces)} (offset {off})", match)
+                r = first if off == 0 else \
+                    self.query(off, f"read-back {i + 1}/{len(pieces)} (offset {off})", match)
                 if r["len"] != len(chunk):
                     raise UploadFailed(f"mote {self.mote} reports {r['len']} bytes at offset "
                                        f"{off}, expected {len(chunk)}: not this protocol's "
-                                       f"{P.CALSET_SIZE}-byte set")
+                                       f"{size}-byte set")
                 if head is None:
                     head = (r["version"], r["crc"])
                 elif (r["version"], r["crc"]) != head:
@@ -196,6 +215,13 @@ class Uploader:
                 P.CAL_FRAG, P.AM_NINEDOF_CAL_FRAG_ACK_MSG, what,
                 match=lambda m, off=off: m["offset"] == off and m["version"] == version,
                 mote=self.mote, version=version, offset=off, len=len(chunk), data=chunk)
+            if ack["status"] == E_FRAG and off + len(chunk) > P.CALSET_SIZE \
+                    and len(calset) > P.CALSET_SIZE:
+                raise NoTemperature(f"mote {self.mote} refused the temperature terms (its "
+                                    f"firmware takes no set longer than {P.CALSET_SIZE} bytes: "
+                                    "an image without on-mote temperature correction); the set "
+                                    "in force is unchanged; `motecal upload --no-temp` uploads "
+                                    "the calibration without them", ack["status"])
             if ack["status"] != P.CAL_OK:
                 raise Rejected(f"mote {self.mote} rejected {what} of version {version}: "
                                f"{P.cal_reason(ack['status'])}; the set in force is "
@@ -214,10 +240,10 @@ class Uploader:
         self.link.samples.clear()        # what follows was packed after the commit
         return ack
 
-    def apply(self, version: int, crc: int) -> dict:
-        """Commit the staged set; Rejected (with the mote's reason) unless it is
-        now in force with our CRC."""
-        ack = self.commit(version, crc)
+    def apply(self, version: int, crc: int, length: int = P.CALSET_SIZE) -> dict:
+        """Commit the staged set (``length`` bytes); Rejected (with the mote's
+        reason) unless it is now in force with our CRC."""
+        ack = self.commit(version, crc, length)
         if ack["status"] != P.CAL_OK:
             raise Rejected(f"mote {self.mote} rejected calibration version {version}: "
                            f"{P.cal_reason(ack['status'])}; version {ack['version']} stays in "
@@ -280,15 +306,17 @@ class Uploader:
         crc = P.crc16(calset)
         self.stage(calset, cs.version)
         try:
-            ack = self.apply(cs.version, crc)
+            ack = self.apply(cs.version, crc, len(calset))
         except NoAnswer as e:
             ack = self._after_lost_ack(e, cs.version, crc, lambda back: back.data == calset,
                                        cs.mask)
         back = self.read_set(expect_version=cs.version)
         if back.data != calset:
-            i = next(k for k in range(len(calset)) if back.data[k] != calset[k])
-            raise UploadFailed(f"mote {self.mote}: the set read back differs from the set sent "
-                               f"(first at byte {i})")
+            n = min(len(back.data), len(calset))
+            i = next((k for k in range(n) if back.data[k] != calset[k]), n)
+            raise UploadFailed(f"mote {self.mote}: the set read back ({len(back.data)} bytes) "
+                               f"differs from the set sent ({len(calset)} bytes; first at byte "
+                               f"{i})")
         self.progress.note(f"  read-back: {len(calset)} bytes identical, CRC 0x{back.crc:04x}")
         chk = self.check_samples(flags_for(cs.version, cs.mask), verify_wait)
         self._note_samples(chk)
@@ -368,6 +396,7 @@ class Options:
     version: int | None = None
     verify_wait: float = VERIFY_WAIT
     force: bool = False
+    temperature: bool = True           # False (--no-temp): the plain set, no temperature terms
 
 
 def check_cal(cal: CalFile, mote: int, opts: Options) -> None:
@@ -377,7 +406,7 @@ def check_cal(cal: CalFile, mote: int, opts: Options) -> None:
         raise QualityError(f"{cal.path} was refused by the quality gate ("
                            + "; ".join(cal.gate.get("reasons", [])) + "); --force uploads "
                            "it anyway")
-    check_set(build_set(cal, mote, opts.version or 1)[0], mote, cal.path)
+    check_set(build_set(cal, mote, opts.version or 1, opts.temperature)[0], mote, cal.path)
 
 
 def upload_cal(source: S.Source, cal: CalFile, mote: int, opts: Options = Options(),
@@ -391,10 +420,12 @@ def upload_cal(source: S.Source, cal: CalFile, mote: int, opts: Options = Option
         t0 = link.clock()
         old = up.in_force()
         version = choose_version(mote, old.version, opts)
-        calset, _ = build_set(cal, mote, version)
+        calset, _ = build_set(cal, mote, version, opts.temperature)
+        temp = FP.unpack_calset(calset).temps
         progress.note(f"mote {mote}: version {old.version} in force (CRC 0x{old.crc:04x}); "
                       f"uploading version {version} ({len(calset)} bytes, "
-                      f"{len(fragments(calset))} fragments, CRC 0x{P.crc16(calset):04x})")
+                      f"{len(fragments(calset))} fragments, CRC 0x{P.crc16(calset):04x}"
+                      + (f"; temperature terms: {', '.join(temp)}" if temp else "") + ")")
         res = up.upload(calset, old.version, opts.verify_wait)
         res.seconds = link.clock() - t0
     finally:

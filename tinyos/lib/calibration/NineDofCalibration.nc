@@ -13,4 +13,8 @@
 interface NineDofCalibration
 {
   command const ninedof_calrx_t *inForce();
+  /* The board temperature (raw ITG-3200 TEMP_OUT) the correction uses from
+   * now on, for a set with temperature terms (ninedof_calrx_set_temp).
+   * From tasks only, like inForce. */
+  command void setTemperature(int16_t raw);
 }

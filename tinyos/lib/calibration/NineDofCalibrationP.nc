@@ -60,20 +60,28 @@ implementation
   uint8_t replyType, replyLen, replyAttempts;
 
   command error_t Init.init() {
-    uint8_t bootImage[2][NINEDOF_IMAGE_SIZE];   /* the two EEPROM slots */
+    /* the two EEPROM slots, and the second slot of images built before
+     * the temperature terms (NINEDOF_EEPROM_LEGACY1, read only) */
+    uint8_t bootImage[2][NINEDOF_IMAGE_MAX];
+    uint8_t legacy[NINEDOF_IMAGE_SIZE];
     uint8_t slot;
     uint16_t generation;
 
     ninedof_calrx_init(&rx, TOS_NODE_ID);
-    eeprom_read_block(bootImage[0], (const void *)NINEDOF_EEPROM_SLOT0, NINEDOF_IMAGE_SIZE);
-    eeprom_read_block(bootImage[1], (const void *)NINEDOF_EEPROM_SLOT1, NINEDOF_IMAGE_SIZE);
-    ninedof_calrx_restore(&rx, bootImage[0], bootImage[1], &slot, &generation);
+    eeprom_read_block(bootImage[0], (const void *)NINEDOF_EEPROM_SLOT0, NINEDOF_IMAGE_MAX);
+    eeprom_read_block(bootImage[1], (const void *)NINEDOF_EEPROM_SLOT1, NINEDOF_IMAGE_MAX);
+    eeprom_read_block(legacy, (const void *)NINEDOF_EEPROM_LEGACY1, NINEDOF_IMAGE_SIZE);
+    ninedof_calrx_restore(&rx, bootImage[0], bootImage[1], legacy, &slot, &generation);
     ninedof_eewriter_init(&eewriter, slot, generation);
     return SUCCESS;
   }
 
   command const ninedof_calrx_t *NineDofCalibration.inForce() {
     return &rx;
+  }
+
+  command void NineDofCalibration.setTemperature(int16_t raw) {
+    ninedof_calrx_set_temp(&rx, raw);
   }
 
   void persist() {

@@ -11,9 +11,12 @@
 #include "ninedof_board.h"
 #include "ninedof_board.c"
 
-/* Three axes of one chip, in counts, host byte order (x, y, z) */
+/* Three axes of one chip, in counts, host byte order (x, y, z), and the
+ * chip's temperature where its read carries one (ITG-3200: raw TEMP_OUT,
+ * read in the same burst as the rates; 0 for the other chips) */
 typedef struct {
   int16_t xyz[3];
+  int16_t temp;
 } ninedof_xyz_t;
 
 #endif

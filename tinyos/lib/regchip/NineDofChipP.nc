@@ -8,8 +8,10 @@
  *   SplitControl.start   identity check, then the register table
  *   SplitControl.stop    the sleep write
  *   ReadNow.read         (async) the read command (register pointer, or
- *                        the HMC5883L's trigger), repeated start, six data
- *                        bytes -> x, y, z counts
+ *                        the HMC5883L's trigger), repeated start, the
+ *                        descriptor's data_len bytes -> x, y, z counts (the
+ *                        ITG-3200: 8 bytes from TEMP_OUT_H, the temperature
+ *                        too)
  *   Registers.readRegister / configure   (async) one register read back,
  *                        the register table written again (the board's
  *                        fault handling, ninedof_fault.h)
@@ -43,7 +45,7 @@ implementation
   uint8_t state = S_OFF;
   norace uint8_t step;                     /* transfer within the operation */
   norace uint8_t reg;                      /* register of readRegister */
-  norace uint8_t buf[NINEDOF_CHIP_DATA];
+  norace uint8_t buf[NINEDOF_CHIP_DATA_MAX];
   norace error_t result;
 
   const ninedof_chip_t *desc() {
@@ -96,7 +98,7 @@ implementation
         buf[1] = d->read_cmd[1];
         return call I2CPacket.write(I2C_START, d->addr, d->read_len, buf);
       }
-      return call I2CPacket.read(I2C_START | I2C_STOP, d->addr, NINEDOF_CHIP_DATA, buf);
+      return call I2CPacket.read(I2C_START | I2C_STOP, d->addr, d->data_len, buf);
     case S_REGISTER:
       if (step == 0)
         return pointTo(reg);
@@ -125,10 +127,12 @@ implementation
 
     switch (s) {
     case S_READING:
-      if (err == SUCCESS)
+      if (err == SUCCESS) {
         ninedof_chip_xyz(chip, buf, v.xyz);
-      else
-        v.xyz[0] = v.xyz[1] = v.xyz[2] = 0;
+        v.temp = ninedof_chip_temp(chip, buf);
+      } else {
+        v.xyz[0] = v.xyz[1] = v.xyz[2] = v.temp = 0;
+      }
       atomic state = S_ON;
       signal ReadNow.readDone(err, v);
       break;

@@ -13,9 +13,12 @@
 #include "ninedof_fault.h"
 #include "ninedof_fault.c"
 
-/* Nine axes of one sample: ax ay az gx gy gz mx my mz */
+/* Nine axes of one sample: ax ay az gx gy gz mx my mz, and the board
+ * temperature read with them (the ITG-3200's raw TEMP_OUT, same burst as
+ * the rates) */
 typedef struct {
   int16_t axis[9];
+  int16_t temp;
 } ninedof_raw_t;
 
 /* The chips' shares of the board's bus (NineDofBusP), in reading order:

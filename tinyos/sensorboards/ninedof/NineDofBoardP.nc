@@ -2,7 +2,8 @@
  * NineDofBoardP -- the 9DOF board as one sensor: SplitControl configures the
  * three chips one after the other; ReadNow reads the nine axes of one
  * instant, the three chips back to back on the fast-mode (364 kHz) bus, and
- * returns them as one record (ax..mz, counts).
+ * returns them as one record (ax..mz, counts) with the board temperature
+ * (the ITG-3200's TEMP_OUT, read in the same burst as its rates).
  *
  * Each operation holds the board's bus (Bus = NineDofBusP.Hold) from start
  * to end, so the chips get their turns on it without arbitration: one
@@ -179,9 +180,11 @@ implementation
   void readEnd(error_t err) {
     ninedof_raw_t done = sample;
     uint8_t i;
-    if (err != SUCCESS)
+    if (err != SUCCESS) {
       for (i = 0; i < 9; i++)
         done.axis[i] = 0;
+      done.temp = 0;
+    }
     call Bus.release();
     atomic {
       reading = FALSE;
@@ -257,6 +260,8 @@ implementation
       sample.axis[3 * chip] = v.xyz[0];
       sample.axis[3 * chip + 1] = v.xyz[1];
       sample.axis[3 * chip + 2] = v.xyz[2];
+      if (chip == NINEDOF_CHIP_GYRO)
+        sample.temp = v.temp;
       if (chip + 1 == NINEDOF_CHIPS) {
         check();
         return;

@@ -5,6 +5,11 @@ README's goals table.  So no figure in the docs can disagree with the last run.
 
     record(name, goal, measured, unit, met)     # in a bench
     python bench/results.py FILE.jsonl bench/RESULTS.md   # make bench, at the end
+    python bench/results.py --merge FILE.jsonl bench/RESULTS.md   # one bench run alone
+
+``--merge`` replaces only the rows of the benches that FILE holds, in place,
+and keeps every other bench's row of the last RESULTS.md as it was; the
+header then names the benches rerun and when.
 
 ``met`` is True / False, or None for a figure that is not measured here
 (``measured`` None) or that has no goal of its own (context).  Outside
@@ -140,22 +145,56 @@ def write(rows: list[dict], out: Path) -> None:
     tmp.replace(out)
 
 
+def merge(rows: list[dict], out: Path) -> None:
+    """RESULTS.md with the rows of the benches in ``rows`` replaced (at the
+    place of their first old row, or at the end) and every other line kept."""
+    if not out.is_file():
+        return write(rows, out)
+    benches = {r["bench"] for r in rows}
+    new = table(rows)[2:]
+    lines, placed = [], False
+    for line in out.read_text().splitlines():
+        b = line.split(" | ")[4].strip() if line.startswith("| ") and line.count(" | ") >= 5 \
+            else None
+        if b and b.strip("`") in benches:
+            if not placed:
+                lines += new
+                placed = True
+            continue
+        lines.append(line)
+    if not placed:
+        end = max(i for i, x in enumerate(lines) if x.startswith("| ")) + 1
+        lines[end:end] = new
+    now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    commit = _git("rev-parse", "--short", "HEAD") or "unknown"
+    note = (f"- rerun alone: {', '.join(sorted(benches))} at {now}, commit {commit} "
+            f"(its rows only; `bench/results.py --merge`)")
+    lines = [x for x in lines if not x.startswith("- rerun alone: ")]
+    at = max(i for i, x in enumerate(lines) if x.startswith("- command:")) + 1
+    lines.insert(at, note)
+    tmp = out.with_suffix(".tmp")
+    tmp.write_text("\n".join(lines) + "\n")
+    tmp.replace(out)
+
+
 def read_results(path: Path) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
 
 
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
+    merging = argv[:1] == ["--merge"]
+    argv = argv[1:] if merging else argv
     if len(argv) != 2:
-        print("usage: results.py RESULTS.jsonl RESULTS.md", file=sys.stderr)
+        print("usage: results.py [--merge] RESULTS.jsonl RESULTS.md", file=sys.stderr)
         return 2
     src, out = Path(argv[0]), Path(argv[1])
     if not src.is_file():
         print(f"results.py: {src}: no results recorded (run make bench)", file=sys.stderr)
         return 2
     rows = read_results(src)
-    write(rows, out)
-    print(f"wrote {out} ({len(rows)} figures)")
+    (merge if merging else write)(rows, out)
+    print(f"{'merged into' if merging else 'wrote'} {out} ({len(rows)} figures)")
     return 0
 
 

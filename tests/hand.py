@@ -57,6 +57,7 @@ def simulate(plants: list, traj, seed: int, *, labelled: bool = False, base: str
         seq=np.arange(n, dtype=np.int64), t=t, label=label, flags=np.zeros(n, np.uint8),
         kind="static80" if labelled else "free",
         meta={"source": "sim", "rate_hz": model.rate_hz, "seed": int(seed), "model": model.name,
+              "holds": len(traj.poses),
               "planted": [{"cause": p.cause, "sensor": p.sensor, "term": p.term}
                           for p in plants]})
 

@@ -159,7 +159,8 @@ def simulate(plants: list[Plant], kind: str, seed: int, *, n_poses: int = 80,
         meta={"source": "sim", "rate_hz": model.rate_hz, "seed": int(seed),
               "model": model.name, "truth": board.to_json(),
               "planted": [{"cause": p.cause, "sensor": p.sensor, "size": p.size,
-                           "term": p.term} for p in plants]})
+                           "term": p.term} for p in plants]},
+        temp=board.temperature_reading_c(t) if board.thermal is not None else None)
 
 
 # ---------------------------------------------------------------------------

@@ -61,7 +61,7 @@ def paper_sized_session(seed: int = 0, model: str = "general", *,
         keep[idx[per_pose:]] = False
         label[idx[per_pose:]] = 0
     label[~keep] = 0
-    parts_raw, parts_t, parts_label = [raw], [t], [label]
+    parts_raw, parts_t, parts_label, parts_temp = [raw], [t], [label], [t]
     if rotation:
         rt = make_trajectory("rotation", seed, rate_hz=sm.rate_hz)
         t2 = board.sample_times(rt.duration)[:PAPER_SWEEP]
@@ -69,7 +69,11 @@ def paper_sized_session(seed: int = 0, model: str = "general", *,
         parts_raw.append(raw2)
         parts_t.append(t2 + t[-1] + 1.0)
         parts_label.append(rt.label_at(t2))
+        parts_temp.append(t2)        # its own sampler: the board was switched on again
     raw = np.vstack(parts_raw).astype(float)
+    # a board with a thermal term (model 'thermal') carries its temperature reading
+    temp = (np.concatenate([board.temperature_reading_c(tt) for tt in parts_temp])
+            if board.thermal is not None else None)
     n = len(raw)
     return SessionData(
         name=f"paper-sized-{model}-seed{seed}", raw=raw, mote=np.full(n, mote, np.int32),
@@ -77,7 +81,8 @@ def paper_sized_session(seed: int = 0, model: str = "general", *,
         label=np.concatenate(parts_label).astype(np.int32), flags=np.zeros(n, np.uint8),
         kind="static80",
         meta={"source": "sim", "rate_hz": sm.rate_hz, "seed": int(seed), "model": sm.name,
-              "truth": board.to_json(), "physical_truth": board.physical_truth()})
+              "truth": board.to_json(), "physical_truth": board.physical_truth()},
+        temp=temp)
 
 
 def true_affine(physical_truth: dict, sensor: str):

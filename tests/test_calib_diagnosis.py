@@ -23,13 +23,19 @@ def _db(tmp_path, data, name="s"):
     return str(path)
 
 
-def test_repeats_are_left_out_and_the_user_sees_it(tmp_path, capsys):
+def test_repeats_are_weighed_and_the_user_sees_it(tmp_path, capsys):
+    """Repeated magnetometer readings in static poses: the diagnosis names
+    them, calibrate --diagnosis counts them and tries the fit without them;
+    repeats of an unbiased reading change only which noise is averaged, so
+    the held-out error does not fall and they are kept in -- said, with the
+    held-out figures."""
     plants = [H.P.Plant("stale_samples", "mag", "static80", 0.2,
                         {"term": "stale_samples", "update_hz": 100.0})]
     ses = H.P.simulate(plants, "static80", 7, n_poses=30)
     db = _db(tmp_path, ses)
     dj = tmp_path / "d.json"
-    assert main(["diagnose", "--db", db, "--session", "s", "--no-sim", "--json", str(dj)]) == 0
+    assert main(["diagnose", "--db", db, "--session", "s", "--no-sim", "--json", str(dj),
+                 "--no-keep"]) == 0
     assert any(f["cause"] == "stale_samples" for f in json.loads(dj.read_text())["findings"])
     capsys.readouterr()
     out = tmp_path / "cal.json"
@@ -37,12 +43,20 @@ def test_repeats_are_left_out_and_the_user_sees_it(tmp_path, capsys):
                "--kfold", "0", "--diagnosis", str(dj)])
     text = capsys.readouterr().out
     assert rc == 0, text
-    assert "used: mag stale_samples:" in text and "repeated readings left out" in text
+    assert f"diagnosis {dj}:" in text and "mag stale_samples:" in text, text
     cal = json.loads(out.read_text())
-    used = cal["settings"]["diagnosis"]["used"]
-    n = int(used[0].split(": ")[1].split()[0])
+    dg = cal["settings"]["diagnosis"]
+    line = next(u for u in dg["used"] + dg["not_used"] if u.startswith("mag stale_samples:"))
+    n = int(line.split(": ")[1].split()[0])
     assert 0.1 * len(ses) < n < 0.3 * len(ses)             # about 1 - 100/125 repeat
-    assert cal["mag"]["n_samples"] < (ses.label >= 1).sum()
+    dec = next(d for d in dg["decisions"] if d["what"] == "stale_samples")
+    assert dec["sensor"] == "mag" and dec["groups"] == 30
+    if dec["used"]:
+        assert "left out (a trimmed fit): held-out rms" in line
+        assert cal["mag"]["n_samples"] < (ses.label >= 1).sum()
+    else:
+        assert "kept in: leaving them out does not lower the held-out error" in line
+        assert cal["mag"]["n_samples"] == (ses.label >= 1).sum()
 
 
 def test_bad_diagnosis_file_is_one_line_exit_2(tmp_path, capsys):

@@ -181,7 +181,7 @@ def test_criterion_bonferroni_and_held_out():
 
 def test_vocabulary_covers_the_issue_ids_and_simulator_terms():
     ids = {"cross_axis", "nonlinearity", "bias_drift", "g_sensitivity", "saturation",
-           "stale_samples", "motion", "field_disturbance", "unexplained"}
+           "stale_samples", "motion", "field_disturbance", "temperature", "unexplained"}
     assert set(C.CAUSES) == ids
     from motecal.sim.physics import TERMS
     for c in C.CAUSES.values():

@@ -205,7 +205,9 @@ def run_one(cmd, template):
         assert "Traceback" not in err, where
         if rc:
             assert err.count("\n") == 1 and err.endswith("\n"), f"{where}: {err!r}"
-        writes_db = cmd in WRITES_DB and rc == 0 or cmd == "calibrate"
+        writes_db = (cmd in WRITES_DB and rc == 0 or cmd == "calibrate"
+                     # diagnose keeps its result with the session unless --no-keep
+                     or cmd == "diagnose" and rc == 0 and "--no-keep" not in argv)
         if not writes_db:
             assert digest(files.db) == db_before, f"{where}: the database changed"
         else:

@@ -40,7 +40,7 @@ READS = [
     ("sessions",), ("sessions", "--json"),
     ("export", "--session", "board", "--csv", "{out}/b.csv"),
     ("export", "--session", "board", "--csv", "-"),
-    ("diagnose", "--session", "board", "--no-sim", "--json", "{out}/d.json"),
+    ("diagnose", "--session", "board", "--no-sim", "--json", "{out}/d.json", "--no-keep"),
 ]
 
 
@@ -128,6 +128,10 @@ def test_case8_every_command_works_on_read_only_media(master, tmp_path, monkeypa
         assert rc == 0, (how, err)
         assert "not recorded in the database" in text
         assert json.loads((out / "cal.json").read_text())["session"] == "board"
+        # diagnose keeps its result when it can: here it says it could not
+        rc, text, err = motecal("diagnose", "--db", db, "--session", "board", "--no-sim")
+        assert rc == 0 and "not kept with the session: the database is read-only" in text, \
+            (how, text, err)
         # log and import need to write: one line, exit 2, nothing changed
         rc, _, err = motecal("import", out / "b.csv", "--db", db, "--session", "again")
         assert rc == 2 and "Traceback" not in err and err.count("\n") == 1, err

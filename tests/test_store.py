@@ -214,7 +214,7 @@ def test_newer_schema_refused_and_old_schema_migrated(tmp_path):
     assert "cut_off" not in [r[1] for r in con.execute("PRAGMA table_info(line_stats)")]
     con.close()
     with open_store(v2) as st:
-        assert st.schema_version == SCHEMA_VERSION == 6
+        assert st.schema_version == SCHEMA_VERSION == 7
         line = st.link_stats("two")["line"]
         assert (line["frames"], line["crc_errors"], line["cut_off"]) == (7, 1, 0)
     # version 3 (no fault counters of the mote yet) gains the columns, its rows read 0
@@ -252,7 +252,7 @@ def _old_db(path, version: int):
     con.close()
 
 
-def test_schema_5_migrates_to_6_with_the_temperature_table(tmp_path):
+def test_schema_5_migrates_with_the_temperature_table(tmp_path):
     """Version 5 (no temperature yet) gains the temps table; its sessions load
     with temp None; a session with a temperature is stored and loaded back."""
     v5 = str(tmp_path / "v5.db")
@@ -266,7 +266,7 @@ def test_schema_5_migrates_to_6_with_the_temperature_table(tmp_path):
         assert st.schema_version == 5
         assert st.load_session("five").temp is None
     with open_store(v5) as st:
-        assert st.schema_version == SCHEMA_VERSION == 6
+        assert st.schema_version == SCHEMA_VERSION == 7
         d = st.load_session("five")
         assert d.temp is None and d.raw[0, :3].tolist() == [1, 2, 3]
     with open_store(v5) as st:

@@ -168,7 +168,7 @@ def test_temperature_roundtrip(fresh_db):
     check_temperature_roundtrip(fresh_db)
 
 
-def test_schema_5_migrates_to_6(fresh_db):
+def test_schema_5_migrates_to_the_latest(fresh_db):
     b = M.MysqlBackend(fresh_db, True)
     cur = b.cursor()
     for v in range(1, 6):
@@ -179,7 +179,7 @@ def test_schema_5_migrates_to_6(fresh_db):
                 "('five', 'free', 0, '{}', '{}', '{}')")
     b.close()
     with open_store(fresh_db) as st:
-        assert st.schema_version == SCHEMA_VERSION == 6
+        assert st.schema_version == SCHEMA_VERSION == 7
         assert "temps" in st._tables and st.load_session("five").temp is None
     check_temperature_roundtrip(fresh_db)
 

@@ -35,10 +35,11 @@ from ..sessions.session import (HMC5883L_OVERFLOW, LABEL_NONE, LABEL_ROT, NOMINA
                                 SessionData)
 from ..sessions.still import StillThresholds
 from . import fit as _fit
-from .content import poses_from_stillness
+from .content import poses_from_stillness, temperature_content
 from . import gate as _gate
 from . import gyro as _gyro
 from . import rotations as _rotations
+from . import thermal as _thermal
 from .ga import GAOptions
 from .models import MagnitudeModel, mag_groups, make_model
 from .result import BoardCalibration, Param, SensorCalibration
@@ -69,6 +70,10 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
     if len(motes) != 1:
         raise UserError(f"session {data.name} holds motes {motes}: calibrate one mote at a time")
     data, found = poses_from_stillness(data)
+    whole, tc = data, None
+    if data.has_temp:                    # issue 16: holds fit the temperature terms only
+        tc = temperature_content(data)
+        data = _thermal.without_holds(data, tc)
     seed, (s_acc, s_gyr, s_mag) = _seeds(seed)
     created = created or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
     board = BoardCalibration(mote=motes[0], session=data.name, created=created,
@@ -153,6 +158,8 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
         if mnote:
             board.mag.notes.append(mnote)
             board.mag.quality.setdefault("warnings", []).append(mnote)
+    if tc is not None:
+        _thermal.attach(board, whole, data, tc)
     return board
 
 

@@ -3,7 +3,15 @@
     motecal calibrate --db FILE --session NAME --out cal.json [--mote ID]
                       [--model paper|full] [--params offsets,scales,angles]
                       [--seed N] [--mag-field GAUSS] [--no-gyro-matrix]
-                      [--kfold K] [--force] [--upload --port URL [--baud B]]
+                      [--kfold K] [--diagnosis FILE | --no-diagnosis] [--force]
+                      [--upload --port URL [--baud B]]
+
+A diagnosis of the session (``motecal diagnose`` keeps its result with the
+session) is used by default: the findings' treatments and terms, each kept
+only when it lowers the held-out error (``calib.loop``); one made from
+other data or by another motecal version is not used, and the summary says
+so.  ``--diagnosis FILE`` uses a ``diagnose --json`` file instead,
+``--no-diagnosis`` none.
 
 Per board (mote): ``calibrate`` (board.calibrate_board) -> ``gate``
 (gate.decide) -> ``deliver`` (cal.json + the database).  A further step that
@@ -29,9 +37,12 @@ from ..calib.design import describe_poses_needed, session_poses_needed
 from ..calib.gate import decide
 from ..calib.models import MODEL_FAMILIES, parse_groups
 from ..calib.result import BoardCalibration
-from ..calib.terms import apply_diagnosis, load_diagnosis
+from ..calib.loop import calibrate_with_diagnosis
+from ..calib.terms import load_diagnosis
+from .. import __version__
 from ..errors import QualityError, UserError
 from ..outputs import check_output, write_text
+from ..sessions.fingerprint import data_key, rows_of
 from ..sessions.store import StoreError, open_store
 from .args import description, int_range, mote_id, positive, seed
 
@@ -60,11 +71,15 @@ def register(subparsers):
                    help="gyroscope bias only (no scale/misalignment from the moves)")
     p.add_argument("--kfold", type=int_range("number of folds", 0, MAX_KFOLD), default=5,
                    help=f"held-out validation folds: 0 (off) or 2..{MAX_KFOLD} (default 5)")
-    p.add_argument("--diagnosis", metavar="FILE",
-                   help="a diagnosis of this session (motecal diagnose --json): leave out the "
-                        "readings its findings make wrong (repeats, clipping, outliers) and "
-                        "refuse a magnetometer it found not calibratable; the terms used are "
-                        "printed and kept in cal.json")
+    dg = p.add_mutually_exclusive_group()
+    dg.add_argument("--diagnosis", metavar="FILE",
+                    help="use this diagnosis of the session (motecal diagnose --json) instead "
+                         "of the one kept with the session: its findings' treatments and terms, "
+                         "each kept when it lowers the held-out error; printed and kept in "
+                         "cal.json")
+    dg.add_argument("--no-diagnosis", action="store_true",
+                    help="ignore any diagnosis of the session (by default the one motecal "
+                         "diagnose kept with it is used)")
     p.add_argument("--force", action="store_true",
                    help="save boards the quality gate refuses (the reasons stay in cal.json)")
     from .upload import add_calibrate_options
@@ -94,6 +109,37 @@ def calibrate(data, args) -> BoardCalibration:
                            kfold=args.kfold)
 
 
+TOOL = f"motecal {__version__}"
+
+
+def pick_diagnosis(args, store, data, mote) -> tuple[dict | None, dict]:
+    """The diagnosis to use for one mote and where it came from: ``--diagnosis
+    FILE``; none with ``--no-diagnosis``; else the latest kept with the
+    session, when it was made from these very rows by this motecal version
+    (otherwise not used, and ``source["not_used"]`` says why)."""
+    if getattr(args, "no_diagnosis", False):
+        return None, {"not_used": "--no-diagnosis"}
+    if getattr(args, "diagnosis", None):
+        return load_diagnosis(args.diagnosis), {"file": str(args.diagnosis)}
+    rec = store.load_diagnosis(args.session, mote)
+    if rec is None:
+        return None, {"not_used": "none kept with the session (motecal diagnose keeps one)"}
+    src = {"kept": rec["id"], "created": rec["created"], "tool": rec["tool"]}
+    what = f"the diagnosis of {rec['created']} ({rec['tool']})"
+    if not isinstance(rec["diagnosis"], dict) or not isinstance(
+            rec["diagnosis"].get("findings"), list):
+        return None, dict(src, not_used=f"{what} is not readable; run motecal diagnose again")
+    if rec["data_key"] != data_key(data):
+        then, now = rows_of(rec["data_key"]), len(data)
+        return None, dict(src, not_used=(
+            f"{what} was made from other data ({then} rows then, {now} now): run motecal "
+            "diagnose again"))
+    if rec["tool"] != TOOL:
+        return None, dict(src, not_used=f"{what} was made by another version (this is {TOOL}): "
+                                        "run motecal diagnose again")
+    return rec["diagnosis"], src
+
+
 def deliver(board: BoardCalibration, args, store, path: Path) -> int | None:
     """Write cal.json (``outputs.write_text``: never over the database, a
     device or half-written) and record the calibration in the database;
@@ -111,6 +157,22 @@ def deliver(board: BoardCalibration, args, store, path: Path) -> int | None:
 
 def _fmt(x, spec=".3e"):
     return "-" if x is None else format(x, spec)
+
+
+def diagnosis_lines(dg: dict) -> list:
+    """What the summary says about the diagnosis used (``settings.diagnosis``)."""
+    if "file" in dg:
+        head = f"  diagnosis {dg['file']}"
+    elif "kept" in dg:
+        head = f"  diagnosis of {dg.get('created')} ({dg.get('tool')}), kept with the session"
+    else:
+        head = "  diagnosis"
+    if "used" not in dg:
+        return [f"{head}: not used: {dg.get('not_used')}"]
+    out = [f"{head}:" + ("" if dg["used"] else " nothing used")]
+    out += [f"    used: {u}" for u in dg["used"]]
+    out += [f"    not used: {u}" for u in dg.get("not_used") or []]
+    return out
 
 
 def summary(board: BoardCalibration) -> str:
@@ -135,9 +197,7 @@ def summary(board: BoardCalibration) -> str:
                      + "".join(f"; set {k}: {v['field_gauss']:.4f}"
                                for k, v in board.mag_sets.items() if not v.get("used")))
     if s.get("diagnosis"):
-        dg = s["diagnosis"]
-        lines.append(f"  diagnosis {dg['file']}: used: " + ("; ".join(dg["used"]) or "nothing")
-                     + ("; not used: " + "; ".join(dg["not_used"]) if dg["not_used"] else ""))
+        lines += diagnosis_lines(s["diagnosis"])
     if s.get("poses_found"):
         lines.append(f"  session: {s['poses_found']}")
     for name, sc in board.sensors():
@@ -169,18 +229,18 @@ def run(args) -> int:
         for m in motes:                  # every output checked before any work
             check_output(out_path(args.out, m, several), inputs=[args.db], what="--out")
         refused = []
-        diag = load_diagnosis(args.diagnosis) if getattr(args, "diagnosis", None) else None
+        if getattr(args, "diagnosis", None):
+            load_diagnosis(args.diagnosis)           # a bad file: one line before any work
         for m in motes:
             dm = data.for_mote(m)
+            diag, source = pick_diagnosis(args, store, dm, m)
             if diag is not None:
-                dm, used, unused, refuse = apply_diagnosis(dm, diag)
-            board = calibrate(dm, args)
-            if diag is not None:
-                board.settings["diagnosis"] = {"file": str(args.diagnosis), "used": used,
-                                               "not_used": unused}
-                if "mag" in refuse and board.mag is not None:
-                    board.mag, board.mag_sets = None, {}
-                    board.settings["insufficient"]["mag"] = refuse["mag"]
+                board, rep = calibrate_with_diagnosis(dm, diag, lambda d: calibrate(d, args),
+                                                      kfold=args.kfold)
+                source = dict(source, **rep)
+            else:
+                board = calibrate(dm, args)
+            board.settings["diagnosis"] = source
             session_poses_needed(board, dm)
             decision = decide(board, force=args.force)
             print(summary(board))

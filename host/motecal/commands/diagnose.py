@@ -3,9 +3,12 @@ model and its gain.
 
     motecal diagnose --db FILE --session NAME [--mote ID] [--json OUT]
                      [--report DIR] [--model-out extended.json]
-                     [--alpha A] [--seed N] [--no-sim]
+                     [--alpha A] [--seed N] [--no-sim] [--no-keep]
 
-Prints one paragraph per finding (ending with its held-out gain).  With
+Prints one paragraph per finding (ending with its held-out gain).  The
+diagnosis is kept with the session in the database (with the motecal version
+and the fingerprint of the rows it saw): ``motecal calibrate`` uses it by
+default; ``--no-keep`` leaves the database as it was.  With
 several motes and no ``--mote`` every mote is diagnosed and the output
 files get ``-mote<ID>`` before their extension (as ``motecal calibrate``).
 """
@@ -39,12 +42,36 @@ def register(subparsers):
     p.add_argument("--seed", type=seed, default=0, help="simulation seed (0)")
     p.add_argument("--no-sim", action="store_true",
                    help="skip the side-by-side simulation (statistics comparison)")
+    p.add_argument("--no-keep", action="store_true",
+                   help="do not keep the diagnosis with the session (calibrate uses a kept "
+                        "one by default)")
     p.set_defaults(func=run)
     return p
 
 
 def _write_json(path: Path, obj, inputs=()):
     write_text(path, json.dumps(obj, indent=1) + "\n", inputs=inputs)
+
+
+def keep(args, mote, diagnosis: dict, data) -> None:
+    """Keep the diagnosis with the session (``Store.save_diagnosis``), with
+    the version and the rows' fingerprint; a database that cannot take it
+    (read-only) gets a note, and nothing else changes."""
+    from .. import __version__
+    from ..sessions.fingerprint import data_key
+    from ..sessions.store import StoreError, open_store
+    try:
+        with open_store(args.db) as store:
+            if store.readonly:
+                print("   not kept with the session: the database is read-only")
+                return
+            i = store.save_diagnosis(args.session, mote, diagnosis, tool=f"motecal {__version__}",
+                                     data_key=data_key(data))
+    except StoreError as e:
+        print(f"   note: not kept with the session: {e}", file=sys.stderr)
+        return
+    print(f"   kept with the session (database diagnosis {i}): motecal calibrate uses it "
+          "by default")
 
 
 def run(args) -> int:
@@ -67,9 +94,11 @@ def run(args) -> int:
     motes = data.motes
     several = len(motes) > 1
     for m in motes:
-        d = diagnose(data.for_mote(m), alpha=args.alpha, seed=args.seed,
-                     simulate=not args.no_sim)
+        dm = data.for_mote(m)
+        d = diagnose(dm, alpha=args.alpha, seed=args.seed, simulate=not args.no_sim)
         print(render(d))
+        if not args.no_keep:
+            keep(args, m, d.to_json(), dm)
         if args.json:
             _write_json(out_path(args.json, m, several), d.to_json(), [args.db, args.model_out])
         if args.model_out:

@@ -41,8 +41,20 @@ THRESHOLDS = {
 }
 
 
+# Thresholds of causes planted by their own bench (bench/bench_temperature.py,
+# tests/test_diagnose_thermal.py), not by tests/plant.py: temperature needs a
+# board whose temperature moves (the simulator's ``thermal`` term).
+THERMAL_THRESHOLDS = {
+    ("temperature", "gyro"): ("static80 warming up", 0.3, "offset per C, counts/C"),
+    ("temperature", "accel"): ("5-minute hold warming up", 0.1, "offset per C, counts/C"),
+    ("temperature", "accel-poses"): ("static80 warming up", 0.1, "offset per C, counts/C"),
+    ("temperature", "mag"): ("5-minute hold warming up", 3e-4, "|sensitivity| per C, 1/C"),
+}
+
+
 def threshold_text(cause: str) -> str:
-    rows = [f"{s}: {thr:g} ({what}; {kind})" for (c, s), (kind, thr, what) in THRESHOLDS.items()
+    rows = [f"{s}: {thr:g} ({what}; {kind})"
+            for (c, s), (kind, thr, what) in {**THRESHOLDS, **THERMAL_THRESHOLDS}.items()
             if c == cause]
     return "; ".join(rows) or "-"
 
@@ -106,6 +118,15 @@ CAUSES = {c.id: c for c in (
           "accelerometer is there; sweeps: a field magnitude that moves with time (time "
           "basis, F-test); above 5 % of the field the recording cannot give a trustworthy "
           "calibration"),
+    Cause("temperature", ("accel", "gyro", "mag"), "temperature",
+          "offsets (and gain) that follow the board temperature: warm-up after power-on, "
+          "the room",
+          "the session carries a temperature spanning >= 2 C over still blocks in few "
+          "orientations (gyro: every still block; accel, mag: holds) or over the "
+          "accelerometer's static poses (through the magnitude); an offset per axis "
+          "times (T - t_ref) passes the F-test beyond a smooth time basis, or alone while the "
+          "time basis adds nothing on top of it, and lowers the held-out residual of "
+          "interleaved blocks"),
     Cause("unexplained", ("accel", "gyro", "mag"), None,
           "structured residual that no known term explains",
           "residuals scattered beyond their noise (chi-square) after every accepted term, "
@@ -184,6 +205,13 @@ def summary(sensor: str, cause: str, ev: dict, params: dict, gain, before=None, 
                + ("the recording cannot give a trustworthy magnetometer calibration."
                   if ev.get("untrustworthy") else "small enough to calibrate through.")
                if ev.get("relative_change") is not None else "")),
+        "temperature": lambda: (
+            f"The {sensor} offset follows the board temperature: ("
+            + ", ".join(_fmt(v) for v in ev.get("coef_per_c", []))
+            + f") {ev.get('unit', '')} per axis over {ev.get('span_c', 0):.2g} C "
+            f"(p = {ev.get('p', 1):.2g}"
+            + ("; a time drift on top of it is named bias_drift" if ev.get("time_drift_too")
+               else "; the time basis adds nothing on top of it") + ")."),
         "unexplained": lambda: (
             f"The {sensor} residual is {ev.get('excess_ratio', 0):.2g}x its noise after every "
             f"known term (chi-square p = {ev.get('p', 1):.2g}); structure: "

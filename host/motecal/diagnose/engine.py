@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from ..calib.content import describe
 from ..calib.gate import field_plausibility, residual_reason
 from ..errors import QualityError, UserError
 from ..jsonable import finite, jsonable
@@ -26,7 +27,9 @@ from . import fitting as F
 from . import gain as G
 from . import screens as SC
 from . import structure as ST
+from . import thermal as TH
 from .prepare import SensorObs, all_obs, sensor_obs, session_still
+from .turns import turn_corrected
 from .regimes import (MIN_SWEEP_ROWS, accel_for_blocks, regime, shared_rows, sweep_reasons,
                       sweep_surrounds)
 
@@ -63,6 +66,7 @@ class Diagnosis:
     obs: dict
     comparison: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    temperature: dict = field(default_factory=dict)   # sensor -> thermal.TempTest
 
     @property
     def clean(self) -> bool:
@@ -142,12 +146,16 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
     if not obs:
         raise QualityError(f"session {data.name}: no sensor readings to diagnose")
     plan = _plan(obs)
+    plan += [(s, "temperature") for s, o in obs.items()           # issue 16
+             if TH.testable(data, o, regime(o))]
     n_tests = len(plan)
+    notes: list[str] = []
+    if still is not None:
+        notes.append("session: " + describe(data, still))
     a_test = G.per_test_alpha(alpha, n_tests)
     tests: list[dict] = []
     findings: list[Finding] = []
     screens: list[SC.Screen] = []
-    notes: list[str] = []
 
     def decide(sensor, cause, p, g, practical=True, fitted=True, wins=None):
         if force is not None:
@@ -204,6 +212,8 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
     # -- structure: nested fits ----------------------------------------------------------
     structures = {}
     for s in ("accel", "mag", "gyro"):
+        if s == "gyro" and mot is not None:
+            _turn_correct(sobs, structures, mot, notes)
         o = sobs.get(s)
         if o is None:
             continue
@@ -283,6 +293,34 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
                                  "(it turns with the accelerometer): not a bias drift")
                 break
 
+    # temperature (issue 16): a drift that follows the board temperature
+    temp_tests = {}
+    for s in ("accel", "gyro", "mag"):
+        if (s, "temperature") not in plan or s not in sobs:
+            continue
+        tt = (TH.make_pose_test(data, sobs[s], structures.get(s))
+              if regime(sobs[s]) == "poses" else TH.make_test(data, sobs[s], regime(sobs[s])))
+        if tt is None:
+            continue
+        TH.run_test(tt, a_test)
+        if force is not None:
+            tt.named = (s, "temperature") in force
+            tt.keep_drift = (s, "bias_drift") in force
+        temp_tests[s] = tt
+        record(s, "temperature", min(tt.p_T, tt.p_T_D), tt.named, p_temperature=tt.p_T,
+               p_temperature_beyond_time=tt.p_T_D, p_time_beyond_temperature=tt.p_D_T)
+        if not tt.named:
+            continue
+        ev, params, g = TH.finding_parts(tt)
+        findings.append(Finding(s, "temperature", C.summary(
+            s, "temperature", ev, params, g, ev["heldout_rms_before"], ev["heldout_rms_after"],
+            TH.UNITS[s]), ev, params, g))
+        if not tt.keep_drift and (s, "bias_drift") in {(f.sensor, f.cause) for f in findings}:
+            findings = [f for f in findings if (f.sensor, f.cause) != (s, "bias_drift")]
+            notes.append(f"{s}: its drift follows the board temperature (the time basis adds "
+                         f"nothing on top of it, p = {tt.p_D_T:.2g}): named temperature, not "
+                         f"bias_drift")
+
     # saturation in static poses: the gain on the pose means (censored)
     for sc in screens:
         if sc.cause == "saturation" and sc.sensor in structures and sc.sensor in clip_rows:
@@ -331,7 +369,7 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
     findings.sort(key=lambda f: ({"accel": 0, "gyro": 1, "mag": 2}[f.sensor], order[f.cause]))
     start_model, model = _models(data, obs, sobs, structures, findings, screens, mot)
     d = Diagnosis(data.name, motes[0], data.kind, findings, tests, alpha, n_tests, model,
-                  start_model, structures, screens, sobs, notes=notes)
+                  start_model, structures, screens, sobs, notes=notes, temperature=temp_tests)
     if simulate:
         from .compare import comparison
         d.comparison = comparison(data, d, seed=seed, rediagnose=diagnose)
@@ -341,8 +379,39 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
 # ---------------------------------------------------------------------------
 # helpers
 # ---------------------------------------------------------------------------
+TURN_SLOPE = (0.5, 2.0)  # the motion screen's slope: gyro and accelerometer agree about turns
 TILT_RATIO = 0.3        # length change / vector change below which a drift may be a tilt
 TILT_MAG_SE = 0.2       # the magnetometer's tilt slope must be known this well to decide
+
+
+def _turn_correct(sobs: dict, structures: dict, mot, notes: list) -> None:
+    """The board turned inside its still segments (tremor: the motion screen
+    kept, its gyro and accelerometer agreeing about turns): each gyro block's
+    mean carries the net turn.  The accelerometer and magnetometer, through
+    their fitted calibrations, measure it, and the gyro's analysis works on
+    the bias with that turn taken out (``turns``).  A sensor without a fitted
+    calibration (one orientation) is used as read only if it is the
+    accelerometer (its offsets are small next to gravity; a magnetometer's
+    hard iron is not)."""
+    g = sobs.get("gyro")
+    if g is None or not TURN_SLOPE[0] < mot.evidence.get("slope_accel_on_gyro", 0) < TURN_SLOPE[1]:
+        return
+    refs = []
+    for s in ("accel", "mag"):
+        o, st = sobs.get(s), structures.get(s)
+        if o is None:
+            continue
+        if st is not None and isinstance(st.fit, F.MagnitudeFit):
+            refs.append((o, lambda x, t, fit=st.fit: fit.calibrate(x, np.broadcast_to(t, len(x)))))
+        elif s == "accel":
+            refs.append((o, lambda x, t, K=o.K: x / K))
+    g2 = turn_corrected(g, refs)
+    if g2 is not None:
+        sobs["gyro"] = g2
+        notes.append(f"gyro: the board turned inside its still segments (motion): the bias of "
+                     f"{g2.turn_corrected} blocks is the rate less the turn that "
+                     f"{' and '.join(s for s in ('accel', 'mag') if any(r[0] is sobs.get(s) for r in refs))}"
+                     f" measured over each")
 
 
 def _is_tilt(tilt: dict) -> bool:
@@ -889,6 +958,10 @@ def _models(data, obs, sobs, structures, findings, screens, mot):
         if s == "mag" and (s, "field_disturbance") in kept:
             ext_terms = [{"term": "field_disturbance",
                           **kept[(s, "field_disturbance")].params}] + ext_terms
+        if (s, "temperature") in kept:
+            tp = kept[(s, "temperature")].params
+            ext_terms.append({"term": "temperature", "t_ref_c": tp["t_ref_c"],
+                              "offset_per_c": X._r(np.asarray(tp["offset_per_c"]) * scale)})
         if (s, "saturation") in kept:
             ext_terms.append(X.saturation_term(kept[(s, "saturation")].params, s, o.K))
         if (s, "stale_samples") in kept:
@@ -901,6 +974,8 @@ def _models(data, obs, sobs, structures, findings, screens, mot):
     board_terms = []
     if ("accel", "motion") in kept:
         board_terms.append({"term": "motion", **kept[("accel", "motion")].params})
+    if any(c == "temperature" for _, c in kept):
+        board_terms.append(TH.thermal_term(data))
     mote = data.motes[0]
     start = X.model_json(f"{data.name}-paper", mote, rate, dict(env), sensors_start, [],
                          f"the paper's starting model fitted to session {data.name}")

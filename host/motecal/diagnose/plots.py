@@ -12,6 +12,7 @@ import numpy as np
 from ..errors import UserError
 from ..maths.sphere import unit
 from . import fitting as F
+from . import thermal as TH
 from . import structure as ST
 
 
@@ -123,6 +124,17 @@ def _screen_panels(ax, f, d, data):
         ax[1].plot(o.t - o.t[0], o.x, lw=0.5)
         ax[1].set_xlabel("time (s)")
         ax[1].set_ylabel("counts")
+    elif f.cause == "temperature" and f.sensor in d.temperature:
+        tt = d.temperature[f.sensor]
+        betas, _, _ = tt.fit(False, tt.with_time)
+        r = (tt.y - tt.predict(betas, False, tt.with_time)) / tt.K
+        for a in range(3):
+            ax[0].plot(tt.temp, r[:, a], ".", ms=3, label="xyz"[a])
+            ax[1].plot(tt.t - tt.t.min(), r[:, a], ".", ms=3, label="xyz"[a])
+        ax[0].set_xlabel("board temperature (C)")
+        ax[0].set_ylabel(f"still block mean, offsets removed ({TH.UNITS[f.sensor]})")
+        ax[0].legend(fontsize=7)
+        ax[1].set_xlabel("time (s)")
     elif f.cause == "motion":
         acc, gyr = d.obs.get("accel"), d.obs.get("gyro")
         if acc is not None and gyr is not None and acc.segs is not None:

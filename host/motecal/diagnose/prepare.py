@@ -51,6 +51,8 @@ class Table:
     rows: list                  # per row of the table: indices into SensorObs.x
     sd: np.ndarray              # (k, 3) within sd, counts
     n_bad: np.ndarray | None = None   # (k,) overflow readings inside (left out of the mean)
+    var: np.ndarray | None = None     # (k, 3) variance of each mean when not sigma_eff^2 / n
+                                      # (gyro blocks with the board's turn taken out: turns)
 
     def __len__(self):
         return len(self.n)

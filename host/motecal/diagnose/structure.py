@@ -122,8 +122,12 @@ def drift_sizes(duration: float, max_params: int, per_axis: int = 3) -> list[int
     function per ~30 s (a fast warm-up) and one per ~10 s (a random walk), as
     the data allow (at most ``max_params`` parameters: a sixth of the points,
     so that the drift cannot follow everything else that varies with time)."""
-    small = F.DRIFT_J
     cap = max_params // per_axis
+    if cap < F.DRIFT_J:
+        # too few points for the smooth basis (a hand session's 24-30 poses):
+        # a straight line per axis, which the points can test
+        return [1]
+    small = F.DRIFT_J
     out = [small]
     for j in (int(np.clip(round(duration / 30.0), 6, 20)),
               int(np.clip(round(duration / 10.0), 8, 40))):
@@ -445,7 +449,7 @@ def linear_points(obs: SensorObs, accel_g: np.ndarray | None, per_orientation: b
     force in g during each block (gyroscope), or None."""
     b = obs.blocks
     Y = b.mean
-    W = 1.0 / np.sqrt(obs.var_of_mean(b.n))
+    W = 1.0 / np.sqrt(obs.var_of_mean(b.n) if b.var is None else b.var)
     T = b.t
     if per_orientation:
         cgroup = b.seg                                   # one constant per orientation
@@ -533,6 +537,11 @@ def _heldout_linear(st: Structure, obs: SensorObs, fit_fn):
                 if not np.any((pts["cgroup"] == g) & ~te):
                     usable &= pts["cgroup"] != g
             r[usable] = pts["Y"][usable] - X[usable] @ fk.beta
+        if obs.blocks is not None and obs.blocks.var is not None:
+            # blocks known to different precision (the gyro's, the board's turn
+            # taken out): each residual weighted by it, in counts on average
+            W = pts["W"]
+            r = r * W / np.sqrt(np.mean(W * W, axis=0))
         out[spec] = float(np.sqrt(_nanmean(r * r))) / obs.K
         folds[spec] = np.array([_nanmean(r[fold == f] ** 2) for f in np.unique(fold)])
     for c in st.accepted:

@@ -32,7 +32,9 @@ from ..errors import UserError
 from ..inputs import check_input_file, read_input_text
 from .importer import _fail, _finish, _read_text_lines, _session, add_note, input_paths
 from .session import LABEL_ROT, SENSOR_SLICES, UNITS
-from .still import segment_recording
+from .still import StillThresholds, segment_recording
+
+STEADY = StillThresholds(gyro_rule="rate")
 
 FORMATS = ("imucal-annotated", "imucal-session", "float-log", "motioncal")
 FACES = ("x_p", "x_a", "y_p", "y_a", "z_p", "z_a")
@@ -386,7 +388,9 @@ def read_float_log(paths, *, columns=None, rate_hz=None, chip=None, scale=None, 
     seg = np.zeros(n, np.int32)
     k0 = 0
     for a, b in parts:
-        s = segment_recording(raw[a:b], data.t[a:b], rate, data.scales)
+        # steady stretches, turning or not: the rate's spread (a constant turn
+        # is not still, but it is what a turntable segment is)
+        s = segment_recording(raw[a:b], data.t[a:b], rate, data.scales, STEADY)
         seg[a:b] = np.where(s > 0, s + k0, 0)
         k0 += int(s.max(initial=0))
     turns, rests = F.turntable_segments(data.physical("gyro"), seg, turn_dps)

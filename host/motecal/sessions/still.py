@@ -4,17 +4,32 @@ One definition used live by the logger's guided flow (``StillDetector``) and
 offline by the importer and diagnosis (``segment_still``; ``segment_recording``
 for a recording whose sensors may run on separate clocks).
 
-A window of ``window_s`` seconds is *still* when, for every sensor present,
-the standard deviation of each axis over the window is below its threshold:
+A window of ``window_s`` seconds is *still* when the board's orientation
+stays put over it, judged by every sensor present:
 
-* accelerometer: ``accel_g`` (default 0.02 g; ADXL345 noise is ~0.004 g rms),
-* gyroscope: ``gyro_dps`` (default 1.5 deg/s; ITG3200 noise ~0.4 deg/s rms),
-* magnetometer: ``mag_gauss`` (default 0.012 gauss; HMC5883L noise ~2 LSB =
-  0.002 gauss) -- catches turns about the vertical, which the accelerometer
-  cannot see.
+* accelerometer: the standard deviation of each axis below ``accel_g``
+  (default 0.02 g, a wander of the gravity direction of about 1.1 deg;
+  ADXL345 noise is ~0.004 g rms),
+* magnetometer: the same below ``mag_gauss`` (default 0.012 gauss, about
+  1.4 deg of a 0.5 gauss field; HMC5883L noise ~2 LSB = 0.002 gauss) --
+  catches turns about the vertical, which the accelerometer cannot see,
+* gyroscope, offline (``still_mask``, ``segment_still``): the standard
+  deviation of the *integrated* rotation over the window below
+  ``gyro_turn_deg`` (default 0.5 deg per axis).  The rate is integrated
+  after removing its bias, a running median of the rate over the rows the
+  other sensors call still (``BIAS_S`` blocks).  A hand's tremor (0.05-0.3
+  deg rms at 1-8 Hz) turns the board at several deg/s but goes nowhere:
+  the integrated angle stays within its amplitude, while a turn of 5 deg/s
+  or more moves it beyond the threshold within one window.  (The rate's
+  own spread, ``gyro_dps``, which tremor breaks, is only used live.)
+* gyroscope, live (``StillDetector``, the guided logger), and offline with
+  ``gyro_rule="rate"`` (a turntable's steady turns, ``foreign``): the
+  standard deviation of the rate below ``gyro_dps`` (1.5 deg/s; ITG3200
+  noise ~0.4 deg/s rms).
 
-Thresholds work on standard deviations, not means, so an unknown gyroscope
-bias (up to ~15 deg/s on an uncalibrated ITG3200) does not matter.
+Thresholds work on spreads, not means, so an unknown gyroscope bias (up to
+~15 deg/s on an uncalibrated ITG3200) does not matter; offline, it is taken
+out before integrating (an error of 1 deg/s in it adds 0.12 deg of spread).
 """
 from __future__ import annotations
 
@@ -32,6 +47,9 @@ class StillThresholds:
     gyro_dps: float = 1.5
     mag_gauss: float = 0.012
     min_still_s: float = 1.0     # shortest segment segment_still() labels
+    gyro_turn_deg: float = 0.3   # offline: spread of the integrated rotation (deg per axis)
+    gyro_rule: str = "turn"      # offline: "turn" (the board stays put) or "rate" (the rate
+                                 # is steady: a turntable's constant turn counts, gyro_dps)
 
 
 def window_rows(rate_hz: float, th: StillThresholds = StillThresholds()) -> int:
@@ -54,9 +72,70 @@ def _moving_std(x: np.ndarray, w: int) -> np.ndarray:
     return out
 
 
+BIAS_S = 10.0      # the gyro bias for the integrated rotation: median per block this long
+
+
+def _centred_ok(x: np.ndarray, w: int, lim: float) -> np.ndarray:
+    """Per row: every axis' spread over the window of w rows centred on it is
+    below ``lim`` (a recording shorter than the window has no full window:
+    nothing is still)."""
+    n = len(x)
+    sd = _moving_std(x, w)
+    half = w // 2
+    centred = np.full(sd.shape, np.nan)
+    centred[:max(0, n - half)] = sd[half:]
+    return np.nan_to_num(centred, nan=np.inf).max(axis=1) < lim
+
+
+def gyro_bias(g_dps: np.ndarray, rate_hz: float, quiet: np.ndarray | None = None) -> np.ndarray:
+    """(n, 3) the gyroscope's bias per row: the median rate of each
+    ``BIAS_S`` block over its ``quiet`` rows (those the other sensors call
+    still; all rows when too few are), with the blocks beside it, spread to
+    every row.  Tremor and noise are symmetric about the bias; moves are
+    left out by ``quiet``."""
+    n = len(g_dps)
+    if quiet is None or quiet.sum() < max(3, 0.05 * n):
+        quiet = np.ones(n, bool)
+    nb = max(1, int(round(BIAS_S * rate_hz)))
+    starts = np.arange(0, n, nb)
+    med = np.zeros((len(starts), 3))
+    for i, a in enumerate(starts):
+        lo, hi = max(0, a - nb), min(n, a + 2 * nb)
+        q = quiet[lo:hi]
+        rows = g_dps[lo:hi][q] if q.sum() >= 3 else g_dps[lo:hi]
+        med[i] = np.median(rows, axis=0)
+    return np.repeat(med, nb, axis=0)[:n]
+
+
+TREMOR_K = 4.0     # the spread limit is at least this many times the quiet rows' ...
+TREMOR_Q = 0.25    # ... lower quartile of the spread (the hand's tremor in its holds)
+
+
+def turn_spread_ok(g_dps: np.ndarray, rate_hz: float, w: int, lim_deg: float,
+                   quiet: np.ndarray | None = None) -> np.ndarray:
+    """Per row: the rotation the gyroscope integrates (bias removed,
+    ``gyro_bias``) spreads by less than ``lim_deg`` per axis over the window
+    of w rows centred on it -- or, for a hand that trembles, by less than
+    ``TREMOR_K`` x the lower quartile of that spread over the ``quiet`` rows
+    (the holds' tremor; moves' slow parts cannot raise a lower quartile)."""
+    theta = np.cumsum(g_dps - gyro_bias(g_dps, rate_hz, quiet), axis=0) / rate_hz
+    n = len(theta)
+    sd = _moving_std(theta, w)
+    half = w // 2
+    spread = np.full(n, np.inf)
+    spread[:max(0, n - half)] = np.nan_to_num(sd[half:], nan=np.inf).max(axis=1)
+    q = spread[quiet] if quiet is not None and quiet.any() else spread
+    q = q[np.isfinite(q)]
+    if len(q):
+        lim_deg = max(lim_deg, TREMOR_K * float(np.quantile(q, TREMOR_Q)))
+    return spread < lim_deg
+
+
 def still_mask(raw: np.ndarray, rate_hz: float, scales: dict | None = None,
                th: StillThresholds = StillThresholds()) -> np.ndarray:
-    """Per-row bool: the window ending at (and centred near) this row is still.
+    """Per-row bool: the window centred on this row is still (the module doc:
+    accelerometer and magnetometer spreads, the gyroscope's integrated
+    rotation).
 
     ``raw`` is (n, 9) counts with NaN for missing sensors; a sensor that is
     entirely missing is ignored.  Rows are assumed evenly spaced at rate_hz.
@@ -65,20 +144,19 @@ def still_mask(raw: np.ndarray, rate_hz: float, scales: dict | None = None,
     w = window_rows(rate_hz, th)
     n = len(raw)
     ok = np.ones(n, bool)
-    for name, sl, lim in (("accel", slice(0, 3), th.accel_g),
-                          ("gyro", slice(3, 6), th.gyro_dps),
-                          ("mag", slice(6, 9), th.mag_gauss)):
-        x = raw[:, sl] / scales[name]
-        if np.isnan(x).all():
-            continue
-        x = np.where(np.isnan(x), np.nanmean(x, axis=0), x)
-        sd = _moving_std(x, w)
-        # centre the trailing window on the middle of the window (a recording
-        # shorter than the window has no full window: nothing is still)
-        half = w // 2
-        centred = np.full(sd.shape, np.nan)
-        centred[:max(0, n - half)] = sd[half:]
-        ok &= np.nan_to_num(centred, nan=np.inf).max(axis=1) < lim
+    x = {}
+    for name, sl in (("accel", slice(0, 3)), ("gyro", slice(3, 6)), ("mag", slice(6, 9))):
+        v = raw[:, sl] / scales[name]
+        if not np.isnan(v).all():
+            x[name] = np.where(np.isnan(v), np.nanmean(v, axis=0), v)
+    for name, lim in (("accel", th.accel_g), ("mag", th.mag_gauss)):
+        if name in x:
+            ok &= _centred_ok(x[name], w, lim)
+    if "gyro" in x and th.gyro_rule == "rate":
+        ok &= _centred_ok(x["gyro"], w, th.gyro_dps)
+    elif "gyro" in x:
+        quiet = ok.copy() if ("accel" in x or "mag" in x) else None
+        ok &= turn_spread_ok(x["gyro"], rate_hz, w, th.gyro_turn_deg, quiet)
     return ok
 
 

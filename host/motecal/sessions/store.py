@@ -37,7 +37,7 @@ from .session import (COLUMNS, NOMINAL_CHIPS, NOMINAL_SCALES, SessionData, label
                       label_to_text)
 from .temperature import rows_from_readings
 
-SCHEMA_VERSION = 6
+SCHEMA_VERSION = 7
 
 SAMPLE_COLUMNS = ("session", "mote", "seq", "t", "label", "flags") + COLUMNS
 
@@ -98,7 +98,7 @@ SIGNATURE = {
     "calibrations": {"id", "session", "mote", "created", "cal"},
 }
 SIGNATURE_SINCE = {2: ("link_stats", "line_stats", "events"), 5: ("writers", "sample_conflicts"),
-                   6: ("temps",)}
+                   6: ("temps",), 7: ("diagnoses",)}
 _NULL = 1 << 40                    # a stored NULL, when samples are compared
 
 # A live session waits this long for a write lock another process holds,
@@ -253,6 +253,23 @@ MIGRATIONS = {
              temp_c {real} NOT NULL,
              count INTEGER NOT NULL DEFAULT 1,
              PRIMARY KEY (session, mote, seq)){wr}""",
+    ],
+    # 7: a session's diagnoses (issue 13, closing the loop): what ``motecal
+    # diagnose`` found on one mote's data, kept with the session so that
+    # ``calibrate`` uses it by default.  ``tool`` is the motecal version that
+    # made it, ``data_key`` the fingerprint of the rows it saw
+    # (sessions.fingerprint): a diagnosis of other data or another version
+    # is never used silently.
+    7: [
+        """CREATE TABLE diagnoses (
+             id {id_pk},
+             session BIGINT NOT NULL,
+             mote INTEGER NOT NULL,
+             created {real} NOT NULL,
+             tool TEXT NOT NULL,
+             data_key TEXT NOT NULL,
+             diagnosis TEXT NOT NULL)""",
+        "CREATE INDEX diagnoses_session ON diagnoses (session, mote, id)",
     ],
 }
 
@@ -733,7 +750,7 @@ class Store:
 
     def _delete_session(self, cur, sid: int):
         for table in ("samples", "calibrations", "link_stats", "line_stats", "events",
-                      "writers", "sample_conflicts", "temps"):
+                      "writers", "sample_conflicts", "temps", "diagnoses"):
             cur.execute(self._b.sql(f"DELETE FROM {table} WHERE session = ?"), (sid,))
         cur.execute(self._b.sql("DELETE FROM sessions WHERE id = ?"), (sid,))
 
@@ -884,6 +901,44 @@ class Store:
             raise UserError(f"no calibration stored for session {session!r}"
                             + (f" mote {mote}" if mote is not None else ""))
         return json.loads(rows[0][0])
+
+    # -- diagnoses -------------------------------------------------------------------
+    def save_diagnosis(self, session: str, mote: int, diagnosis: dict, *, tool: str,
+                       data_key: str) -> int:
+        """Keep a diagnosis (``motecal diagnose``'s JSON) of one mote of a
+        session with the tool version that made it and the fingerprint of the
+        rows it saw; returns its id."""
+        info = self._require(session)
+        try:
+            text = _dumps(diagnosis)
+        except (TypeError, ValueError) as e:
+            raise UserError(f"diagnosis for {session!r} mote {mote} is not JSON: {e}") from None
+        with self._tx() as cur:
+            cur.execute(self._b.sql(
+                "INSERT INTO diagnoses (session, mote, created, tool, data_key, diagnosis) "
+                "VALUES (?, ?, ?, ?, ?, ?) RETURNING id"),
+                (info.id, int(mote), time.time(), str(tool), str(data_key), text))
+            return int(cur.fetchone()[0])
+
+    def load_diagnosis(self, session: str, mote: int) -> dict | None:
+        """The latest diagnosis kept for one mote of a session, ``{"id",
+        "created" (ISO), "tool", "data_key", "diagnosis"}``, or None (none
+        kept, or a database older than the diagnoses table)."""
+        info = self._require(session)
+        if "diagnoses" not in self._tables:
+            return None
+        rows = self._query("SELECT id, created, tool, data_key, diagnosis FROM diagnoses "
+                           "WHERE session = ? AND mote = ? ORDER BY id DESC LIMIT 1",
+                           (info.id, int(mote)))
+        if not rows:
+            return None
+        i, created, tool, key, text = rows[0]
+        try:
+            d = json.loads(text)
+        except (TypeError, ValueError):
+            d = None
+        return {"id": int(i), "created": _iso(created), "tool": tool, "data_key": key,
+                "diagnosis": d}
 
     # -- link statistics and events ------------------------------------------------
     def link_stats(self, session: str) -> dict:

@@ -30,7 +30,10 @@ def simulate_session(kind: str, *, motes=(1,), seed: int = 0,
     applied: ``t`` is true time since session start), labels from the
     trajectory, raw counts.  ``seq`` = sample index, flags 0,
     ``meta["truth"]`` = the board's to_json(), plus ``physical_truth``,
-    ``environment``, ``trajectory``, ``seed``, ``model`` and ``rate_hz``."""
+    ``environment``, ``trajectory``, ``seed``, ``model`` and ``rate_hz``.
+    A board with a ``thermal`` term also gives ``temp``: its temperature
+    sensor's reading per row (``BoardModel.temperature_reading_c``); other
+    boards' sessions have no temperature (None), as before."""
     if not isinstance(model, SimModel):
         model = load_model(model)
     traj = make_trajectory(kind, seed, duration=duration, rate_hz=model.rate_hz)
@@ -48,5 +51,6 @@ def simulate_session(kind: str, *, motes=(1,), seed: int = 0,
             meta={"source": "sim", "rate_hz": model.rate_hz, "seed": int(seed),
                   "model": model.name, "truth": board.to_json(),
                   "physical_truth": board.physical_truth(),
-                  "environment": model.environment.to_json(), "trajectory": traj_json})
+                  "environment": model.environment.to_json(), "trajectory": traj_json},
+            temp=board.temperature_reading_c(t) if board.thermal is not None else None)
     return out

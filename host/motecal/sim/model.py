@@ -27,8 +27,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
-from .physics import (K_NOMINAL, REQUIRED, SENSORS, TERMS, BoardSampler, Environment,
-                      GSensitivity, Saturation, StaleSamples, Term, seed_key)
+from ..line import protocol as P
+from .physics import (DEFAULT_TEMP_C, K_NOMINAL, REQUIRED, SENSORS, TERMS, BoardSampler,
+                      Environment, GSensitivity, Saturation, StaleSamples, Term, Thermal,
+                      seed_key)
 from .trajectory import Trajectory
 
 MODEL_FORMAT = "motecal-sim-model"
@@ -245,6 +247,24 @@ class BoardModel:
         self.sensors = sensors
         self.environment = environment
         self.rate_hz = float(rate_hz)
+
+    @property
+    def thermal(self) -> Thermal | None:
+        """The board's ``thermal`` term (its temperature), None without one."""
+        return next((t for t in self.board_terms if isinstance(t, Thermal)), None)
+
+    def temperature_c(self, t) -> np.ndarray:
+        """The board temperature (degrees C) at ``t`` seconds since power-on
+        (the session's start): its ``thermal`` term, else a constant 25 C."""
+        th = self.thermal
+        t = np.asarray(t, float)
+        return th.temperature_c(t) if th is not None else np.full(t.shape, DEFAULT_TEMP_C)
+
+    def temperature_reading_c(self, t) -> np.ndarray:
+        """What the ITG3200's temperature sensor reads at ``t``: the board
+        temperature rounded to its raw TEMP_OUT counts (280 LSB per degree C),
+        in degrees C (protocol.temp_c of the integer reading)."""
+        return P.temp_c(np.rint(P.temp_raw(self.temperature_c(t))))
 
     def sampler(self, trajectory: Trajectory, seed: int) -> BoardSampler:
         return BoardSampler(self, trajectory, seed)

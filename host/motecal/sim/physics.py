@@ -147,6 +147,7 @@ class Ctx:
     index: np.ndarray              # (n,) noise index (read count, or update index when stale)
     motion: Motion                 # the board's motion at t
     field_world: np.ndarray        # (3,) gauss
+    temp_c: np.ndarray | None = None   # (n,) board temperature at t, degrees C
 
 
 class Term:
@@ -462,9 +463,60 @@ class _FieldDisturbanceRun:
         return x + ctx.K * np.einsum("nji,nj->ni", ctx.motion.R, d)
 
 
+DEFAULT_TEMP_C = 25.0     # a board without a ``thermal`` term sits at this temperature
+
+
+class Thermal(Term):
+    """The board's temperature (what the ITG3200's sensor reads and every
+    chip on the board follows): a warm-up after power-on plus slow room
+    changes.  t = seconds since power-on (the session's start)."""
+    id = "thermal"
+    level = "board"
+    sensors = ()
+    summary = ("board temperature T(t) = ambient_c + rise_c (1 - exp(-t/tau_s)) "
+               "+ room_slope_c_per_h t/3600 + room_amp_c sin(2 pi t/room_period_s); "
+               "t = s since power-on (session start)")
+    params = (Param("ambient_c", (), DEFAULT_TEMP_C, "degC", "room temperature at power-on"),
+              Param("rise_c", (), 0.0, "degC", "warm-up: self-heating rise after power-on"),
+              Param("tau_s", (), 300.0, "s", "warm-up time constant", positive=True),
+              Param("room_slope_c_per_h", (), 0.0, "degC/h", "slow linear room change"),
+              Param("room_amp_c", (), 0.0, "degC", "amplitude of a slow room cycle"),
+              Param("room_period_s", (), 3600.0, "s", "period of that cycle", positive=True))
+
+    def is_null(self):
+        return not (float(self.p["rise_c"]) or float(self.p["room_slope_c_per_h"])
+                    or float(self.p["room_amp_c"])) and \
+            float(self.p["ambient_c"]) == DEFAULT_TEMP_C
+
+    def temperature_c(self, t) -> np.ndarray:
+        t = np.maximum(np.asarray(t, float), 0.0)
+        p = self.p
+        return (float(p["ambient_c"]) + float(p["rise_c"]) * (1.0 - np.exp(-t / float(p["tau_s"])))
+                + float(p["room_slope_c_per_h"]) * t / 3600.0
+                + float(p["room_amp_c"]) * np.sin(2 * np.pi * t / float(p["room_period_s"])))
+
+
+class Temperature(Term):
+    id = "temperature"
+    summary = ("x = x (1 + scale_per_c dT) + offset_per_c dT, dT = board temperature - t_ref_c "
+               "(the board's ``thermal`` term; 25 C without one)")
+    params = (Param("offset_per_c", (3,), 0.0, "counts/degC",
+                    "offset (zero-rate / zero-g) change per degree C"),
+              Param("scale_per_c", (3,), 0.0, "1/degC", "relative sensitivity change per degree C"),
+              Param("t_ref_c", (), DEFAULT_TEMP_C, "degC", "temperature where the term is zero"))
+
+    def apply(self, x, ctx):
+        T = ctx.temp_c if ctx.temp_c is not None else np.full(len(x), DEFAULT_TEMP_C)
+        dT = (T - float(self.p["t_ref_c"]))[:, None]
+        return x * (1.0 + self.p["scale_per_c"] * dT) + self.p["offset_per_c"] * dT
+
+    def is_null(self):
+        return not (np.any(self.p["offset_per_c"]) or np.any(self.p["scale_per_c"]))
+
+
 TERMS = {cls.id: cls for cls in (ScaleOffset, PaperAngles, CrossAxis, Linear, Nonlinearity,
                                  BiasDrift, GSensitivity, Saturation, StaleSamples, MotionTerm,
-                                 FieldDisturbance)}
+                                 FieldDisturbance, Thermal, Temperature)}
 
 
 # --------------------------------------------------------------------------
@@ -517,6 +569,7 @@ class BoardSampler:
         self.field_world = self.env.field_world()
         base = seed_key(_SALT, seed, board.mote_id)
         self.tremor = None
+        self.temperature_c = board.temperature_c
         for j, term in enumerate(board.board_terms):
             if isinstance(term, MotionTerm) and not term.is_null():
                 self.tremor = term.runtime(base + [9, j], trajectory, board)
@@ -592,7 +645,7 @@ class BoardSampler:
             sl = SENSOR_SLICES[name]
             nominal[:, sl] = x[expand]
             ctx = Ctx(sensor=name, K=K, t=ts, index=idx, motion=m,
-                      field_world=self.field_world)
+                      field_world=self.field_world, temp_c=self.temperature_c(ts))
             noised = not np.any(sigma)
             for run in runs:
                 if not noised and isinstance(run, Saturation):

@@ -1,0 +1,530 @@
+"""Calibration against board temperature (issue 16): each sensor's output as
+a function of the temperature the session carries (``SessionData.temp``).
+
+What the still data determine (``content.temperature_content`` judges the
+span once, for calibrate and diagnose):
+
+* **gyroscope** -- the zero-rate output against temperature: every still
+  block (1 s) of the static poses and holds (a warm-up hold of several
+  minutes after power-on is the typical source) gives the calibrated rate,
+  whose truth is 0; the slope per axis is fitted through the bias the
+  calibration measured at ``t_ref`` (the mean temperature of its rows).  The
+  sensitivity's coefficient per output axis comes from the moves between
+  poses when their temperatures span the same 2 C (``gyro_scale_fit``), and
+  is used only when determined to ``SCALE_STD_LIMIT`` and better on held-out
+  moves; otherwise the note says why.
+* **accelerometer** -- the zero-g offset against temperature: within a hold
+  (one orientation) the calibrated vector's change per block follows
+  ``offset_per_c dT``; across static poses that span a temperature range the
+  pose magnitudes' residuals follow ``u . offset_per_c dT`` (fitted jointly
+  with a small change of the static fit's own map, so that what that fit
+  absorbed of the drift is given back).  The gain's coefficient (ADXL345:
+  0.01 %/C, a twentieth of the offset's effect at 1 g) is not fitted.
+* **magnetometer** -- a relative sensitivity coefficient per axis (the
+  HMC5883L's -0.3 %/C), or one for the three axes when each axis' own is not
+  determined (an axis that reads little of the field in a hold): within a
+  hold the field vector grows by ``k dT`` (hard iron included: a field the
+  chip measures); across poses or a sweep over a span the field magnitude
+  does.
+
+Every observation set is kept only when its own temperature span reaches
+``content.MIN_TEMP_SPAN_C``; the sets of a sensor are fitted together by
+weighted least squares (each weighted by its own residual scatter), and the
+term is used only when the stacked design has full rank, the coefficients'
+standard deviations are below ``STD_LIMITS``, and the term predicts held-out
+blocks better than no term (5 interleaved folds).  The result is
+``result.TempModel`` with the range the data covered (``apply`` clamps to
+it).  A session without temperature is not touched.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..sessions.session import HMC5883L_OVERFLOW, LABEL_NONE, LABEL_ROT, SessionData
+from .content import MIN_POSE_ORIENTATIONS, MIN_TEMP_SPAN_C, TempContent
+from .result import BoardCalibration, TempModel
+
+BLOCK_S = 1.0              # still data are averaged over blocks this long
+FOLDS = 5
+MAX_SWEEP_ROWS = 3000      # sweep rows used for the magnetometer (evenly strided)
+STD_LIMITS = {"accel": 2e-4, "gyro": 0.01, "mag": 1e-4}   # g/C, deg/s/C, 1/C
+UNITS = {"accel": "g/C", "gyro": "deg/s/C", "mag": "/C"}
+
+
+@dataclass
+class ObsSet:
+    """Observations y = Xt theta + Xn nu + e (one set, own noise level)."""
+    name: str
+    y: np.ndarray
+    Xt: np.ndarray            # (m, q) columns of the temperature parameters
+    Xn: np.ndarray            # (m, r) the set's own nuisance columns
+    fold: np.ndarray          # (m,) held-out fold
+    temp: np.ndarray          # temperatures the set covers (for its span and range)
+    sigma: float = 1.0
+
+    @property
+    def span(self) -> float:
+        return float(np.ptp(self.temp)) if len(self.temp) else 0.0
+
+
+def without_holds(data: SessionData, tc: TempContent) -> SessionData:
+    """The rows the static calibration uses: the holds (long still poses,
+    kept for the temperature fit) left out when at least 12 other poses
+    remain, so a 20-minute warm-up does not outweigh the 80 poses (a session
+    of a few long holds, such as the Razor files, keeps them as its poses)."""
+    if not tc.holds:
+        return data
+    hold = np.isin(data.label, tc.holds)
+    others = np.unique(data.label[(data.label >= 1) & ~hold])
+    if len(others) < 2 * MIN_POSE_ORIENTATIONS:    # a session of holds: they are its poses
+        return data
+    label = data.label.copy()
+    label[hold] = LABEL_NONE
+    return dataclasses.replace(data, label=label)
+
+
+# --------------------------------------------------------------------------
+# still blocks
+# --------------------------------------------------------------------------
+def _blocks(data: SessionData, labels, sensor: str):
+    """Per still pose/hold in ``labels``: blocks of ``BLOCK_S`` (a pose
+    shorter than 1.5 blocks is one block): mean raw counts, mean
+    temperature, the pose label."""
+    t = data.sample_times()
+    x = data.sensor(sensor)
+    ok = data.has(sensor) & np.isfinite(data.temp)
+    if sensor == "mag":
+        ok &= ~(x == HMC5883L_OVERFLOW).any(axis=1)
+    raw, temp, lab = [], [], []
+    for p in labels:
+        idx = np.flatnonzero((data.label == p) & ok)
+        if len(idx) < 3:
+            continue
+        n = max(1, int(round((t[idx[-1]] - t[idx[0]]) / BLOCK_S)))
+        for part in np.array_split(idx, n):
+            raw.append(x[part].mean(axis=0))
+            temp.append(float(data.temp[part].mean()))
+            lab.append(int(p))
+    return np.array(raw).reshape(-1, 3), np.array(temp), np.array(lab, int)
+
+
+def _t_ref(data: SessionData, rows) -> float:
+    T = data.temp[rows]
+    T = T[np.isfinite(T)]
+    return float(T.mean()) if len(T) else float("nan")
+
+
+def _poses(data, tc):
+    return [int(p) for p in np.unique(data.label[data.label >= 1]) if p not in tc.holds]
+
+
+def _sym_cols(u, v):
+    """Columns of u^T W v + u^T d for a symmetric W (6) and d (3): a small
+    change of the static fit's map, seen in a magnitude."""
+    return np.column_stack([u[:, 0] * v[:, 0], u[:, 1] * v[:, 1], u[:, 2] * v[:, 2],
+                            u[:, 0] * v[:, 1] + u[:, 1] * v[:, 0],
+                            u[:, 0] * v[:, 2] + u[:, 2] * v[:, 0],
+                            u[:, 1] * v[:, 2] + u[:, 2] * v[:, 1], u])
+
+
+def _hold_rows(v, temp, lab, xt_of):
+    """Within each hold: the block's vector minus the hold's mean, per axis."""
+    ys, xs, fs, ts = [], [], [], []
+    for h in np.unique(lab):
+        m = lab == h
+        vb, tb = v[m], temp[m]
+        dv, dt = vb - vb.mean(axis=0), tb - tb.mean()
+        k = np.arange(m.sum()) % FOLDS
+        for i in range(3):
+            ys.append(dv[:, i])
+            xs.append(xt_of(dt, vb.mean(axis=0), i))
+            fs.append(k)
+            ts.append(tb)
+    if not ys:
+        return None
+    return (np.concatenate(ys), np.vstack(xs), np.concatenate(fs), np.concatenate(ts))
+
+
+# --------------------------------------------------------------------------
+# observation sets per sensor
+# --------------------------------------------------------------------------
+def gyro_sets(board, data, tc, t_ref) -> list[ObsSet]:
+    sc = board.gyro
+    raw, temp, _ = _blocks(data, list(tc.holds) + _poses(data, tc), "gyro")
+    if not len(raw):
+        return []
+    w = sc.apply(raw)
+    dT = temp - t_ref
+    m = len(w)
+    Xt = np.zeros((3 * m, 3))
+    for i in range(3):
+        Xt[i * m:(i + 1) * m, i] = dT
+    fold = np.tile(np.arange(m) % FOLDS, 3)
+    return [ObsSet("still blocks", w.T.reshape(-1), Xt, np.zeros((3 * m, 0)), fold, temp)]
+
+
+def accel_sets(board, data, tc, t_ref) -> list[ObsSet]:
+    sc = board.accel
+    out = []
+    raw, temp, lab = _blocks(data, tc.holds, "accel")
+    if len(raw):
+        r = _hold_rows(sc.apply(raw), temp, lab,
+                       lambda dt, vbar, i: np.outer(dt, np.eye(3)[i]))
+        if r is not None:
+            out.append(ObsSet("holds", r[0], r[1], np.zeros((len(r[0]), 0)), r[2], r[3]))
+    poses = _poses(data, tc)
+    if len(poses) >= 12:
+        pm, pt = [], []
+        for p in poses:
+            rows = (data.label == p) & data.has("accel") & np.isfinite(data.temp)
+            if rows.any():
+                pm.append(data.sensor("accel")[rows].mean(axis=0))
+                pt.append(float(data.temp[rows].mean()))
+        v = sc.apply(np.array(pm))
+        pt = np.array(pt)
+        nv = np.linalg.norm(v, axis=1)
+        u = v / nv[:, None]
+        out.append(ObsSet("poses", nv - 1.0, u * (pt - t_ref)[:, None], _sym_cols(u, v),
+                          np.arange(len(v)) % FOLDS, pt))
+    return out
+
+
+def mag_sets(board, data, tc, t_ref, per_axis: bool = True) -> list[ObsSet]:
+    """Holds and the main set (sweep or poses); ``per_axis``: a sensitivity
+    coefficient per axis (3 parameters), else one for the three."""
+    sc = board.mag
+    c = sc.c
+    out = []
+    raw, temp, lab = _blocks(data, tc.holds, "mag")
+
+    def hold_col(dt, vbar, i):
+        x = dt * (vbar[i] - c[i])
+        return np.outer(x, np.eye(3)[i]) if per_axis else x[:, None]
+    if len(raw):
+        r = _hold_rows(sc.apply(raw), temp, lab, hold_col)
+        if r is not None:
+            out.append(ObsSet("holds", r[0], r[1], np.zeros((len(r[0]), 0)), r[2], r[3]))
+    x = data.sensor("mag")
+    ok = data.has("mag") & np.isfinite(data.temp) & ~(x == HMC5883L_OVERFLOW).any(axis=1)
+    if sc.dataset == "R":
+        rows = np.flatnonzero(ok & ((data.label == LABEL_ROT) if (data.label != 0).any()
+                                    else np.ones(len(data), bool)))
+        rows = rows[np.linspace(0, len(rows) - 1, min(len(rows), MAX_SWEEP_ROWS)).astype(int)] \
+            if len(rows) else rows
+        vals, temps = x[rows], data.temp[rows]
+    else:
+        vals, temps = [], []
+        for p in _poses(data, tc):
+            rows = ok & (data.label == p)
+            if rows.any():
+                vals.append(x[rows].mean(axis=0))
+                temps.append(float(data.temp[rows].mean()))
+        vals, temps = np.array(vals).reshape(-1, 3), np.array(temps)
+    if len(vals) >= 12:
+        v = sc.apply(vals)
+        nv = np.linalg.norm(v, axis=1)
+        u = v / nv[:, None]
+        B = float(sc.field_gauss) if sc.field_gauss else float(np.median(nv))
+        xt = (temps - t_ref)[:, None] * u * (v - c)
+        if not per_axis:
+            xt = xt.sum(axis=1, keepdims=True)
+        out.append(ObsSet("sweep" if sc.dataset == "R" else "poses", nv - B, xt,
+                          _sym_cols(u, v), np.arange(len(v)) % FOLDS, temps))
+    return out
+
+
+# --------------------------------------------------------------------------
+# the stacked fit
+# --------------------------------------------------------------------------
+def _design(sets, thermal=True):
+    q = sets[0].Xt.shape[1] if thermal else 0
+    r = [s.Xn.shape[1] for s in sets]
+    X = np.zeros((sum(len(s.y) for s in sets), q + sum(r)))
+    y = np.zeros(X.shape[0])
+    w = np.zeros(X.shape[0])
+    i, j = 0, q
+    for s, rk in zip(sets, r):
+        m = len(s.y)
+        if thermal:
+            X[i:i + m, :q] = s.Xt
+        X[i:i + m, j:j + rk] = s.Xn
+        y[i:i + m] = s.y
+        w[i:i + m] = 1.0 / s.sigma
+        i += m
+        j += rk
+    return X, y, w
+
+
+def _solve(X, y, w):
+    Xw, yw = X * w[:, None], y * w
+    if not X.shape[1]:
+        return np.zeros(0), np.zeros((0, 0)), int(0)
+    beta, *_ = np.linalg.lstsq(Xw, yw, rcond=None)
+    cn = np.linalg.norm(Xw, axis=0)
+    cn[cn == 0] = 1.0
+    rank = int(np.linalg.matrix_rank(Xw / cn))
+    res = yw - Xw @ beta
+    dof = max(1, len(y) - X.shape[1])
+    chi2 = float(res @ res) / dof
+    cov = np.linalg.pinv(Xw.T @ Xw) * max(1.0, chi2)
+    return beta, cov, rank
+
+
+def _set_sigma(s: ObsSet) -> float:
+    X = np.hstack([s.Xt, s.Xn])
+    beta, *_ = np.linalg.lstsq(X, s.y, rcond=None)
+    res = s.y - X @ beta
+    return float(np.sqrt(res @ res / max(1, len(s.y) - X.shape[1]))) or 1e-12
+
+
+def _heldout(sets) -> tuple[float, float]:
+    """rms of held-out observations without and with the temperature term
+    (each fold refitted on the others)."""
+    sq = {False: 0.0, True: 0.0}
+    n = 0
+    for f in range(FOLDS):
+        tr = [dataclasses.replace(s, y=s.y[s.fold != f], Xt=s.Xt[s.fold != f],
+                                  Xn=s.Xn[s.fold != f]) for s in sets]
+        te = [dataclasses.replace(s, y=s.y[s.fold == f], Xt=s.Xt[s.fold == f],
+                                  Xn=s.Xn[s.fold == f]) for s in sets]
+        if not sum(len(s.y) for s in te):
+            continue
+        for th in (False, True):
+            X, y, w = _design(tr, th)
+            beta, _, _ = _solve(X, y, w)
+            Xe, ye, _ = _design(te, th)
+            sq[th] += float(np.sum((ye - Xe @ beta) ** 2)) if X.shape[1] else float(ye @ ye)
+        n += sum(len(s.y) for s in te)
+    n = max(n, 1)
+    return float(np.sqrt(sq[False] / n)), float(np.sqrt(sq[True] / n))
+
+
+def fit_sensor(sensor: str, sets: list[ObsSet]) -> dict:
+    """The stacked fit of one sensor's temperature term: ``{"theta", "std",
+    "why" (None when usable), "sets", "heldout", ...}``."""
+    spans = {s.name: s.span for s in sets}
+    sets = [s for s in sets if s.span >= MIN_TEMP_SPAN_C and len(s.y) > s.Xt.shape[1] + s.Xn.shape[1]]
+    out = {"spans_c": spans, "sets": [s.name for s in sets]}
+    if not sets:
+        out["why"] = ("no data over a span of at least "
+                      f"{MIN_TEMP_SPAN_C:g} C (" + ", ".join(f"{k} {v:.2f} C"
+                                                             for k, v in spans.items())
+                      + ")" if spans else "no data with a temperature")
+        return out
+    for s in sets:
+        s.sigma = _set_sigma(s)
+    X, y, w = _design(sets)
+    beta, cov, rank = _solve(X, y, w)
+    q = sets[0].Xt.shape[1]
+    theta, std = beta[:q], np.sqrt(np.clip(np.diag(cov)[:q], 0, None))
+    before, after = _heldout(sets)
+    out.update(theta=theta, std=std, nuisance=beta[q:], rank=rank, params=X.shape[1],
+               heldout_rms_before=before, heldout_rms_after=after,
+               n_obs=int(len(y)), temp_lo=float(min(s.temp.min() for s in sets)),
+               temp_hi=float(max(s.temp.max() for s in sets)))
+    lim = STD_LIMITS[sensor]
+    if rank < X.shape[1]:
+        out["why"] = f"the temperature term is not identifiable (rank {rank} of {X.shape[1]})"
+    elif std.max() > lim:
+        out["why"] = (f"poorly determined: std {std.max():.2g} {UNITS[sensor]} "
+                      f"(limit {lim:g})")
+    elif not after < before:
+        out["why"] = (f"it does not predict held-out blocks better (rms {before:.3g} -> "
+                      f"{after:.3g})")
+    else:
+        out["why"] = None
+    return out
+
+
+def _fmt(v):
+    return "(" + ", ".join(f"{x:+.3g}" for x in v) + ")"
+
+
+def attach(board: BoardCalibration, data: SessionData, main: SessionData,
+           tc: TempContent) -> dict:
+    """Fit each calibrated sensor's temperature term from ``data`` (the
+    whole session, holds included); ``main`` is what the static calibration
+    used (for each sensor's reference temperature).  Sets
+    ``SensorCalibration.temperature``, adds a note per sensor saying what was
+    fitted or why not, and returns ``board.settings["temperature"]``."""
+    report = {"span_c": tc.span_c, "range_c": [tc.lo, tc.hi], "holds": list(tc.holds),
+              "fitted": [], "not_fitted": {}}
+    for name, sc in board.sensors():
+        t_ref = _t_ref(main, _main_rows(main, name, sc))
+        builder = {"accel": accel_sets, "gyro": gyro_sets, "mag": mag_sets}[name]
+        res = fit_sensor(name, builder(board, data, tc, t_ref) if np.isfinite(t_ref) else [])
+        if name == "mag" and np.isfinite(t_ref):
+            # one coefficient for the three axes, when each axis' own is not
+            # determined or does not predict held-out blocks better
+            common = fit_sensor(name, mag_sets(board, data, tc, t_ref, per_axis=False))
+            if common["why"] is None and (
+                    res["why"] is not None
+                    or not res["heldout_rms_after"] < common["heldout_rms_after"]):
+                common["per_axis_why"] = res["why"] or (
+                    f"held-out rms {res['heldout_rms_after']:.3g}, not below the common "
+                    f"coefficient's {common['heldout_rms_after']:.3g}")
+                res = common
+        why = res["why"]
+        if why is not None:
+            report["not_fitted"][name] = why
+            sc.notes.append(f"temperature: not fitted: {why}")
+            continue
+        tm = _temp_model(name, sc, res, t_ref)
+        if name == "gyro":
+            _gyro_scale(board, main, tm)
+        sc.temperature = tm
+        report["fitted"].append(name)
+        sc.notes.extend(f"temperature: {n}" for n in tm.notes)
+    board.settings["temperature"] = report
+    return report
+
+
+def _gyro_scale(board, main, tm: TempModel) -> None:
+    """Add the gyroscope's sensitivity coefficient to ``tm`` when the moves
+    determine it; say so either way."""
+    gs = gyro_scale_fit(board, main, tm)
+    tm.extra["scale_fit"] = {k: v for k, v in gs.items() if k not in ("s", "std")}
+    if gs["why"] is not None:
+        tm.notes[1] = f"sensitivity against temperature not determined: {gs['why']}"
+        return
+    tm.scale_per_c, tm.scale_per_c_std = gs["s"], gs["std"]
+    tm.notes[1] = (f"sensitivity {_fmt(gs['s'] * 100)} +- {_fmt(gs['std'] * 100)} %/C from "
+                   f"{gs['moves']} moves over {gs['span_c']:.1f} C (held-out direction error "
+                   f"{gs['heldout_rms_deg_before']:.3f} -> {gs['heldout_rms_deg_after']:.3f} deg)")
+
+
+def _main_rows(main: SessionData, name: str, sc):
+    if name == "mag" and sc.dataset == "R":
+        return main.label == LABEL_ROT if (main.label != 0).any() else np.ones(len(main), bool)
+    return (main.label >= 1) & main.has(name)
+
+
+def _temp_model(name, sc, res, t_ref) -> TempModel:
+    lo, hi = min(res["temp_lo"], t_ref), max(res["temp_hi"], t_ref)
+    theta, std = res["theta"], res["std"]
+    extra = {k: res[k] for k in ("sets", "spans_c", "n_obs", "rank", "params",
+                                 "heldout_rms_before", "heldout_rms_after")}
+    ho = f"held-out rms {res['heldout_rms_before']:.3g} -> {res['heldout_rms_after']:.3g} {sc.unit}"
+    src = " + ".join(res["sets"])
+    if name == "mag":
+        k, sk = np.broadcast_to(theta, 3), np.broadcast_to(std, 3)
+        if len(theta) == 1:
+            what = (f"{k[0] * 100:+.3f} +- {sk[0] * 100:.3f} %/C (one coefficient for the three "
+                    f"axes; per axis: {res.get('per_axis_why')})")
+        else:
+            what = f"{_fmt(k * 100)} +- {_fmt(sk * 100)} %/C per axis"
+        notes = [f"sensitivity {what} from {src}, {lo:.1f}-{hi:.1f} C around {t_ref:.2f} C; {ho}"]
+        return TempModel(t_ref, (lo, hi), np.zeros(3), np.full(3, np.nan),
+                         scale_per_c=-k, scale_per_c_std=sk, notes=notes, extra=extra)
+    o = -theta                    # the correction removes what the data showed
+    notes = [f"offset {_fmt(o)} +- {_fmt(std)} {sc.unit}/C from {src}, "
+             f"{lo:.1f}-{hi:.1f} C around {t_ref:.2f} C; {ho}",
+             ("sensitivity against temperature not determined (it needs turns at different "
+              "temperatures)" if name == "gyro" else
+              "gain against temperature not fitted (ADXL345: 0.01 %/C, a twentieth of the "
+              "offset's effect at 1 g)")]
+    if name == "accel" and "poses" in res["sets"]:
+        # the static fit absorbed part of the drift: give it back (linearised step)
+        nu = res["nuisance"][:9]
+        W = np.array([[nu[0], nu[3], nu[4]], [nu[3], nu[1], nu[5]], [nu[4], nu[5], nu[2]]])
+        d = nu[6:9]
+        sc.A = (np.eye(3) - W) @ sc.A
+        sc.c = (np.eye(3) - W) @ sc.c - d
+        extra["static_map_change"] = {"W": W.tolist(), "d": d.tolist()}
+        notes.append("A and c refined jointly with the temperature term (one linearised "
+                     "step; the parameters listed are the static fit's)")
+    return TempModel(t_ref, (lo, hi), o, std, notes=notes, extra=extra)
+
+
+# --------------------------------------------------------------------------
+# the gyroscope's sensitivity against temperature, from moves over a span
+# --------------------------------------------------------------------------
+SCALE_STD_LIMIT = 4e-4      # 1/C: half the ITG-3200's worst (0.08 %/C); tighter is rarely met
+
+
+def _move_residuals(ms, G, b_moves, scale):
+    """Gravity direction errors (n, 3) of the moves with a bias and an
+    output-axis scale per move (``scale`` (n, 3))."""
+    from . import gyro as _g
+    rate = np.einsum("nlj,ij->nli", ms.wm - b_moves[:, None, :], G) * scale[:, None, :]
+    q = _g._rotvec_quat(np.deg2rad(rate) * ms.dt[..., None])
+    while q.shape[1] > 1:
+        q = _g._qmul(q[:, 0::2], q[:, 1::2])
+    return _g._rotate_inv(q[:, 0], ms.a0) - ms.a1
+
+
+def gyro_scale_fit(board, main: SessionData, tm: TempModel) -> dict:
+    """The gyroscope's relative sensitivity per C and output axis from the
+    moves between still poses (the ones its matrix was fitted on) whose
+    temperatures span ``MIN_TEMP_SPAN_C``: the rotation each move integrates,
+    scaled by 1 + s dT, must turn one pose's gravity direction into the
+    next's.  Linearised around s = 0 (the static fit's G, the temperature
+    model's bias per move), least squares, 5 interleaved folds of moves.
+    ``{"s", "std", "why" (None: usable), ...}``."""
+    from . import gyro as _g
+    from .content import recording_parts
+    from ..maths.sphere import unit
+    sc, acc = board.gyro, board.accel
+    if sc is None or acc is None or sc.model != "bias+matrix":
+        return {"why": "no scale and misalignment fit from moves"}
+    lsb = main.scales["gyro"]
+    G = sc.A * lsb
+    b = -np.linalg.solve(G, sc.c)
+    slope_raw = -np.linalg.solve(G, tm.offset_per_c)          # raw deg/s per C
+    grav, ptemp = {}, {}
+    x = main.sensor("accel")
+    for p in np.unique(main.label[main.label >= 1]):
+        sel = (main.label == p) & main.has("accel")
+        if sel.any():
+            grav[int(p)] = unit(acc.apply(x[sel].mean(axis=0)[None])[0])
+            T = main.temp[sel]
+            ptemp[int(p)] = float(np.nanmean(T)) if np.isfinite(T).any() else np.nan
+    moves = _g.find_moves(main.label, main.sample_times(), main.seq, main.sensor("gyro") / lsb,
+                          main.sensor("gyro"), grav, main.meta.get("rate_hz") or 125.0,
+                          part=recording_parts(main))
+    temp = np.array([0.5 * (ptemp[m.pose0] + ptemp[m.pose1]) for m in moves]) if moves \
+        else np.empty(0)
+    ok = np.isfinite(temp)
+    moves = [m for m, k in zip(moves, ok) if k]
+    temp = temp[ok]
+    if len(moves) < _g.MIN_MOVES or float(np.ptp(temp)) < MIN_TEMP_SPAN_C:
+        return {"why": f"{len(moves)} moves over {float(np.ptp(temp)) if len(temp) else 0:.2f} C "
+                       f"(needs {_g.MIN_MOVES} over {MIN_TEMP_SPAN_C:g} C)"}
+    ms = _g.MoveSet(moves)
+    dT = tm.dt(temp)
+    bm = b + np.outer(dT, slope_raw)
+    one = np.ones((len(moves), 3))
+    r0 = _move_residuals(ms, G, bm, one)
+    eps = 1e-4
+    J = np.stack([((_move_residuals(ms, G, bm, one + eps * np.outer(dT, np.eye(3)[i])) - r0)
+                   / eps) for i in range(3)], axis=-1)                # (n, 3, 3)
+    Jf, rf = J.reshape(-1, 3), r0.reshape(-1)
+
+    def solve(rows):
+        s, *_ = np.linalg.lstsq(Jf[rows], -rf[rows], rcond=None)
+        return s
+    s = solve(np.ones(len(rf), bool))
+    res = rf + Jf @ s
+    dof = max(1, len(rf) - 3)
+    cov = np.linalg.pinv(Jf.T @ Jf) * float(res @ res) / dof
+    std = np.sqrt(np.clip(np.diag(cov), 0, None))
+    fold = np.repeat(np.arange(len(moves)) % FOLDS, 3)
+    before = after = 0.0
+    for f in range(FOLDS):
+        te = fold == f
+        sf = solve(~te)
+        before += float(rf[te] @ rf[te])
+        after += float(np.sum((rf[te] + Jf[te] @ sf) ** 2))
+    out = {"s": s, "std": std, "moves": len(moves), "span_c": float(np.ptp(temp)),
+           "heldout_rms_deg_before": float(np.degrees(np.sqrt(before / len(rf)))),
+           "heldout_rms_deg_after": float(np.degrees(np.sqrt(after / len(rf))))}
+    if std.max() > SCALE_STD_LIMIT:
+        out["why"] = f"poorly determined: std {std.max():.2g} /C (limit {SCALE_STD_LIMIT:g})"
+    elif not after < before:
+        out["why"] = "it does not predict held-out moves better"
+    else:
+        out["why"] = None
+    return out

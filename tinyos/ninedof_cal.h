@@ -10,8 +10,9 @@
  *   acc_i = c_i + sum_j A_ij * raw_j                (int32, exact)
  *   out_i = sat((acc_i + r_i + 2^(shift-1)) >> shift)   (arithmetic shift)
  *   r_i  <- acc_i + r_i - (out_i << shift)          (the residual)
- * i.e. rounding half up with error feedback: r_i (cal->resid, per axis, in
- * Q14 units; Q14 is the kernel's shift for every valid set) is what the
+ * i.e. rounding half up with error feedback: r_i (fb in the sensor's
+ * native form, per row, in Q14 units; Q14 is the kernel's shift for every
+ * valid set, and a sensor with temperature terms keeps it in eff[k]) is what the
  * last rounding of axis i dropped, in [-1/2, 1/2) LSB, so every output is
  * within 1 LSB of the exact value (|out - x| = |r - r'| < 1) and the mean
  * of the outputs follows the mean of the exact values (within 1 LSB over
@@ -64,6 +65,10 @@ typedef struct {
   int16_t a[9];          /* row-major, Q(shift) */
   int32_t c[3];          /* counts, Q(shift) */
   uint8_t shift;
+  /* rounding with error feedback: per row the residual r of the last
+   * rounding (Q14, in [-2^13, 2^13)) stored as r mod 2^14, so 0 = none;
+   * the only field the correction writes */
+  uint16_t fb[3];
 } ninedof_cal_sensor_native_t;
 
 /* Native form of one sensor's temperature terms (ninedof_cal_temp_t) */
@@ -98,9 +103,6 @@ typedef struct {
   ninedof_cal_sensor_native_t eff[NINEDOF_SENSORS];
   uint8_t gain_zero;                /* bit k: tg[k] all 0 */
   int16_t tg[NINEDOF_SENSORS][3];   /* g16, Q16 */
-  /* rounding with error feedback: per axis (ax..mz) what the last rounding
-   * dropped, Q14, in [-2^13, 2^13); the only part the correction writes */
-  int16_t resid[9];
 } ninedof_cal_t;
 
 /* Bytes of a set of the given format (0 for an unknown format). */
@@ -139,8 +141,8 @@ void ninedof_cal_identity(ninedof_cal_t *cal, uint16_t mote, uint16_t version);
 uint8_t ninedof_cal_validate(const ninedof_cal_t *cal, uint16_t my_id);
 
 /* Correct one record (9 axes, ax..mz) / n records, raw and out may alias.
- * Updates the set's residuals (cal->resid): records are corrected in the
- * order they were sampled. */
+ * Updates the set's rounding residuals (fb of s[] or eff[]): records are
+ * corrected in the order they were sampled. */
 void ninedof_correct(ninedof_cal_t *cal, const int16_t raw[9], int16_t out[9]);
 void ninedof_correct_block(ninedof_cal_t *cal, const int16_t *raw,
                            int16_t *out, uint16_t n);

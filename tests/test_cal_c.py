@@ -517,3 +517,14 @@ def test_a_set_missing_any_single_byte_is_never_applied():
             assert (r.active_calset(), r.flags(), r.dirty) == (*before, False), (seed, gap)
             assert send_frag(r, 4, gap, new[gap:gap + 1])["status"] == OK
             assert send_commit(r, 4, crc)["status"] == OK and r.active_calset() == new
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_corrector_carries_the_residuals_from_block_to_block(seed):
+    rng = np.random.default_rng(100 + seed)
+    cs = random_calset(rng)
+    raw = full_range_raw(rng, 300)
+    cor = M.Corrector(cs)
+    got = np.concatenate([cor.correct(raw[i:i + 7]) for i in range(0, len(raw), 7)])
+    np.testing.assert_array_equal(got, M.correct(cs, raw), err_msg=f"seed {seed}")
+    np.testing.assert_array_equal(got, exact(cs, raw), err_msg=f"seed {seed}")

@@ -224,6 +224,24 @@ def correct(calset: bytes, raw, temp_raw: int | None = None) -> np.ndarray:
     return _correct_with(library().ninedof_correct_block, buf, raw)
 
 
+class Corrector:
+    """One decoded set that corrects block after block as the mote does:
+    its rounding residuals (error feedback, ``ninedof_cal.h``) carry on from
+    one call to the next and across temperature changes; ``correct`` on
+    module level starts from a freshly applied set each call."""
+
+    def __init__(self, calset: bytes):
+        code, self._buf = _decode(calset)
+        if code != 0:
+            raise ValueError(f"calibration set rejected: {P.cal_reason(code)}")
+
+    def set_temperature(self, temp_raw: int) -> None:
+        library().ninedof_cal_set_temp(self._buf, _temp16(temp_raw))
+
+    def correct(self, raw) -> np.ndarray:
+        return _correct_with(library().ninedof_correct_block, self._buf, raw)
+
+
 def _temp16(temp_raw) -> int:
     t = int(temp_raw)
     if not -32768 <= t <= 32767:

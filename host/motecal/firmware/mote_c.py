@@ -214,7 +214,10 @@ def correct(calset: bytes, raw, temp_raw: int | None = None) -> np.ndarray:
     validated; an in-range set gives exactly the firmware's output.
     ``temp_raw`` is the board temperature in force (raw ITG-3200 TEMP_OUT)
     for a set with temperature terms; None: no temperature yet (each sensor
-    at its reference temperature).
+    at its reference temperature).  The records are one run in sampling
+    order from a freshly applied set: the rounding's residuals (error
+    feedback, ``ninedof_cal.h``) start at 0 each call (``Corrector`` carries
+    them from call to call).
     """
     code, buf = _decode(calset)
     if code != 0:

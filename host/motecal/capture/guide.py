@@ -11,6 +11,10 @@ The decisions live here, as explicit state machines, one per followed mote
   same pose is tried again.  A pose whose gravity direction lies within
   ``min_angle_deg`` of an accepted one is refused with a warning -- the one
   accept/reject point is ``PoseCapture._consider``.
+* ``AdaptiveCapture`` (``--guided adaptive``): the same states and
+  accept/reject point; after a few seed poses the next pose, its samples and
+  the stop come from a planner's prediction of the calibration's error
+  (``calib.design``, handed in by the command: this layer does not fit).
 * ``RotationCapture`` (``--guided rotation``): labels rows ``rot`` from the
   start until ``samples`` rows or until the magnetometer directions (around a
   running sphere-fit centre) hit ``coverage`` of equal-area sphere cells
@@ -114,7 +118,7 @@ def max_poses(min_angle_deg: float) -> int:
 # --------------------------------------------------------------------------
 @dataclass
 class GuideEvent:
-    kind: str            # capturing | accepted | discarded | too_close | label | done
+    kind: str            # capturing | accepted | discarded | too_close | label | estimate | done
     mote: int
     pose: int = 0
     text: str = ""
@@ -137,6 +141,9 @@ class Pose:
     direction: np.ndarray
     seq_lo: int
     seq_hi: int
+    n: int = 0                                   # samples
+    mean: np.ndarray | None = None               # (9,) raw counts
+    sd: np.ndarray | None = None                 # (9,) per-axis sample sd
 
 
 # --------------------------------------------------------------------------
@@ -172,10 +179,11 @@ class PoseCapture:
         self.discards = 0
         self.warning = ""
         self._hist_seq = np.zeros(0, np.int64)
-        self._hist_acc = np.zeros((0, 3))
+        self._hist_raw = np.zeros((0, 9))
         self._cap_lo = 0
         self._cap_hi = 0
-        self._cap_sum = np.zeros(3)
+        self._cap_sum = np.zeros(9)
+        self._cap_sq = np.zeros(9)
 
     @property
     def next_pose(self) -> int:
@@ -221,10 +229,10 @@ class PoseCapture:
         if n == 0:
             return events
         still = self.det.push_many(raw)
-        acc = np.asarray(raw, float)[:, :3]
+        raw = np.asarray(raw, float)
         h = len(self._hist_seq)
         all_seq = np.concatenate([self._hist_seq, seq])
-        all_acc = np.vstack([self._hist_acc, acc])
+        all_raw = np.vstack([self._hist_raw, raw])
         w = self.det.w
         i = 0
         while i < n and not self.done:
@@ -242,14 +250,15 @@ class PoseCapture:
                     break
                 j = i + int(found[0])
                 lo = max(h + j - w + 1 + self.settle, 0)   # window start (+ settling) in all_*
-                window = all_acc[lo:h + j + 1]
+                window = all_raw[lo:h + j + 1]
                 i = j + 1
-                if not self._consider(unit(window.mean(axis=0)), events):
+                if not self._consider(unit(window[:, :3].mean(axis=0)), events):
                     continue
                 self.phase = Phase.CAPTURE
                 self.warning = ""
                 self.captured = len(window)
                 self._cap_sum = window.sum(axis=0)
+                self._cap_sq = (window * window).sum(axis=0)
                 self._cap_lo = int(all_seq[lo])
                 self._cap_hi = int(all_seq[h + j])
                 events.append(GuideEvent("capturing", self.mote, self.next_pose,
@@ -262,7 +271,9 @@ class PoseCapture:
                 take = int(bad[0]) if len(bad) else len(seg)
                 if take:
                     self.captured += take
-                    self._cap_sum += acc[i:i + take].sum(axis=0)
+                    part = raw[i:i + take]
+                    self._cap_sum += part.sum(axis=0)
+                    self._cap_sq += (part * part).sum(axis=0)
                     self._cap_hi = int(seq[i + take - 1])
                 i += take
                 if len(bad):
@@ -277,19 +288,24 @@ class PoseCapture:
                     self._finish(events)
         keep = min(w, len(all_seq))
         self._hist_seq = all_seq[-keep:].copy()
-        self._hist_acc = all_acc[-keep:].copy()
+        self._hist_raw = all_raw[-keep:].copy()
         return events
 
     def _finish(self, events: list) -> None:
-        d = unit(self._cap_sum / self.captured)
+        n = self.captured
+        mean = self._cap_sum / n
+        with np.errstate(invalid="ignore"):
+            sd = np.sqrt(np.maximum(self._cap_sq - n * mean * mean, 0.0) / max(n - 1, 1))
+        d = unit(mean[:3])
         self.captured = 0
         if not self._consider(d, events):
             return
         k = self.next_pose
-        pose = Pose(k, d, self._cap_lo, self._cap_hi)
+        target = self.target
+        pose = Pose(k, d, self._cap_lo, self._cap_hi, n, mean, sd)
         self.accepted.append(pose)
         self.coverage.add(d)
-        off = angle_deg(self.targets[k - 1], d)
+        off = angle_deg(target, d)
         events.append(GuideEvent("label", self.mote, k, "", pose.seq_lo, pose.seq_hi, k))
         events.append(GuideEvent(
             "accepted", self.mote, k,
@@ -297,6 +313,11 @@ class PoseCapture:
             f"{off:.0f} deg from the suggested pose; coverage "
             f"{self.coverage.fraction:.0%})"))
         self.armed = self.auto
+        self._next(events)
+
+    def _next(self, events: list) -> None:
+        """After an accepted pose: done, or on to the next one."""
+        k = len(self.accepted)
         if len(self.accepted) >= self.poses:
             self.phase = Phase.DONE
             events.append(GuideEvent("done", self.mote, k, f"mote {self.mote}: all "
@@ -327,6 +348,87 @@ class PoseCapture:
                     accepted=np.array([p.direction for p in self.accepted]).reshape(-1, 3),
                     hits=self.coverage.hits.copy(), bands=self.coverage.bands,
                     sectors=self.coverage.sectors, discards=self.discards)
+
+
+# --------------------------------------------------------------------------
+# Adaptive poses
+# --------------------------------------------------------------------------
+SEED_POSES = 12              # evenly spread first poses, before any prediction
+SEED_SAMPLES = 400           # samples of each seed pose (the noise is not known yet)
+ADAPTIVE_MAX_POSES = 80      # the session stops here whatever the prediction says
+
+
+class AdaptiveCapture(PoseCapture):
+    """The adaptive flow of one mote (``--guided adaptive``): PoseCapture's
+    states and its one accept/reject point (``_consider``), but the poses,
+    their number and their samples are decided as it goes.
+
+    * The first ``seed_poses`` suggestions are an even spread of gravity
+      directions, held ``seed_samples`` samples each.
+    * After every accepted pose from then on the ``planner`` (a callable
+      ``planner(mean (K, 9), sd (K, 9), n (K,)) -> advice``, made by the
+      command from ``calib.design.Planner``; this layer does not fit) says
+      where the calibration stands: the promised error per sensor against
+      its target (``advice.text``), whether every target is met
+      (``advice.all_met``), the next pose (``advice.next_up``, a gravity
+      direction in the accelerometer's frame) and its samples
+      (``advice.samples``).
+    * The stop rule, in one place (``_next``): DONE when every target is
+      met, or at ``max_poses`` (said so: the targets were not met).
+    """
+
+    kind = "adaptive"
+
+    def __init__(self, mote: int, *, planner, max_poses: int = ADAPTIVE_MAX_POSES,
+                 seed_poses: int = SEED_POSES, seed_samples: int = SEED_SAMPLES, **kw):
+        if not 1 <= seed_poses <= max_poses:
+            raise ValueError("seed_poses must be 1..max_poses")
+        super().__init__(mote, poses=max_poses, samples=seed_samples, **kw)
+        self.planner = planner
+        self.seed_poses = seed_poses
+        self.targets = fibonacci_sphere(seed_poses)      # then one per suggestion
+        self.advice = None
+        self.met = False
+        self.text = ""
+
+    @property
+    def target(self) -> np.ndarray | None:
+        if self.done:
+            return None
+        k = len(self.accepted)
+        return self.targets[min(k, len(self.targets) - 1)]
+
+    def _next(self, events: list) -> None:
+        k = len(self.accepted)
+        if k >= self.seed_poses:
+            mean = np.array([p.mean for p in self.accepted])
+            sd = np.array([p.sd for p in self.accepted])
+            n = np.array([p.n for p in self.accepted], float)
+            self.advice = adv = self.planner(mean, sd, n)
+            self.met = bool(adv.all_met)
+            self.text = adv.text
+            events.append(GuideEvent("estimate", self.mote, k,
+                                     f"mote {self.mote}: after {k} poses: {adv.text}"))
+            if self.met:
+                self.phase = Phase.DONE
+                events.append(GuideEvent("done", self.mote, k, f"mote {self.mote}: targets "
+                                         f"met after {k} poses"))
+                return
+            if adv.next_up is not None:
+                self.targets = np.vstack([self.targets[:k], unit(adv.next_up)[None]])
+            self.samples = max(int(adv.samples), self.det.w - self.settle)
+        if k >= self.poses:
+            self.phase = Phase.DONE
+            events.append(GuideEvent("done", self.mote, k, f"mote {self.mote}: {k} poses, the "
+                                     "most allowed: targets not met"))
+        else:
+            self.phase = Phase.MOVE
+
+    def status(self) -> dict:
+        st = super().status()
+        st.update(pose=self.next_pose if not self.done else len(self.accepted),
+                  estimate=self.text, met=self.met, seed_poses=self.seed_poses)
+        return st
 
 
 # --------------------------------------------------------------------------
@@ -421,20 +523,20 @@ class RotationCapture:
 class GuidedFlow:
     """One capture per followed mote (``follow`` = a mote id, or None = all)."""
 
-    kind: str                              # static80 | rotation
+    kind: str                              # static80 | adaptive | rotation
     follow: int | None = None
     auto: bool = True
     options: dict = field(default_factory=dict)
     captures: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        if self.kind not in ("static80", "rotation"):
+        if self.kind not in FLOWS:
             raise ValueError(f"unknown guided flow {self.kind!r}")
 
     def _capture(self, mote: int):
         cap = self.captures.get(mote)
         if cap is None:
-            cls = PoseCapture if self.kind == "static80" else RotationCapture
+            cls = FLOWS[self.kind]
             cap = self.captures[mote] = cls(mote, auto=self.auto, **self.options)
         return cap
 
@@ -461,3 +563,6 @@ class GuidedFlow:
 
     def status(self) -> list[dict]:
         return [self.captures[m].status() for m in sorted(self.captures)]
+
+
+FLOWS = {"static80": PoseCapture, "adaptive": AdaptiveCapture, "rotation": RotationCapture}

@@ -264,6 +264,10 @@ class Logger:
             cap = self.guide.captures.get(m) if self.guide else None
             if cap is not None and cap.kind == "static80":
                 line += f", poses {len(cap.accepted)}/{cap.poses}"
+            elif cap is not None and cap.kind == "adaptive":
+                line += (f", poses {len(cap.accepted)} (at most {cap.poses}), targets "
+                         + ("met" if cap.met else "not met") + (f": {cap.text}" if cap.text
+                                                               else ""))
             elif cap is not None:
                 line += f", rotation {cap.count} samples, coverage {cap.coverage.fraction:.0%}"
             out.append(line)

@@ -33,6 +33,7 @@ import sys
 from pathlib import Path
 
 from ..calib.board import calibrate_board
+from ..calib.design import describe_poses_needed, session_poses_needed
 from ..calib.gate import decide
 from ..calib.models import MODEL_FAMILIES, parse_groups
 from ..calib.result import BoardCalibration
@@ -202,6 +203,8 @@ def summary(board: BoardCalibration) -> str:
     for name, sc in board.sensors():
         for n in sc.notes:
             lines.append(f"  {name}: {n}")
+    if board.accel is not None and board.accel.quality.get("poses_needed"):
+        lines += describe_poses_needed(board.accel.quality["poses_needed"])
     g = board.gate
     if g:
         state = "accepted" if g.get("accepted") else ("refused, saved anyway (--force)"
@@ -238,6 +241,7 @@ def run(args) -> int:
             else:
                 board = calibrate(dm, args)
             board.settings["diagnosis"] = source
+            session_poses_needed(board, dm)
             decision = decide(board, force=args.force)
             print(summary(board))
             if not decision.accepted and not args.force:

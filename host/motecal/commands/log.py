@@ -12,14 +12,16 @@ import contextlib
 import signal
 import sys
 
-from ..capture.guide import (DEFAULT_COVERAGE, DEFAULT_MIN_ANGLE, DEFAULT_POSE_SAMPLES,
-                             DEFAULT_POSES, DEFAULT_ROT_SAMPLES, MAX_MIN_ANGLE, GuidedFlow,
-                             max_poses)
+from ..calib import design
+from ..capture.guide import (ADAPTIVE_MAX_POSES, DEFAULT_COVERAGE, DEFAULT_MIN_ANGLE,
+                             DEFAULT_POSE_SAMPLES, DEFAULT_POSES, DEFAULT_ROT_SAMPLES,
+                             MAX_MIN_ANGLE, SEED_POSES, GuidedFlow, max_poses)
 from ..capture.link import LinkTracker
 from ..capture.logger import Logger, TeeDisplay
 from ..errors import UserError
 from ..line import protocol as P
 from ..line import sources as S
+from ..sessions.session import NOMINAL_SCALES
 from ..sessions.store import LOCK_TIMEOUT_S, open_store
 from ..view.server import open_server, parse_address
 from ..view.state import LiveView
@@ -48,7 +50,9 @@ def register(sub) -> None:
                    help="database: sqlite file, postgresql:// or mysql:// URL")
     p.add_argument("--session", required=True, type=session_name, help="session name")
     p.add_argument("--append", action="store_true", help="add to an existing session")
-    p.add_argument("--guided", choices=("static80", "rotation"), help="guide a person")
+    p.add_argument("--guided", choices=("static80", "adaptive", "rotation"),
+                   help="guide a person (adaptive: the poses that most reduce the predicted "
+                        "error, until it meets the targets)")
     p.add_argument("--kind", choices=("free", "idle", "static80", "rotation"),
                    help="session kind when not guided (default free)")
     p.add_argument("--mote", type=mote_id, help="mote the guided flow follows (default all)")
@@ -67,6 +71,17 @@ def register(sub) -> None:
                    default=DEFAULT_POSE_SAMPLES)
     g.add_argument("--min-angle", type=positive(float), default=DEFAULT_MIN_ANGLE,
                    help="degrees a new pose must be from every earlier one")
+    a = p.add_argument_group("adaptive flow")
+    a.add_argument("--target-mg", type=positive(float, 1000), default=design.TARGET_ACCEL_G * 1e3,
+                   help="accelerometer: promised rms error on fresh directions, mg (0.5)")
+    a.add_argument("--target-mag-pct", type=positive(float, 100),
+                   default=design.TARGET_MAG_REL * 100,
+                   help="magnetometer: promised rms shape error, %% of the field (0.3)")
+    a.add_argument("--target-gyro-dps", type=positive(float, 100),
+                   default=design.TARGET_GYRO_DPS,
+                   help="gyroscope: promised bias error, deg/s (0.05)")
+    a.add_argument("--max-poses", type=positive(int, 10_000), default=ADAPTIVE_MAX_POSES,
+                   help=f"stop here even if the targets are not met ({ADAPTIVE_MAX_POSES})")
     g.add_argument("--rot-samples", type=positive(int, 100_000_000),
                    default=DEFAULT_ROT_SAMPLES)
     g.add_argument("--coverage", type=positive(float), default=DEFAULT_COVERAGE,
@@ -82,7 +97,22 @@ def register(sub) -> None:
 def _guide(args, interactive: bool) -> GuidedFlow | None:
     if not args.guided:
         return None
-    if args.guided == "static80":
+    if args.guided == "adaptive":
+        if not args.min_angle <= MAX_MIN_ANGLE:
+            raise UserError(f"--min-angle must be within 0..{MAX_MIN_ANGLE:g} degrees, "
+                            f"not {args.min_angle:g}")
+        if args.max_poses < SEED_POSES:
+            raise UserError(f"--max-poses must be at least {SEED_POSES} (the seed poses)")
+        if args.max_poses > max_poses(args.min_angle):
+            raise UserError(f"--max-poses {args.max_poses} cannot be {args.min_angle:g} degrees "
+                            f"apart from each other: the sphere has room for at most "
+                            f"{max_poses(args.min_angle)} (lower --min-angle or --max-poses)")
+        targets = design.Targets(args.target_mg / 1e3, args.target_mag_pct / 100,
+                                 args.target_gyro_dps)
+        planner = design.Planner(NOMINAL_SCALES, targets, min_angle_deg=args.min_angle)
+        opts = dict(planner=planner, max_poses=args.max_poses, min_angle_deg=args.min_angle,
+                    rate_hz=P.NINEDOF_RATE_HZ)
+    elif args.guided == "static80":
         if args.pose_samples < 50:
             raise UserError("--pose-samples must be at least 50 (the stillness window)")
         if not args.min_angle <= MAX_MIN_ANGLE:

@@ -10,6 +10,8 @@ from collections import deque
 
 from ..capture.logger import Logger, NullDisplay
 
+POSE_FLOWS = ("static80", "adaptive")     # flows that suggest poses
+
 class PlainDisplay(NullDisplay):
     """Plain lines (no TTY): every event, a status line every ``every`` seconds."""
 
@@ -35,7 +37,7 @@ class PlainDisplay(NullDisplay):
         if logger.guide is not None and not logger.guide.auto:
             for st in logger.guide.status():       # interactive without a TTY for output
                 key = (st["mote"], st.get("pose"), st["armed"])
-                if st["kind"] == "static80" and st["target"] and self._prompted.get(
+                if st["kind"] in POSE_FLOWS and st["target"] and self._prompted.get(
                         st["mote"]) != key and not st["armed"]:
                     self._prompted[st["mote"]] = key
                     self._print(f"mote {st['mote']}: pose {st['pose']}/{st['poses']}: "
@@ -51,6 +53,10 @@ class PlainDisplay(NullDisplay):
                 for st in logger.guide.status():
                     if st["kind"] == "static80":
                         parts.append(f"mote {st['mote']} pose {st['pose']}/{st['poses']}")
+                    elif st["kind"] == "adaptive":
+                        parts.append(f"mote {st['mote']} pose {st['pose']} (at most "
+                                     f"{st['poses']})" + (f": {st['estimate']}"
+                                                          if st["estimate"] else ""))
                     else:
                         parts.append(f"mote {st['mote']} {st['count']}/{st['samples']} "
                                      f"cov {st['coverage']:.0%}")
@@ -141,10 +147,14 @@ class RichDisplay(NullDisplay):
 def _guide_text(st: dict):
     from rich.text import Text
     lines = []
-    if st["kind"] == "static80":
-        lines.append(f"mote {st['mote']}: pose {st['pose']} of {st['poses']}"
+    if st["kind"] in POSE_FLOWS:
+        of = (f"of {st['poses']}" if st["kind"] == "static80" else
+              f"(at most {st['poses']}; the first {st['seed_poses']} spread evenly)")
+        lines.append(f"mote {st['mote']}: pose {st['pose']} {of}"
                      f" - {st['phase']}"
                      + (f" ({st['captured']}/{st['samples']})" if st["captured"] else ""))
+        if st["kind"] == "adaptive":
+            lines.append("  promised error: " + (st["estimate"] or "after the seed poses"))
         if st["target"]:
             lines.append(f"  suggested: {st['target']}")
         sketch = st["sketch"]

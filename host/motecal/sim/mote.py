@@ -140,6 +140,8 @@ class SimMote:
         else:
             self.n_total = 0
         self.duration = duration
+        self.read_ahead = READ_BLOCK           # samples asked ahead (1: a trajectory decided
+        #                                        as it goes, sim.person)
         self.status_period = STATUS_PERIOD / scale
         self.cal = cal
         self.ee = None
@@ -195,7 +197,7 @@ class SimMote:
     def _raw(self, k0: int, k1: int) -> np.ndarray:
         end = self._buf_k0 + len(self._buf)
         if k1 > end:
-            upto = max(k1, min(end + READ_BLOCK, self.n_total))
+            upto = max(k1, min(end + self.read_ahead, self.n_total))
             new = np.asarray(self.sampler.read(self.sample_times(end, upto)), np.int16)
             keep = self._buf[k0 - self._buf_k0:]
             self._buf = np.concatenate([keep, new]) if len(keep) else new

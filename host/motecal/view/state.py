@@ -198,9 +198,10 @@ class LiveView:
             out = dict(id=e["id"], link=e["link"], state=e["state"],
                        live=None if row is None else dict(acc=row[:3], mag=row[6:9]),
                        static=None, sweep=None)
-            if "static80" in e:
-                st, pic = e["static80"]
-                out["static"] = _static_numbers(pic, st)
+            for flow in ("static80", "adaptive"):         # flows that suggest poses
+                if flow in e:
+                    st, pic = e[flow]
+                    out["static"] = _static_numbers(pic, st)
             if "rotation" in e:
                 st, pic = e["rotation"]
                 sw = sweep_numbers(pic["points"], pic["centre"], pic["hits"], pic["bands"],

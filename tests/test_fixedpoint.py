@@ -90,9 +90,10 @@ def test_reported_bound_holds_over_each_chips_input_range(seed):
         inside = np.all(np.abs(want) < lim - 2, axis=1)
         err = np.abs(out[inside, sl] - want[inside])
         assert np.all(err <= report[n].worst_lsb + 1e-9), n
-    assert np.all(report["accel"].worst_lsb < 1.0)
-    assert np.all(report["mag"].worst_lsb < 1.0)
-    assert np.all(report["gyro"].worst_lsb <= 3 * 2**-15 * 32768 + 0.5)   # Q14 limit
+    # the quantisation's part (what is left after the output rounding's 1 LSB)
+    assert np.all(report["accel"].worst_lsb - FP.OUTPUT_ROUNDING_LSB < 0.5)
+    assert np.all(report["mag"].worst_lsb - FP.OUTPUT_ROUNDING_LSB < 0.5)
+    assert np.all(report["gyro"].worst_lsb <= 3 * 2**-15 * 32768 + FP.OUTPUT_ROUNDING_LSB)  # Q14 limit
 
 
 def test_rounding_report_numbers():
@@ -101,7 +102,7 @@ def test_rounding_report_numbers():
     assert r.fixed.shift == 14
     assert r.matrix_error == pytest.approx(abs(21845 / 16384 - 4 / 3))
     assert r.offset_error == 0
-    np.testing.assert_allclose(r.worst_lsb, r.matrix_error * 4096 + 0.5)
+    np.testing.assert_allclose(r.worst_lsb, r.matrix_error * 4096 + FP.OUTPUT_ROUNDING_LSB)
     np.testing.assert_allclose(r.worst_units, r.worst_lsb / 256.0)
     lines = FP.format_report({"accel": r})
     assert lines[0].startswith("accel: Q14  matrix a = [21845, 0, 0, 0, 21845")

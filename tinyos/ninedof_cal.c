@@ -215,7 +215,8 @@ void ninedof_cal_set_temp(ninedof_cal_t *cal, int16_t raw)
     /* an invalid set (never put in force) may not fit: keep it defined */
     if (dt > 32767 || dt < -32767)
       dt = 0;
-    cal->eff[k] = cal->s[k];
+    /* everything but the residuals, which carry on across temperatures */
+    memcpy(&cal->eff[k], &cal->s[k], offsetof(ninedof_cal_sensor_native_t, fb));
     for (i = 0; i < 3; i++) {
       cal->tg[k][i] = on ? (int16_t)temp_gain(t, i, dt) : 0;
       zero &= cal->tg[k][i] == 0;
@@ -355,19 +356,6 @@ uint8_t ninedof_cal_validate(const ninedof_cal_t *cal, uint16_t my_id)
 #endif
 
 
-/* int32 -> sat16(acc >> 14) */
-static NINEDOF_ALWAYS_INLINE int16_t sat_q14(int32_t acc)
-{
-  uint8_t top = (uint8_t)((uint32_t)acc >> 24) & 0xE0;   /* bits 31..29 */
-  if (top == 0x00 || top == 0xE0) {
-    /* in range: bits 29..14 = (high word << 2) | (byte 1 >> 6) */
-    uint16_t hi = (uint16_t)((uint32_t)acc >> 16);
-    uint8_t b1 = (uint8_t)((uint32_t)acc >> 8);
-    return (int16_t)(uint16_t)((uint16_t)(hi << 2) | (uint8_t)(b1 >> 6));
-  }
-  return (top & 0x80) ? (int16_t)INT16_MIN : (int16_t)INT16_MAX;
-}
-
 #if defined(__AVR__) && !defined(NINEDOF_PORTABLE_KERNEL)
 /*
  * AVR kernel: the nine multiply-accumulates of one sensor in one asm block.
@@ -381,7 +369,8 @@ static NINEDOF_ALWAYS_INLINE int16_t sat_q14(int32_t acc)
 #ifndef NESC   /* nesC's output of offsetof is no constant expression */
 typedef char ninedof_kernel_layout_check[
   (offsetof(ninedof_cal_sensor_native_t, a) == 0 &&
-   offsetof(ninedof_cal_sensor_native_t, c) == 18) ? 1 : -1];
+   offsetof(ninedof_cal_sensor_native_t, c) == 18 &&
+   offsetof(ninedof_cal_sensor_native_t, fb) == 31) ? 1 : -1];
 #endif
 
 #define K_LDM(LO, HI) "ldd %A[m], Z+" #LO "\n\tldd %B[m], Z+" #HI "\n\t"
@@ -412,15 +401,27 @@ typedef char ninedof_kernel_layout_check[
   "adc   %C[" #ACC "], r1\n\t"                                          \
   "adc   %D[" #ACC "], %[z]\n\t"
 
-/* out = sat16(ACC >> 14) stored at X+: in range when bits 31..29 agree,
- * then the result is bits 29..14 = (D:C:B << 2) >> 8. */
-#define K_SAT(ACC)                                                      \
+/* += fb ^ 0x2000 (= r + 2^13, the residual and the rounding constant:
+ * fb = r mod 2^14, ninedof_cal.h) from Z+L, Z+H; %A[m] holds 0x20 */
+#define K_FB(ACC, L, H)                                                 \
+  "ldd  %A[x], Z+" #L "\n\tldd  %B[x], Z+" #H "\n\t"                   \
+  "eor  %B[x], %A[m]\n\t"                                               \
+  "add  %A[" #ACC "], %A[x]\n\tadc  %B[" #ACC "], %B[x]\n\t"             \
+  "adc  %C[" #ACC "], %[z]\n\tadc  %D[" #ACC "], %[z]\n\t"
+
+/* out = sat16(ACC >> 14) stored at X+ and the new residual at Z+L, Z+H:
+ * in range when bits 31..29 agree, then the result is bits 29..14 =
+ * (D:C:B << 2) >> 8 and fb = (ACC & 0x3FFF) ^ 0x2000 (= r' mod 2^14, with
+ * r' = ACC - 2^13 - (out << 14)); saturated: fb = 0. */
+#define K_SATFB(ACC, L, H)                                              \
   "mov  %A[m], %D[" #ACC "]\n\t"                                        \
   "andi %A[m], 0xE0\n\t"                                                \
   "breq 1f\n\t"                                                         \
   "cpi  %A[m], 0xE0\n\t"                                                \
   "breq 1f\n\t"                                                         \
-  "ldi  %A[m], 0xFF\n\t"          /* saturate: 0x7FFF or 0x8000 */       \
+  "std  Z+" #L ", %[z]\n\t"        /* saturated: no residual */          \
+  "std  Z+" #H ", %[z]\n\t"                                             \
+  "ldi  %A[m], 0xFF\n\t"          /* 0x7FFF or 0x8000 */                 \
   "ldi  %B[m], 0x7F\n\t"                                                \
   "sbrs %D[" #ACC "], 7\n\t"                                            \
   "rjmp 2f\n\t"                                                         \
@@ -428,6 +429,11 @@ typedef char ninedof_kernel_layout_check[
   "ldi  %B[m], 0x80\n\t"                                                \
   "rjmp 2f\n"                                                           \
   "1:\n\t"                                                              \
+  "std  Z+" #L ", %A[" #ACC "]\n\t"                                     \
+  "mov  %B[m], %B[" #ACC "]\n\t"                                        \
+  "subi %B[m], 0xE0\n\t"          /* + 0x20, then the low 6 bits */      \
+  "andi %B[m], 0x3F\n\t"                                                \
+  "std  Z+" #H ", %B[m]\n\t"                                            \
   "lsl  %B[" #ACC "]\n\t"                                               \
   "rol  %C[" #ACC "]\n\t"                                               \
   "rol  %D[" #ACC "]\n\t"                                               \
@@ -439,7 +445,7 @@ typedef char ninedof_kernel_layout_check[
   "st   X+, %A[m]\n\t"                                                  \
   "st   X+, %B[m]\n\t"
 
-/* Where the stores of sensor_q14 start.  Not an input register: where the
+/* Where the stores of sensor_q14_acc start.  Not an input register: where the
  * compiler could see out == in (the mote corrects its batch in place,
  * ninedof_batch_pack, and nesC builds the image as one C file with
  * everything inlined) it gave an input operand `out` the register of `p`
@@ -450,43 +456,10 @@ typedef char ninedof_kernel_layout_check[
  * the kernel reads it from memory (LDS, 4 cycles against MOVW's 1). */
 static int16_t *ninedof_kernel_out;
 
-static NINEDOF_ALWAYS_INLINE void sensor_q14(const ninedof_cal_sensor_native_t *s,
-                                             const int16_t *in, int16_t *out)
-{
-  int32_t acc0, acc1, acc2;
-  int16_t m, x;
-  uint8_t z;
-  const int16_t *p = in;
-
-  ninedof_kernel_out = out;
-  /* All loads happen before the first store, so in and out may alias. */
-  __asm__ volatile (
-    "clr %[z]\n\t"
-    K_LDC(acc0, 18, 19, 20, 21)
-    K_LDC(acc1, 22, 23, 24, 25)
-    K_LDC(acc2, 26, 27, 28, 29)
-    "ldi %A[m], 0x20\n\t"
-    K_ROUND(acc0) K_ROUND(acc1) K_ROUND(acc2)
-    K_LDX
-    K_LDM(0, 1) K_MAC(acc0) K_LDM(6, 7) K_MAC(acc1) K_LDM(12, 13) K_MAC(acc2)
-    K_LDX
-    K_LDM(2, 3) K_MAC(acc0) K_LDM(8, 9) K_MAC(acc1) K_LDM(14, 15) K_MAC(acc2)
-    K_LDX
-    K_LDM(4, 5) K_MAC(acc0) K_LDM(10, 11) K_MAC(acc1) K_LDM(16, 17) K_MAC(acc2)
-    "clr r1\n\t"
-    "lds r26, %[o]\n\t"
-    "lds r27, %[o]+1\n\t"
-    K_SAT(acc0) K_SAT(acc1) K_SAT(acc2)
-    : [acc0] "=&r" (acc0), [acc1] "=&r" (acc1), [acc2] "=&r" (acc2),
-      [m] "=&a" (m), [x] "=&a" (x), [z] "=&r" (z), [p] "+x" (p)
-    : [s] "z" (s), [o] "i" (&ninedof_kernel_out)
-    : "r0", "r1", "memory");
-  (void)acc0; (void)acc1; (void)acc2; (void)m; (void)x; (void)z; (void)p;
-}
-
-/* The same nine multiply-accumulates, the three int32 accumulators
- * (c + 2^13 + A raw, Q14) stored as they are: for the temperature terms,
- * which need A raw exactly (sensor_temp). */
+/* The nine multiply-accumulates of one sensor, the three int32
+ * accumulators (c + 2^13 + A raw, Q14) stored as they are: the rounding
+ * with error feedback (shape_q14) and the temperature terms (sensor_temp)
+ * work on them in C. */
 #define K_ST32(ACC)                                                     \
   "st X+, %A[" #ACC "]\n\tst X+, %B[" #ACC "]\n\t"                     \
   "st X+, %C[" #ACC "]\n\tst X+, %D[" #ACC "]\n\t"
@@ -523,29 +496,43 @@ static NINEDOF_ALWAYS_INLINE void sensor_q14_acc(const ninedof_cal_sensor_native
     : "r0", "r1", "memory");
   (void)acc0; (void)acc1; (void)acc2; (void)m; (void)x; (void)z; (void)p;
 }
-#else
-/* Same arithmetic in C, wrapping like the AVR code (only sets that were
- * never validated can wrap). */
-static NINEDOF_ALWAYS_INLINE void sensor_q14(const ninedof_cal_sensor_native_t *s,
+/* One sensor with the rounding with error feedback (shape_q14 below, in
+ * C), results stored as they come: all loads happen before the first
+ * store, so in and out may alias (see ninedof_kernel_out). */
+#define NINEDOF_KERNEL_FB 1
+static NINEDOF_ALWAYS_INLINE void sensor_q14(ninedof_cal_sensor_native_t *s,
                                              const int16_t *in, int16_t *out)
 {
-  int16_t x0 = in[0], x1 = in[1], x2 = in[2];
-  int32_t y[3];
-  uint8_t r;
+  int32_t acc0, acc1, acc2;
+  int16_t m, x;
+  uint8_t z;
+  const int16_t *p = in;
 
-  for (r = 0; r < 3; r++) {
-    const int16_t *a = s->a + 3 * r;
-    uint32_t u = (uint32_t)s->c[r] + (uint32_t)ROUND_Q14;
-    u += (uint32_t)((int32_t)a[0] * x0);
-    u += (uint32_t)((int32_t)a[1] * x1);
-    u += (uint32_t)((int32_t)a[2] * x2);
-    y[r] = (int32_t)u;
-  }
-  out[0] = sat_q14(y[0]);
-  out[1] = sat_q14(y[1]);
-  out[2] = sat_q14(y[2]);
+  ninedof_kernel_out = out;
+  __asm__ volatile (
+    "clr %[z]\n\t"
+    K_LDC(acc0, 18, 19, 20, 21)
+    K_LDC(acc1, 22, 23, 24, 25)
+    K_LDC(acc2, 26, 27, 28, 29)
+    "ldi %A[m], 0x20\n\t"
+    K_FB(acc0, 31, 32) K_FB(acc1, 33, 34) K_FB(acc2, 35, 36)
+    K_LDX
+    K_LDM(0, 1) K_MAC(acc0) K_LDM(6, 7) K_MAC(acc1) K_LDM(12, 13) K_MAC(acc2)
+    K_LDX
+    K_LDM(2, 3) K_MAC(acc0) K_LDM(8, 9) K_MAC(acc1) K_LDM(14, 15) K_MAC(acc2)
+    K_LDX
+    K_LDM(4, 5) K_MAC(acc0) K_LDM(10, 11) K_MAC(acc1) K_LDM(16, 17) K_MAC(acc2)
+    "clr r1\n\t"
+    "lds r26, %[o]\n\t"
+    "lds r27, %[o]+1\n\t"
+    K_SATFB(acc0, 31, 32) K_SATFB(acc1, 33, 34) K_SATFB(acc2, 35, 36)
+    : [acc0] "=&r" (acc0), [acc1] "=&r" (acc1), [acc2] "=&r" (acc2),
+      [m] "=&a" (m), [x] "=&a" (x), [z] "=&r" (z), [p] "+x" (p)
+    : [s] "z" (s), [o] "i" (&ninedof_kernel_out)
+    : "r0", "r1", "memory");
+  (void)acc0; (void)acc1; (void)acc2; (void)m; (void)x; (void)z; (void)p;
 }
-
+#else
 /* c + 2^13 + A raw per row (Q14), wrapping like the AVR code */
 static NINEDOF_ALWAYS_INLINE void sensor_q14_acc(const ninedof_cal_sensor_native_t *s,
                                                  const int16_t *in, int32_t *acc)
@@ -564,6 +551,49 @@ static NINEDOF_ALWAYS_INLINE void sensor_q14_acc(const ninedof_cal_sensor_native
 }
 #endif
 
+/*
+ * Rounding with error feedback (noise shaping), per axis: with x the exact
+ * value (Q14 before the rounding) and r the axis's residual (Q14, in
+ * [-2^13, 2^13): what the last rounding of this axis dropped),
+ *   y = floor(x + r + 1/2),   r' = x + r - y.
+ * So |y - x| = |r - r'| < 1 LSB on every sample, and the sum of the outputs
+ * follows the sum of the exact values within 1 LSB: the mean is unbiased
+ * (plain rounding of a still board's samples drops the same fraction every
+ * time; ninedof_cal.h).  u = x + 2^13 is the kernel's accumulator, so
+ * y = (u + r) >> 14 and r' = ((u + r) & 0x3FFF) - 2^13.  A saturated
+ * sample does not feed the residual: r' = 0.
+ */
+static NINEDOF_ALWAYS_INLINE int16_t shape_q14(int32_t u, uint16_t *fb)
+{
+  /* + r, with r = (fb ^ 0x2000) - 0x2000 (fb = r mod 2^14) */
+  uint32_t v = (uint32_t)u + (uint32_t)(*fb ^ 0x2000u) - 0x2000UL;
+  uint8_t top = (uint8_t)(v >> 24) & 0xE0;             /* bits 31..29 */
+
+  if (top == 0x00 || top == 0xE0) {
+    uint16_t hi = (uint16_t)(v >> 16);
+    uint16_t lo = (uint16_t)v;
+    *fb = (uint16_t)((lo & 0x3FFFu) ^ 0x2000u);          /* r' + 2^13, as r' mod 2^14 */
+    return (int16_t)(uint16_t)((uint16_t)(hi << 2) | (uint8_t)((uint8_t)(lo >> 8) >> 6));
+  }
+  *fb = 0;
+  return (top & 0x80) ? (int16_t)INT16_MIN : (int16_t)INT16_MAX;
+}
+
+#ifndef NINEDOF_KERNEL_FB
+/* One sensor in Q14 with the rounding above (the residuals in s->fb).
+ * All loads happen before the first store, so in and out may alias. */
+static NINEDOF_ALWAYS_INLINE void sensor_q14(ninedof_cal_sensor_native_t *s,
+                                             const int16_t *in, int16_t *out)
+{
+  int32_t acc[3];
+
+  sensor_q14_acc(s, in, acc);
+  out[0] = shape_q14(acc[0], &s->fb[0]);
+  out[1] = shape_q14(acc[1], &s->fb[1]);
+  out[2] = shape_q14(acc[2], &s->fb[2]);
+}
+#endif
+
 static int16_t sat16(int32_t v)
 {
   if (v > INT16_MAX)
@@ -577,11 +607,13 @@ static int16_t sat16(int32_t v)
  * A sensor stored with a shift below 14 (the host never sends one, but the
  * format allows it): rescale to Q14 when that is exact and the Q14
  * accumulator cannot overflow -- always so for a valid set -- and use the
- * kernel; otherwise evaluate the formula at the set's own shift, wrapping
- * like int32 hardware (only reachable for sets that were never validated).
+ * kernel (with its error feedback); otherwise evaluate the formula at the
+ * set's own shift with plain rounding half up (the residuals stay 0),
+ * wrapping like int32 hardware (only reachable for sets that were never
+ * validated).
  */
 static __attribute__((noinline)) void sensor_other_shift(
-    const ninedof_cal_sensor_native_t *s, const int16_t *in, int16_t *out)
+    ninedof_cal_sensor_native_t *s, const int16_t *in, int16_t *out)
 {
   uint8_t up = (uint8_t)(NINEDOF_SHIFT_MAX - s->shift);
   int16_t lim = (int16_t)(32767 >> up);
@@ -610,8 +642,10 @@ static __attribute__((noinline)) void sensor_other_shift(
   }
   if (q14) {
     q.shift = NINEDOF_SHIFT_MAX;
+    memcpy(q.fb, s->fb, sizeof(q.fb));
     sensor_q14(&q, in, out);
-  } else {
+    memcpy(s->fb, q.fb, sizeof(q.fb));
+  } else {                              /* plain rounding, no residual */
     int16_t x0 = in[0], x1 = in[1], x2 = in[2];
     int16_t y[3];
     for (i = 0; i < 3; i++) {
@@ -623,6 +657,7 @@ static __attribute__((noinline)) void sensor_other_shift(
       y[i] = sat16((int32_t)u >> s->shift);
     }
     out[0] = y[0]; out[1] = y[1]; out[2] = y[2];
+    s->fb[0] = s->fb[1] = s->fb[2] = 0;
   }
 }
 
@@ -635,12 +670,13 @@ static NINEDOF_ALWAYS_INLINE int32_t mulhi16(int32_t p, int16_t g)
 }
 
 /* A sensor with temperature terms (shift 14, ninedof_cal.h):
- * out = sat((p + floor(p g16 / 2^16) + c + O + 2^13) >> 14), wrapping like
- * int32 hardware (only sets that were never validated can wrap). */
-static __attribute__((noinline)) void sensor_temp(const ninedof_cal_t *cal, uint8_t k,
+ * out = sat((p + floor(p g16 / 2^16) + c + O + 2^13 + r) >> 14) with the
+ * error feedback of shape_q14, wrapping like int32 hardware (only sets that
+ * were never validated can wrap). */
+static __attribute__((noinline)) void sensor_temp(ninedof_cal_t *cal, uint8_t k,
                                                   const int16_t *in, int16_t *out)
 {
-  const ninedof_cal_sensor_native_t *s = &cal->eff[k];     /* c + O */
+  ninedof_cal_sensor_native_t *s = &cal->eff[k];           /* c + O, residuals */
   const int16_t *g = cal->tg[k];
   int32_t acc[3];
   uint8_t r;
@@ -650,15 +686,15 @@ static __attribute__((noinline)) void sensor_temp(const ninedof_cal_t *cal, uint
     uint32_t u = (uint32_t)acc[r];
     int32_t p = (int32_t)(u - (uint32_t)s->c[r] - (uint32_t)ROUND_Q14);   /* A raw */
     u += (uint32_t)mulhi16(p, g[r]);
-    out[r] = sat_q14((int32_t)u);
+    out[r] = shape_q14((int32_t)u, &s->fb[r]);
   }
 }
 
 /* Sensor k of one record; returns 0 when the sensor passes raw. */
-static NINEDOF_ALWAYS_INLINE uint8_t correct_sensor(const ninedof_cal_t *cal, uint8_t k,
+static NINEDOF_ALWAYS_INLINE uint8_t correct_sensor(ninedof_cal_t *cal, uint8_t k,
                                                     const int16_t *in, int16_t *out)
 {
-  const ninedof_cal_sensor_native_t *s = &cal->s[k];
+  ninedof_cal_sensor_native_t *s = &cal->s[k];
 
   if ((cal->sensors & cal->temp_sensors & (1u << k)) && s->shift == NINEDOF_SHIFT_MAX) {
     if (cal->gain_zero & (1u << k))
@@ -682,8 +718,17 @@ static NINEDOF_ALWAYS_INLINE uint8_t correct_sensor(const ninedof_cal_t *cal, ui
   return 0;
 }
 
-static void correct_record(const ninedof_cal_t *cal, const int16_t *raw, int16_t *out)
+/* The magnetometer's overflow code and its clipping to +-4095 keep their
+ * values and do not feed the residual of the axis (reset to 0). */
+static NINEDOF_ALWAYS_INLINE void mag_no_residual(ninedof_cal_t *cal, uint8_t i)
 {
+  cal->s[NINEDOF_SENSOR_MAG].fb[i] = 0;
+  cal->eff[NINEDOF_SENSOR_MAG].fb[i] = 0;
+}
+
+static void correct_record(ninedof_cal_t *cal, const int16_t *raw, int16_t *out)
+{
+
   correct_sensor(cal, NINEDOF_SENSOR_ACCEL, raw, out);
   correct_sensor(cal, NINEDOF_SENSOR_GYRO, raw + 3, out + 3);
   raw += 6;
@@ -692,18 +737,22 @@ static void correct_record(const ninedof_cal_t *cal, const int16_t *raw, int16_t
       (raw[0] == NINEDOF_MAG_OVERFLOW || raw[1] == NINEDOF_MAG_OVERFLOW ||
        raw[2] == NINEDOF_MAG_OVERFLOW)) {
     out[0] = out[1] = out[2] = NINEDOF_MAG_OVERFLOW;
+    mag_no_residual(cal, 0);
+    mag_no_residual(cal, 1);
+    mag_no_residual(cal, 2);
   } else if (correct_sensor(cal, NINEDOF_SENSOR_MAG, raw, out)) {
     uint8_t i;
     for (i = 0; i < 3; i++) {
-      if (out[i] > 4095)
-        out[i] = 4095;
-      else if (out[i] < -4095)
-        out[i] = -4095;
+      int16_t v = out[i];
+      if ((uint16_t)(v + 4095) > 8190u) {      /* beyond +-4095 */
+        out[i] = v < 0 ? -4095 : 4095;
+        mag_no_residual(cal, i);
+      }
     }
   }
 }
 
-void ninedof_correct_block(const ninedof_cal_t *cal, const int16_t *raw,
+void ninedof_correct_block(ninedof_cal_t *cal, const int16_t *raw,
                            int16_t *out, uint16_t n)
 {
   while (n--) {
@@ -713,7 +762,7 @@ void ninedof_correct_block(const ninedof_cal_t *cal, const int16_t *raw,
   }
 }
 
-void ninedof_correct(const ninedof_cal_t *cal, const int16_t raw[9], int16_t out[9])
+void ninedof_correct(ninedof_cal_t *cal, const int16_t raw[9], int16_t out[9])
 {
   ninedof_correct_block(cal, raw, out, 1);
 }
@@ -726,9 +775,15 @@ void ninedof_correct(const ninedof_cal_t *cal, const int16_t raw[9], int16_t out
 static void set_active(ninedof_calrx_t *rx, const uint8_t *wire, uint8_t len,
                        const ninedof_cal_t *cal)
 {
+  uint8_t k;
+
   memcpy(rx->active_wire, wire, len);
   rx->active_len = len;
   rx->active = *cal;
+  for (k = 0; k < NINEDOF_SENSORS; k++) {                 /* a new set: no residual */
+    memset(rx->active.s[k].fb, 0, sizeof(rx->active.s[k].fb));
+    memset(rx->active.eff[k].fb, 0, sizeof(rx->active.eff[k].fb));
+  }
   rx->active_crc = ninedof_crc16(0, wire, len);
   if (rx->temp_known)
     ninedof_cal_set_temp(&rx->active, rx->temp);
@@ -938,7 +993,7 @@ uint8_t ninedof_calrx_flags(const ninedof_calrx_t *rx)
   return f;
 }
 
-void ninedof_calrx_correct_block(const ninedof_calrx_t *rx, const int16_t *raw,
+void ninedof_calrx_correct_block(ninedof_calrx_t *rx, const int16_t *raw,
                                  int16_t *out, uint16_t n)
 {
   ninedof_correct_block(&rx->active, raw, out, n);

@@ -8,8 +8,20 @@
  *
  * Correction, per sensor k with matrix A (Q shift) and offset c (Q shift):
  *   acc_i = c_i + sum_j A_ij * raw_j                (int32, exact)
- *   out_i = sat((acc_i + 2^(shift-1)) >> shift)     (arithmetic shift:
- *                                                    round half up)
+ *   out_i = sat((acc_i + r_i + 2^(shift-1)) >> shift)   (arithmetic shift)
+ *   r_i  <- acc_i + r_i - (out_i << shift)          (the residual)
+ * i.e. rounding half up with error feedback: r_i (fb in the sensor's
+ * native form, per row, in Q14 units; Q14 is the kernel's shift for every
+ * valid set, and a sensor with temperature terms keeps it in eff[k]) is what the
+ * last rounding of axis i dropped, in [-1/2, 1/2) LSB, so every output is
+ * within 1 LSB of the exact value (|out - x| = |r - r'| < 1) and the mean
+ * of the outputs follows the mean of the exact values (within 1 LSB over
+ * the whole run): plain rounding of a still board's samples, whose exact
+ * values keep the same fraction, would be biased by up to 1/2 LSB.  The
+ * residuals are 0 after decode/identity, when a set is put in force and at
+ * boot; a saturated sample (int16 or the magnetometer's +-4095 clipping)
+ * or a magnetometer overflow sample sets the axis's residual to 0.  A set
+ * that is not representable in Q14 (never valid) rounds without residual.
  * sat(): accel and gyro to [-32768, 32767]; mag to [-4095, 4095], and a
  * magnetometer sample with any axis at HMC5883L_OVERFLOW (-4096) stays
  * (-4096, -4096, -4096).  Sensors whose bit is clear in `sensors` pass raw.
@@ -26,8 +38,10 @@
  * 1/8) and O = round(o_i dT / 2^(oshift - 14)) (Q14), both recomputed only
  * when T changes.  Against the exact value ((1 + g_i dT / 2^gshift) p_i + c_i)
  * / 2^14 + o_i dT / 2^oshift this is off by at most 2^-17 |p_i| / 2^14
- * (g16's rounding) + 2^-14 + 2^-15 before the final rounding, under 1 LSB
- * wherever the output is not saturated (|p_i| / 2^14 < 47000 counts).
+ * (g16's rounding) + 2^-14 + 2^-15 before the final rounding (which adds
+ * the residual r_i as above): with it, |out - exact| < 1 + 2^-13 LSB (the
+ * float reference: fixedpoint.reference_correct) wherever the output is
+ * not saturated (|p_i| / 2^14 < 47000 counts).
  */
 #ifndef NINEDOF_CAL_H
 #define NINEDOF_CAL_H
@@ -51,6 +65,10 @@ typedef struct {
   int16_t a[9];          /* row-major, Q(shift) */
   int32_t c[3];          /* counts, Q(shift) */
   uint8_t shift;
+  /* rounding with error feedback: per row the residual r of the last
+   * rounding (Q14, in [-2^13, 2^13)) stored as r mod 2^14, so 0 = none;
+   * the only field the correction writes */
+  uint16_t fb[3];
 } ninedof_cal_sensor_native_t;
 
 /* Native form of one sensor's temperature terms (ninedof_cal_temp_t) */
@@ -122,9 +140,11 @@ void ninedof_cal_identity(ninedof_cal_t *cal, uint16_t mote, uint16_t version);
  * (9/8) sum_j |a_ij| 32768 + |c_i| + |O| + 2^13 < 2^31). */
 uint8_t ninedof_cal_validate(const ninedof_cal_t *cal, uint16_t my_id);
 
-/* Correct one record (9 axes, ax..mz) / n records, raw and out may alias. */
-void ninedof_correct(const ninedof_cal_t *cal, const int16_t raw[9], int16_t out[9]);
-void ninedof_correct_block(const ninedof_cal_t *cal, const int16_t *raw,
+/* Correct one record (9 axes, ax..mz) / n records, raw and out may alias.
+ * Updates the set's rounding residuals (fb of s[] or eff[]): records are
+ * corrected in the order they were sampled. */
+void ninedof_correct(ninedof_cal_t *cal, const int16_t raw[9], int16_t out[9]);
+void ninedof_correct_block(ninedof_cal_t *cal, const int16_t *raw,
                            int16_t *out, uint16_t n);
 
 /* ------------------------------------------------------------------------
@@ -169,8 +189,8 @@ uint8_t ninedof_calrx_handle(ninedof_calrx_t *rx, uint8_t am_type,
  * corrected, version low 4 bits in bits 4-7. */
 uint8_t ninedof_calrx_flags(const ninedof_calrx_t *rx);
 
-/* Correct n records with the set in force. */
-void ninedof_calrx_correct_block(const ninedof_calrx_t *rx, const int16_t *raw,
+/* Correct n records with the set in force (and its residuals). */
+void ninedof_calrx_correct_block(ninedof_calrx_t *rx, const int16_t *raw,
                                  int16_t *out, uint16_t n);
 
 /* The board temperature (raw TEMP_OUT) for the set in force, and for every

@@ -107,7 +107,7 @@ uint8_t ninedof_batch_add(ninedof_batch_t *b, uint16_t seq, const int16_t rec[9]
   return b->count >= NINEDOF_BATCH;
 }
 
-uint8_t ninedof_batch_pack(ninedof_batch_t *b, const ninedof_calrx_t *rx,
+uint8_t ninedof_batch_pack(ninedof_batch_t *b, ninedof_calrx_t *rx,
                            ninedof_samples_msg_t *msg)
 {
   uint8_t i, k, n = b->count;

@@ -123,9 +123,10 @@ uint8_t ninedof_batch_fits(const ninedof_batch_t *b, uint16_t seq);
 /* Append (the caller checked ninedof_batch_fits); returns 1 when full. */
 uint8_t ninedof_batch_add(ninedof_batch_t *b, uint16_t seq, const int16_t rec[9]);
 
-/* Correct the records with the set in force, write the message, empty the
- * batch; returns the payload length (4 + 18 * count), 0 if it was empty. */
-uint8_t ninedof_batch_pack(ninedof_batch_t *b, const ninedof_calrx_t *rx,
+/* Correct the records with the set in force (updating its rounding
+ * residuals), write the message, empty the batch; returns the payload
+ * length (4 + 18 * count), 0 if it was empty. */
+uint8_t ninedof_batch_pack(ninedof_batch_t *b, ninedof_calrx_t *rx,
                            ninedof_samples_msg_t *msg);
 
 /* ---------------------------------------------------------------------- */

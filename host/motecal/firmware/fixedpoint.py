@@ -8,11 +8,15 @@ counts-domain correction is ``M = K * A`` (about the identity) and
 fractional bits (the largest of 8..14 that fits int16 / int32) into the
 ``ninedof_cal_sensor`` of ``tinyos/NineDofMsg.h``, and the mote computes
 
-    out = sat((a_q @ raw + c_q + 2**(shift-1)) >> shift)
+    out = sat((a_q @ raw + c_q + r + 2**(shift-1)) >> shift)
 
-(``tinyos/ninedof_cal.c``).  ``reference_correct`` is the same arithmetic in
-float64 (no rounding) that the C code is tested against; ``rounding_report``
-says how far the quantised set can be from the physical calibration.
+with error feedback: per axis, r is what the last rounding dropped
+(``tinyos/ninedof_cal.c``), so each output is within 1 LSB of the exact
+value and the mean over a run follows the exact mean (``feedback_round``,
+``feedback_correct``: the same rule in integers, with the state carried
+from block to block).  ``reference_correct`` is the arithmetic in float64
+(no rounding) that the C code is tested against; ``rounding_report`` says
+how far the quantised set can be from the physical calibration.
 
 A sensor with a temperature model (``calib.result.TempModel``: calibrated =
 (1 + s dT) (A raw) + c + o dT, dT = clip(T, lo, hi) - t_ref) gets temperature
@@ -311,7 +315,8 @@ def reference_correct(calset, raw, temp_raw=None) -> np.ndarray:
     ``calset`` is bytes or a ``Calset``; ``raw`` (n, 9) counts.  Corrected
     sensors: ``matrix @ raw + offset`` clipped to int16 (magnetometer to
     +-4095; a magnetometer sample with any axis at -4096 stays -4096 on all
-    three).  The mote's int16 output is this value rounded half up.  A
+    three).  The mote's int16 output is this value rounded half up with
+    error feedback (``feedback_round``): within 1 LSB of it, unbiased.  A
     sensor with temperature terms, at board temperature ``temp_raw`` (raw
     TEMP_OUT, one value or one per row; None: each sensor at its t_ref):
     ``(1 + g dT) (matrix @ raw) + offset + o dT`` with the stored
@@ -335,6 +340,89 @@ def reference_correct(calset, raw, temp_raw=None) -> np.ndarray:
             y[over] = HMC5883L_OVERFLOW
         else:
             y = np.clip(y, -32768, INT16_MAX)
+        out[:, sl] = y
+    return out
+
+
+# --------------------------------------------------------------------------
+# The mote's rounding: half up with error feedback (ninedof_cal.c shape_q14)
+# --------------------------------------------------------------------------
+Q14 = 14
+OUTPUT_ROUNDING_LSB = 1.0           # |output - exact| < 1 with error feedback
+
+
+def temp_kernel_bound(calset, raw) -> np.ndarray:
+    """How far the mote's exact value (before its output rounding) may be
+    from ``reference_correct`` for a set with temperature terms, per sample
+    and axis, in LSB (ninedof_cal.h): g16's rounding, 2^-17 |A raw|, plus
+    2^-14 + 2^-15 (O's rounding and the gain product's floor); 0 on sensors
+    without temperature terms.  The output is within 1 LSB more."""
+    cs = unpack_calset(calset) if isinstance(calset, (bytes, bytearray)) else calset
+    raw = np.asarray(raw, np.float64).reshape(-1, 9)
+    out = np.zeros_like(raw)
+    for name, ft in cs.temps.items():
+        if name in cs.sensors:
+            sl = SENSOR_SLICES[name]
+            out[:, sl] = np.abs(raw[:, sl] @ cs.sensors[name].matrix.T) * 2.0**-17 \
+                + 2.0**-14 + 2.0**-15
+    return out
+
+
+def feedback_round(x_q14, resid, limit: int = INT16_MAX) -> np.ndarray:
+    """Round exact Q14 values ``x_q14`` ((n, 3) integers, one row per sample
+    in sampling order) to whole counts as the mote does: per axis
+    ``y = floor((x + r + 2^13) / 2^14)``, ``r = x + r - y 2^14`` (the residual,
+    in [-2^13, 2^13)).  A sample that saturates (outside int16, or beyond
+    +-``limit`` for the magnetometer's 4095) is clipped and sets its axis's
+    residual to 0.  ``resid`` ((3,) int64) is updated in place."""
+    x = np.asarray(x_q14, np.int64).reshape(-1, 3)
+    y = np.empty_like(x)
+    r = resid
+    half = 1 << (Q14 - 1)
+    for i in range(len(x)):
+        v = x[i] + r + half
+        yi = v >> Q14
+        r[:] = v - half - (yi << Q14)
+        sat = (yi < -32768) | (yi > INT16_MAX)
+        yi = np.clip(yi, -32768, INT16_MAX)
+        if limit < INT16_MAX:
+            sat |= (yi < -limit) | (yi > limit)
+            yi = np.clip(yi, -limit, limit)
+        r[sat] = 0
+        y[i] = yi
+    return y
+
+
+def feedback_correct(calset, raw, resid=None) -> np.ndarray:
+    """The mote's int16 output for a set WITHOUT temperature terms, exactly
+    (integers; ``ninedof_correct_block``): ``a @ raw + c`` rescaled to Q14,
+    then ``feedback_round``; a magnetometer sample with an axis at -4096 is
+    (-4096,) * 3 and resets the magnetometer's residuals.  ``resid`` ((9,)
+    int64, updated in place) carries the residuals from block to block;
+    None: a freshly applied set (all 0)."""
+    cs = unpack_calset(calset) if isinstance(calset, (bytes, bytearray)) else calset
+    if cs.temps:
+        raise ValueError("feedback_correct: a set with temperature terms")
+    raw = np.asarray(raw, np.int64).reshape(-1, 9)
+    resid = np.zeros(9, np.int64) if resid is None else resid
+    out = raw.copy()
+    for name, fs in cs.sensors.items():
+        sl = SENSOR_SLICES[name]
+        x = (raw[:, sl] @ np.asarray(fs.a, np.int64).T + np.asarray(fs.c, np.int64)) \
+            << (Q14 - fs.shift)
+        r = resid[sl]
+        if name == "mag":
+            y = np.empty_like(x)
+            over = np.any(raw[:, sl] == HMC5883L_OVERFLOW, axis=1)
+            for i in range(len(x)):             # the overflow code resets the residuals
+                if over[i]:
+                    y[i] = HMC5883L_OVERFLOW
+                    r[:] = 0
+                else:
+                    y[i] = feedback_round(x[i:i + 1], r, MAG_LIMIT)[0]
+        else:
+            y = feedback_round(x, r)
+        resid[sl] = r
         out[:, sl] = y
     return out
 
@@ -374,7 +462,8 @@ def rounding_report(sensor: str, A, c, fixed: FixedSensor | None = None) -> Sens
     dM = np.abs(fs.matrix - M)
     doff = np.abs(fs.offset - off)
     R = INPUT_RANGE[sensor]
-    worst = dM.sum(axis=1) * R + doff + 0.5      # |dM raw + doff| <= ..., then rounding
+    # |dM raw + doff| <= ..., then the output rounding (error feedback: < 1 LSB)
+    worst = dM.sum(axis=1) * R + doff + OUTPUT_ROUNDING_LSB
     return SensorRounding(sensor, fs, float(dM.max()), float(doff.max()), worst, R)
 
 

@@ -214,7 +214,10 @@ def correct(calset: bytes, raw, temp_raw: int | None = None) -> np.ndarray:
     validated; an in-range set gives exactly the firmware's output.
     ``temp_raw`` is the board temperature in force (raw ITG-3200 TEMP_OUT)
     for a set with temperature terms; None: no temperature yet (each sensor
-    at its reference temperature).
+    at its reference temperature).  The records are one run in sampling
+    order from a freshly applied set: the rounding's residuals (error
+    feedback, ``ninedof_cal.h``) start at 0 each call (``Corrector`` carries
+    them from call to call).
     """
     code, buf = _decode(calset)
     if code != 0:
@@ -222,6 +225,24 @@ def correct(calset: bytes, raw, temp_raw: int | None = None) -> np.ndarray:
     if temp_raw is not None:
         library().ninedof_cal_set_temp(buf, _temp16(temp_raw))
     return _correct_with(library().ninedof_correct_block, buf, raw)
+
+
+class Corrector:
+    """One decoded set that corrects block after block as the mote does:
+    its rounding residuals (error feedback, ``ninedof_cal.h``) carry on from
+    one call to the next and across temperature changes; ``correct`` on
+    module level starts from a freshly applied set each call."""
+
+    def __init__(self, calset: bytes):
+        code, self._buf = _decode(calset)
+        if code != 0:
+            raise ValueError(f"calibration set rejected: {P.cal_reason(code)}")
+
+    def set_temperature(self, temp_raw: int) -> None:
+        library().ninedof_cal_set_temp(self._buf, _temp16(temp_raw))
+
+    def correct(self, raw) -> np.ndarray:
+        return _correct_with(library().ninedof_correct_block, self._buf, raw)
 
 
 def _temp16(temp_raw) -> int:

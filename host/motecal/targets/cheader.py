@@ -73,8 +73,9 @@ def parse(text: str) -> bytes:
 
 
 def apply_fns(calset: bytes) -> dict:
-    """What the mote outputs (float64 reference, rounded half up as the C
-    code does), in g, deg/s, gauss."""
+    """What the mote outputs for a stream of samples of a freshly applied
+    set (in order: its rounding carries a residual from sample to sample,
+    fixedpoint.feedback_correct), in g, deg/s, gauss."""
     cs = FP.unpack_calset(calset)
     out = {}
     for s in cs.sensors:
@@ -82,7 +83,10 @@ def apply_fns(calset: bytes) -> dict:
             raw = np.asarray(raw, float)
             full = np.zeros((len(raw), 9))
             full[:, SENSOR_SLICES[s]] = raw
-            y = FP.reference_correct(cs, full)[:, SENSOR_SLICES[s]]
-            return np.floor(y + 0.5) / NOMINAL_SCALES[s]
+            if cs.temps:                 # no exact model: the float value rounded
+                y = np.floor(FP.reference_correct(cs, full)[:, SENSOR_SLICES[s]] + 0.5)
+            else:
+                y = FP.feedback_correct(cs, full)[:, SENSOR_SLICES[s]]
+            return y / NOMINAL_SCALES[s]
         out[s] = f
     return out

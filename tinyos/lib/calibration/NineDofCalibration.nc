@@ -1,7 +1,8 @@
 /*
  * NineDofCalibration -- the calibration set in force, as the sampling app
- * needs it: the receiver state of ninedof_cal.h, read only, for
- * ninedof_batch_pack (correction and flags of a sample message) and
+ * needs it: the receiver state of ninedof_cal.h, for ninedof_batch_pack
+ * (correction and flags of a sample message; the correction updates the
+ * set's rounding residuals, nothing else) and
  * ninedof_status_pack (version and sensors of the status message).  Read
  * it from tasks: NineDofCalibrationC changes it only in tasks, so a batch
  * is never corrected with half of one set and half of another.
@@ -12,7 +13,7 @@
 
 interface NineDofCalibration
 {
-  command const ninedof_calrx_t *inForce();
+  command ninedof_calrx_t *inForce();
   /* The board temperature (raw ITG-3200 TEMP_OUT) the correction uses from
    * now on, for a set with temperature terms (ninedof_calrx_set_temp).
    * From tasks only, like inForce. */

@@ -76,7 +76,7 @@ implementation
     return SUCCESS;
   }
 
-  command const ninedof_calrx_t *NineDofCalibration.inForce() {
+  command ninedof_calrx_t *NineDofCalibration.inForce() {
     return &rx;
   }
 

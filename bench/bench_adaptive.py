@@ -33,10 +33,8 @@ with at most a third of their poses (median over boards); and the promised
 error at the stop not optimistic by more than 20 % (true <= 1.2 x promised)
 in at least 90 % of boards.
 """
-import os
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+import benchenv  # noqa: F401,E402  (one BLAS thread a process; host/, tests/, bench/ on the path)
 
 import argparse  # noqa: E402
 import sys  # noqa: E402
@@ -44,10 +42,7 @@ import time  # noqa: E402
 from multiprocessing import Pool  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "host"))
-sys.path.insert(0, str(ROOT / "tests"))   # test helpers
-sys.path.insert(0, str(ROOT / "bench"))
+ROOT = benchenv.ROOT
 
 import numpy as np  # noqa: E402
 

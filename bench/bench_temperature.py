@@ -27,8 +27,7 @@ gain from the planted coefficient predicting the same held-out blocks.
 """
 import os
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+import benchenv  # noqa: F401,E402  (one BLAS thread a process; host/, tests/, bench/ on the path)
 
 import argparse  # noqa: E402
 import sys  # noqa: E402
@@ -36,10 +35,7 @@ import time  # noqa: E402
 from multiprocessing import Pool  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "host"))
-sys.path.insert(0, str(ROOT / "tests"))
-sys.path.insert(0, str(ROOT / "bench"))
+ROOT = benchenv.ROOT
 
 import numpy as np  # noqa: E402
 

@@ -378,6 +378,14 @@ typedef char ninedof_kernel_layout_check[
 #define K_LDC(ACC, B0, B1, B2, B3)                                      \
   "ldd %A[" #ACC "], Z+" #B0 "\n\tldd %B[" #ACC "], Z+" #B1 "\n\t"      \
   "ldd %C[" #ACC "], Z+" #B2 "\n\tldd %D[" #ACC "], Z+" #B3 "\n\t"
+/* acc0..2 += a (row-major at Z+0) times the three int16 inputs at X+ */
+#define K_MATVEC                                                        \
+  K_LDX                                                                 \
+  K_LDM(0, 1) K_MAC(acc0) K_LDM(6, 7) K_MAC(acc1) K_LDM(12, 13) K_MAC(acc2) \
+  K_LDX                                                                 \
+  K_LDM(2, 3) K_MAC(acc0) K_LDM(8, 9) K_MAC(acc1) K_LDM(14, 15) K_MAC(acc2) \
+  K_LDX                                                                 \
+  K_LDM(4, 5) K_MAC(acc0) K_LDM(10, 11) K_MAC(acc1) K_LDM(16, 17) K_MAC(acc2)
 #define K_ROUND(ACC)  /* += 0x2000 (2^13); %A[m] holds 0x20 */          \
   "add %B[" #ACC "], %A[m]\n\tadc %C[" #ACC "], %[z]\n\t"               \
   "adc %D[" #ACC "], %[z]\n\t"
@@ -480,12 +488,7 @@ static NINEDOF_ALWAYS_INLINE void sensor_q14_acc(const ninedof_cal_sensor_native
     K_LDC(acc2, 26, 27, 28, 29)
     "ldi %A[m], 0x20\n\t"
     K_ROUND(acc0) K_ROUND(acc1) K_ROUND(acc2)
-    K_LDX
-    K_LDM(0, 1) K_MAC(acc0) K_LDM(6, 7) K_MAC(acc1) K_LDM(12, 13) K_MAC(acc2)
-    K_LDX
-    K_LDM(2, 3) K_MAC(acc0) K_LDM(8, 9) K_MAC(acc1) K_LDM(14, 15) K_MAC(acc2)
-    K_LDX
-    K_LDM(4, 5) K_MAC(acc0) K_LDM(10, 11) K_MAC(acc1) K_LDM(16, 17) K_MAC(acc2)
+    K_MATVEC
     "clr r1\n\t"
     "lds r26, %[o]\n\t"
     "lds r27, %[o]+1\n\t"
@@ -516,12 +519,7 @@ static NINEDOF_ALWAYS_INLINE void sensor_q14(ninedof_cal_sensor_native_t *s,
     K_LDC(acc2, 26, 27, 28, 29)
     "ldi %A[m], 0x20\n\t"
     K_FB(acc0, 31, 32) K_FB(acc1, 33, 34) K_FB(acc2, 35, 36)
-    K_LDX
-    K_LDM(0, 1) K_MAC(acc0) K_LDM(6, 7) K_MAC(acc1) K_LDM(12, 13) K_MAC(acc2)
-    K_LDX
-    K_LDM(2, 3) K_MAC(acc0) K_LDM(8, 9) K_MAC(acc1) K_LDM(14, 15) K_MAC(acc2)
-    K_LDX
-    K_LDM(4, 5) K_MAC(acc0) K_LDM(10, 11) K_MAC(acc1) K_LDM(16, 17) K_MAC(acc2)
+    K_MATVEC
     "clr r1\n\t"
     "lds r26, %[o]\n\t"
     "lds r27, %[o]+1\n\t"

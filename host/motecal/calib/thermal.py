@@ -121,7 +121,7 @@ def _poses(data, tc):
     return [int(p) for p in np.unique(data.label[data.label >= 1]) if p not in tc.holds]
 
 
-def _sym_cols(u, v):
+def sym_cols(u, v):
     """Columns of u^T W v + u^T d for a symmetric W (6) and d (3): a small
     change of the static fit's map, seen in a magnitude."""
     return np.column_stack([u[:, 0] * v[:, 0], u[:, 1] * v[:, 1], u[:, 2] * v[:, 2],
@@ -187,7 +187,7 @@ def accel_sets(board, data, tc, t_ref) -> list[ObsSet]:
         pt = np.array(pt)
         nv = np.linalg.norm(v, axis=1)
         u = v / nv[:, None]
-        out.append(ObsSet("poses", nv - 1.0, u * (pt - t_ref)[:, None], _sym_cols(u, v),
+        out.append(ObsSet("poses", nv - 1.0, u * (pt - t_ref)[:, None], sym_cols(u, v),
                           np.arange(len(v)) % FOLDS, pt))
     return out
 
@@ -232,7 +232,7 @@ def mag_sets(board, data, tc, t_ref, per_axis: bool = True) -> list[ObsSet]:
         if not per_axis:
             xt = xt.sum(axis=1, keepdims=True)
         out.append(ObsSet("sweep" if sc.dataset == "R" else "poses", nv - B, xt,
-                          _sym_cols(u, v), np.arange(len(v)) % FOLDS, temps))
+                          sym_cols(u, v), np.arange(len(v)) % FOLDS, temps))
     return out
 
 

@@ -42,6 +42,7 @@ import numpy as np
 from scipy import stats
 
 from ..calib.content import MIN_TEMP_SPAN_C
+from ..calib.thermal import sym_cols
 from ..sessions.session import SessionData
 from . import gain as G
 
@@ -288,15 +289,6 @@ def thermal_term(data: SessionData) -> dict | None:
 # ---------------------------------------------------------------------------
 # static poses in many orientations: the drift seen through the magnitude
 # ---------------------------------------------------------------------------
-def _sym_cols(u, v):
-    """A small change of the calibration's map, seen in a magnitude: u^T W v
-    (W symmetric, 6) + u^T d (3)."""
-    return np.column_stack([u[:, 0] * v[:, 0], u[:, 1] * v[:, 1], u[:, 2] * v[:, 2],
-                            u[:, 0] * v[:, 1] + u[:, 1] * v[:, 0],
-                            u[:, 0] * v[:, 2] + u[:, 2] * v[:, 0],
-                            u[:, 1] * v[:, 2] + u[:, 2] * v[:, 1], u])
-
-
 @dataclass
 class PoseTempTest(TempTest):
     """The same test on static poses: one magnitude residual per pose mean
@@ -307,7 +299,7 @@ class PoseTempTest(TempTest):
     v: np.ndarray | None = None
 
     def _blocks(self, temperature: bool, time: bool):
-        cols = [_sym_cols(self.u, self.v)]
+        cols = [sym_cols(self.u, self.v)]
         if temperature:
             cols.append(self.u * (self.temp - self.t_ref)[:, None])
         if time:

@@ -45,9 +45,7 @@ def interpolate(x, xp, fp, edge: float, gap: float) -> np.ndarray:
     dl = np.where(has_l, x - xp[li], np.inf)
     dr = np.where(has_r, xp[ri] - x, np.inf)
     inside = has_l & has_r & (xp[ri] - xp[li] <= gap)
-    span = np.where(inside, xp[ri] - xp[li], 1.0)
-    w = np.where(inside, dl / span, 0.0)
-    out[inside] = (fp[li] + w * (fp[ri] - fp[li]))[inside]
+    out[inside] = np.interp(x[inside], xp, fp)
     near_l = ~inside & (dl <= dr) & (dl <= edge)
     near_r = ~inside & (dr < dl) & (dr <= edge)
     out[near_l] = fp[li][near_l]

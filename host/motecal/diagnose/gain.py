@@ -31,6 +31,7 @@ import numpy as np
 
 DEFAULT_ALPHA = 0.01
 MIN_FOLD_WINS = 4        # of the 5 held-out folds, a fitted term must improve at least 4
+PAIRED_P = 0.05          # or: the held-out points' paired test (blocks known to their own variance)
 
 
 def per_test_alpha(alpha: float, n_tests: int) -> float:
@@ -38,12 +39,13 @@ def per_test_alpha(alpha: float, n_tests: int) -> float:
 
 
 def accepted(p: float, alpha_test: float, gain: float | None, practical: bool = True,
-             fold_wins: int | None = None) -> bool:
+             fold_wins: int | None = None, paired_p: float | None = None) -> bool:
     if not (p < alpha_test) or not practical:
         return False
     if gain is None:
         return True
-    return gain > 1.0 and (fold_wins is None or fold_wins >= MIN_FOLD_WINS)
+    return gain > 1.0 and (fold_wins is None or fold_wins >= MIN_FOLD_WINS
+                           or (paired_p is not None and paired_p < PAIRED_P))
 
 
 def variance_gain(r: np.ndarray, V: np.ndarray, fold: np.ndarray, tau2_fn) -> tuple:

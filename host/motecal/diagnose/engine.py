@@ -269,7 +269,9 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
             else:
                 notes.append(f"{s}: {c} passed the F-test but not the held-out check "
                              f"(gain {g if g is None else round(g, 3)}, better in "
-                             f"{st.fold_wins.get(c)} of {ST.KFOLD} folds); not kept")
+                             f"{st.fold_wins.get(c)} of {ST.KFOLD} folds"
+                             + (f", held-out points' paired test p {st.heldout_p[c]:.2g}"
+                                if st.heldout_p.get(c) is not None else "") + "); not kept")
         fd = _excess_finding(s, st, o, sobs, structures, a_test, record, mot, force)
         if fd is not None:
             findings.append(fd)

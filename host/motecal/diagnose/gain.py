@@ -19,7 +19,12 @@ only when
    fitting (5 interleaved folds) the model with the term predicts better
    (rms) than without it overall and in at least ``MIN_FOLD_WINS`` of the 5
    folds (a term that only fits noise wins each fold with probability ~1/2,
-   all but one of five with ~0.19 -- on top of the p-value gate).  (The screens' terms --
+   all but one of five with ~0.19 -- on top of the p-value gate).  Where the
+   points carry their own variances (the gyroscope's turn-corrected holds
+   under tremor), a paired test of the held-out points (one-sided,
+   p < ``PAIRED_P``) may stand in for the folds won: 24-33 hand-held poses
+   make folds of 5-7 points, where a real term loses two by chance.
+   (The screens' terms --
    repeats, clipping, shaking -- are measured, not fitted through the
    residual; their gain is reported, not used as a veto.)
 

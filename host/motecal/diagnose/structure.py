@@ -396,7 +396,7 @@ def _heldout_magnitude(st: Structure, obs: SensorObs):
     specs = {frozenset(): None, full: None}
     for c in st.accepted:
         specs[full - {c}] = None
-    out, folds, point = {}, {}, {}
+    out, folds = {}, {}
     for spec in specs:
         r = np.full(len(X), np.nan)
         start = st.fits.get(spec)

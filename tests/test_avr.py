@@ -41,6 +41,16 @@ def _vectors(rng):
     # a set that is decodable but not valid: Q8 entries too big for Q14
     wild = FP.FixedSensor(np.array([[30000, -30000, 20000]] * 3), np.array([2**30, 0, -5]), 8)
     calsets.append(FP.pack_calset(MOTE + 1, 6, {"accel": wild, "gyro": fixed(), "mag": wild}))
+    # the magnetometer's clipping at its edges (offsets -1, +1, -1/2 count:
+    # raw -4095 gives exactly -4096, clipped), and temperature offsets on
+    # the gyroscope alone (its eff[], the others' s[]) at a temperature
+    edge = FP.FixedSensor(np.diag([16384] * 3), np.array([-16384, 16384, -8192]), 14)
+    calsets.append(FP.pack_calset(MOTE, 10, {"accel": fixed(), "gyro": fixed(), "mag": edge}))
+    temps.append(None)
+    offs_only = FP.FixedTemp(-16000, -19000, -12000, [30000, -20000, 111], [0, 0, 0], 22, 30)
+    calsets.append(FP.pack_calset(MOTE, 11, {n: fixed() for n in P.SENSORS},
+                                  {"gyro": offs_only}))
+    temps.append(-17500)
     # temperature terms (164-byte set), corrected at three temperatures: at
     # the reference, inside the range and clamped beyond it
     tf = FP.FixedTemp(-16000, -19000, -12000, [30000, -20000, 111], [9000, -30000, 5],
@@ -54,6 +64,8 @@ def _vectors(rng):
     raw[:8] = np.array([-32768, 32767, 0, -1, 1, -32767, 16384, -16384])[:, None]
     raw[8:40, 6:] = rng.integers(-2100, 2100, (32, 3))
     raw[40:60, 6 + rng.integers(0, 3, 20)] = -4096
+    edges = np.array([-4098, -4097, -4095, -4094, -4093, 4093, 4094, 4095, 4096, 4097])
+    raw[60:90, 6:] = rng.permutation(np.resize(edges, 90)).reshape(30, 3)
     raw = raw.astype(np.int16)
 
     # upload script: shuffled fragments with duplicates, a corrupted set, a

@@ -60,9 +60,9 @@ def raw_records(rng, n):
 @given(st.integers(0, 2**32 - 1))
 def test_within_one_lsb_of_the_float_reference(seed):
     """Random valid sets with temperature terms on random sensors, at random
-    temperatures inside and outside the range: |C - reference| < 1 LSB plus
-    the documented error of the temperature terms before the output rounding
-    (fixedpoint.temp_kernel_bound: 2^-17 |A raw| + 2^-14 + 2^-15)."""
+    temperatures inside and outside the range: |C - reference| below
+    fixedpoint.TEMP_BOUND_LSB (1 - 2^-11, ninedof_cal.h), and the C output
+    is the integer model's (fixedpoint.feedback_correct) bit for bit."""
     rng = np.random.default_rng(seed)
     sensors = {n: random_fixed(rng) for n in P.SENSORS}
     names = [n for n in P.SENSORS if rng.random() < 0.7] or ["gyro"]
@@ -73,10 +73,12 @@ def test_within_one_lsb_of_the_float_reference(seed):
     worst = 0.0
     for t in [None] + [int(v) for v in rng.integers(-32768, 32768, 3)] + \
             [max(temps[names[0]].t_lo - 500, -32768), temps[names[0]].t_hi + 500]:
-        err = np.abs(M.correct(cs, raw, t) - FP.reference_correct(cs, raw, t)) \
-            - FP.temp_kernel_bound(cs, raw)
+        got = M.correct(cs, raw, t)
+        np.testing.assert_array_equal(got, FP.feedback_correct(cs, raw, None, t),
+                                      err_msg=f"seed {seed}, T {t}")
+        err = np.abs(got - FP.reference_correct(cs, raw, t))
         worst = max(worst, float(err.max()))
-    assert worst < 1.0, f"seed {seed}: {worst} LSB beyond the kernel's bound"
+    assert worst < FP.TEMP_BOUND_LSB, f"seed {seed}: {worst} LSB from the float reference"
 
 
 def test_clamped_outside_the_range_and_reference_at_t_ref():

@@ -83,7 +83,10 @@ typedef struct {
 #define NINEDOF_OSHIFT_MAX 40
 #define NINEDOF_GSHIFT_MIN 16
 #define NINEDOF_GSHIFT_MAX 46
-#define NINEDOF_LIMIT_GAIN_Q16 8192          /* |g dT| <= 1/8 over the range */
+#define NINEDOF_LIMIT_GAIN_Q30 (1L << 27)    /* |g dT| <= 1/8 over the range */
+/* The gain path's residuals stay within [-(2^13 - E), 2^13 - E] (Q14): E =
+ * 16, e = E / 2^14 = 2^-10 LSB (the header comment's bound) */
+#define NINEDOF_TEMP_MARGIN 16u
 
 /* Native form of a calibration set */
 typedef struct {
@@ -102,7 +105,7 @@ typedef struct {
    * gain terms are all 0 (then the kernel alone is the whole correction) */
   ninedof_cal_sensor_native_t eff[NINEDOF_SENSORS];
   uint8_t gain_zero;                /* bit k: tg[k] all 0 */
-  int16_t tg[NINEDOF_SENSORS][3];   /* g16, Q16 */
+  int32_t tg[NINEDOF_SENSORS][3];   /* G = g dT / 2^gshift, Q30 */
 } ninedof_cal_t;
 
 /* Bytes of a set of the given format (0 for an unknown format). */
@@ -125,7 +128,8 @@ uint8_t ninedof_cal_decode(const void *wire, uint8_t len, ninedof_cal_t *out);
 uint8_t ninedof_cal_encode(const ninedof_cal_t *cal, void *wire);
 
 /* Put the board temperature `raw` (TEMP_OUT) in force for the temperature
- * terms: recomputes tc and tg (a few multiplications per sensor). */
+ * terms: recomputes eff[].c (c + O) and tg (G), a few multiplications per
+ * sensor, and limits the residuals of sensors on the gain path to 1/2 - e. */
 void ninedof_cal_set_temp(ninedof_cal_t *cal, int16_t raw);
 
 /* The raw (identity) set: no sensor corrected. */

@@ -774,10 +774,8 @@ static NINEDOF_TEMP_INLINE int16_t shape_q14_temp(int32_t u, uint16_t *fb)
   uint8_t top = (uint8_t)(v >> 24) & 0xE0;             /* bits 31..29 */
 
   if (top == 0x00 || top == 0xE0) {
-    uint16_t hi = (uint16_t)(v >> 16);
-    uint16_t lo = (uint16_t)v;
-    *fb = resid_margin((uint16_t)((lo & 0x3FFFu) ^ 0x2000u));   /* r' mod 2^14 */
-    return (int16_t)(uint16_t)((uint16_t)(hi << 2) | (uint8_t)((uint8_t)(lo >> 8) >> 6));
+    *fb = resid_margin((uint16_t)(((uint16_t)v & 0x3FFFu) ^ 0x2000u));   /* r' mod 2^14 */
+    return (int16_t)(uint16_t)((v << 2) >> 16);          /* bits 29..14 */
   }
   *fb = 0;
   return (top & 0x80) ? (int16_t)INT16_MIN : (int16_t)INT16_MAX;

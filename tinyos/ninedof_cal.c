@@ -218,7 +218,6 @@ static int32_t temp_gain(const ninedof_cal_temp_native_t *t, uint8_t i, int32_t 
 }
 
 /* O (Q14) of row i at dT */
-
 static int32_t temp_offset(const ninedof_cal_temp_native_t *t, uint8_t i, int32_t dt)
 {
   return round_shift((int32_t)t->o[i] * (int16_t)dt, (uint8_t)(t->oshift - 14));
@@ -712,9 +711,9 @@ static __attribute__((noinline)) void sensor_other_shift(
  */
 #if defined(__AVR__) && !defined(NINEDOF_PORTABLE_KERNEL)
 /* Twelve 8 x 8 products into a 48-bit sum (t0..t5), then bits 14..45.
- * MULSU needs r16..r23: the four halves of p and g take all eight.  A signed product's
- * sign (C after MULS/MULSU) is subtracted from the bytes above it before
- * it is added (as in K_MAC). */
+ * MULSU needs r16..r23: the four halves of p and g take all eight.  A
+ * signed product's sign (C after MULS/MULSU) is subtracted from the bytes
+ * above it before it is added (as in K_MAC). */
 #define G_SP(X, Y, LO, HI, SUBS, ADCS)                                  \
   "mulsu " X ", " Y "\n\t" SUBS                                         \
   "add " LO ", r0\n\tadc " HI ", r1\n\t" ADCS

@@ -174,6 +174,12 @@ uint8_t ninedof_cal_encode(const ninedof_cal_t *cal, void *bytes)
 /* ---------------------------------------------------------------------- */
 /* Temperature terms                                                       */
 /* ---------------------------------------------------------------------- */
+#if defined(__GNUC__)
+#define NINEDOF_TEMP_INLINE inline __attribute__((always_inline))
+#else
+#define NINEDOF_TEMP_INLINE inline
+#endif
+
 /* round(v / 2^n), half up (arithmetic shift); |v| < 2^30, n <= 30 */
 static int32_t round_shift(int32_t v, uint8_t n)
 {
@@ -189,15 +195,46 @@ static int32_t temp_delta(const ninedof_cal_temp_native_t *t, int16_t raw)
   return (int32_t)c - t->t_ref;
 }
 
-/* g16 (Q16) and O (Q14) of row i at dT (|dT| <= 32767: validated) */
+/* G = g dT / 2^gshift in Q30 of row i at dT (|dT| <= 32767), rounded half
+ * up; exact for gshift <= 30.  Saturated at +-2^28 (twice the limit, only
+ * sets that fail validation get there) so the correction stays defined. */
+#define GAIN_SAT_Q30 ((int32_t)1 << 28)
 static int32_t temp_gain(const ninedof_cal_temp_native_t *t, uint8_t i, int32_t dt)
 {
-  return round_shift((int32_t)t->g[i] * (int16_t)dt, (uint8_t)(t->gshift - 16));
+  int32_t gd = (int32_t)t->g[i] * (int16_t)dt;          /* |gd| <= 2^30 */
+  uint8_t sh = t->gshift;
+
+  if (sh >= 30) {
+    gd = round_shift(gd, (uint8_t)(sh - 30));             /* n <= 16 */
+  } else {
+    int32_t lim = GAIN_SAT_Q30 >> (30 - sh);              /* sh >= 16: >= 2^14 */
+    if (gd > lim || gd < -lim)
+      gd = gd < 0 ? -lim : lim;
+    gd = (int32_t)((uint32_t)gd << (30 - sh));
+  }
+  if (gd > GAIN_SAT_Q30 || gd < -GAIN_SAT_Q30)
+    gd = gd < 0 ? -GAIN_SAT_Q30 : GAIN_SAT_Q30;
+  return gd;
 }
 
+/* O (Q14) of row i at dT */
 static int32_t temp_offset(const ninedof_cal_temp_native_t *t, uint8_t i, int32_t dt)
 {
   return round_shift((int32_t)t->o[i] * (int16_t)dt, (uint8_t)(t->oshift - 14));
+}
+
+/* A residual stored as fb (r mod 2^14, ninedof_cal.h) limited to
+ * [-(2^13 - E), 2^13 - E], E = NINEDOF_TEMP_MARGIN: w = r + 2^13 = fb ^ 0x2000
+ * is clamped to [E, 2^14 - E]. */
+static NINEDOF_TEMP_INLINE uint16_t resid_margin(uint16_t fb)
+{
+  uint16_t w = fb ^ 0x2000u;
+
+  if (w < NINEDOF_TEMP_MARGIN)
+    w = NINEDOF_TEMP_MARGIN;
+  else if (w > (1u << 14) - NINEDOF_TEMP_MARGIN)
+    w = (1u << 14) - NINEDOF_TEMP_MARGIN;
+  return (uint16_t)(w ^ 0x2000u);
 }
 
 void ninedof_cal_set_temp(ninedof_cal_t *cal, int16_t raw)
@@ -218,12 +255,15 @@ void ninedof_cal_set_temp(ninedof_cal_t *cal, int16_t raw)
     /* everything but the residuals, which carry on across temperatures */
     memcpy(&cal->eff[k], &cal->s[k], offsetof(ninedof_cal_sensor_native_t, fb));
     for (i = 0; i < 3; i++) {
-      cal->tg[k][i] = on ? (int16_t)temp_gain(t, i, dt) : 0;
+      cal->tg[k][i] = on ? temp_gain(t, i, dt) : 0;
       zero &= cal->tg[k][i] == 0;
       cal->eff[k].c[i] = (int32_t)((uint32_t)cal->s[k].c[i] +
                                    (uint32_t)(on ? temp_offset(t, i, dt) : 0));
     }
     cal->gain_zero |= (uint8_t)(zero << k);
+    if (!zero)              /* the gain path keeps its residuals within 1/2 - e */
+      for (i = 0; i < 3; i++)
+        cal->eff[k].fb[i] = resid_margin(cal->eff[k].fb[i]);
   }
 }
 
@@ -301,15 +341,16 @@ static uint8_t temp_in_range(const ninedof_cal_t *cal, uint8_t k)
     for (r = 0; r < 3; r++) {
       int32_t g = temp_gain(t, r, dt);
       uint32_t sum = 0, acc, o = abs32(temp_offset(t, r, dt));
-      if (g > NINEDOF_LIMIT_GAIN_Q16 || g < -NINEDOF_LIMIT_GAIN_Q16)
+      if (g > NINEDOF_LIMIT_GAIN_Q30 || g < -NINEDOF_LIMIT_GAIN_Q30)
         return 0;
       if (o > ((uint32_t)NINEDOF_LIMIT_OFFSET_COUNTS << NINEDOF_SHIFT_MAX))
         return 0;
       for (j = 0; j < 3; j++)
         sum += abs32(s->a[3 * r + j]);
       acc = sum * 32768UL;                  /* < 2^31: sensor_in_range */
-      acc += acc >> 3;                      /* |p g16 / 2^16| <= |p| / 8 */
-      acc += abs32(s->c[r]) + o + (uint32_t)ROUND_Q14 + 1UL;
+      acc += acc >> 3;                      /* |p G| <= |p| / 8 */
+      /* + the gain term's truncation (< 5), 2^13 and the residual (2^13) */
+      acc += abs32(s->c[r]) + o + 2UL * (uint32_t)ROUND_Q14 + 5UL;
       if (acc >= 0x80000000UL)
         return 0;
     }
@@ -831,23 +872,95 @@ static __attribute__((noinline)) void sensor_other_shift(
   }
 }
 
-/* floor(p * g / 2^16), exact: p = ph 2^16 + pl */
-static NINEDOF_ALWAYS_INLINE int32_t mulhi16(int32_t p, int16_t g)
+/*
+ * The gain term of the temperature path, t ~ p G (Q14), with G in Q30
+ * (ninedof_cal.h): p = ph 2^16 + pl, G = gh 2^16 + gl (ph, gh signed,
+ * pl, gl unsigned 16 bit) and
+ *   t = floor((ph gh 2^16 + ph gl + pl gh) / 2^14)
+ * i.e. p G / 2^30 without pl gl / 2^30 (in [0, 4)) and with the floor:
+ * p G / 2^30 - 5 < t <= p G / 2^30.  The sum is exact (|ph| <= 2^15 and
+ * |gh| <= 2^12: |ph gh 2^16| <= 2^43) and |t| < 2^30.
+ */
+#if defined(__AVR__) && !defined(NINEDOF_PORTABLE_KERNEL)
+/* Twelve 8 x 8 products into a 48-bit sum (t0..t5), then bits 14..45.
+ * MULSU needs r16..r23: the four halves of p and g take all eight.  A
+ * signed product's sign (C after MULS/MULSU) is subtracted from the bytes
+ * above it before it is added (as in K_MAC). */
+#define G_SP(X, Y, LO, HI, SUBS, ADCS)                                  \
+  "mulsu " X ", " Y "\n\t" SUBS                                         \
+  "add " LO ", r0\n\tadc " HI ", r1\n\t" ADCS
+#define G_UP(X, Y, LO, HI, ADCS)                                        \
+  "mul " X ", " Y "\n\t"                                                 \
+  "add " LO ", r0\n\tadc " HI ", r1\n\t" ADCS
+#define G_SBC(B) "sbc " B ", %[z]\n\t"
+#define G_ADC(B) "adc " B ", %[z]\n\t"
+static NINEDOF_TEMP_INLINE int32_t gain_term(int32_t p, int32_t g)
 {
-  int16_t ph = (int16_t)((uint32_t)p >> 16);
-  uint16_t pl = (uint16_t)p;
-  return (int32_t)ph * g + (((int32_t)pl * g) >> 16);
+  uint16_t ph = (uint16_t)((uint32_t)p >> 16), pl = (uint16_t)p;
+  uint16_t gh = (uint16_t)((uint32_t)g >> 16), gl = (uint16_t)g;
+  uint32_t t;             /* bytes 2..5 of the sum, then the result */
+  uint16_t t01;           /* bytes 0, 1 */
+  uint8_t z;
+
+  __asm__ (
+    "clr %[z]\n\t"
+    "mul %A[ph], %A[gh]\n\tmovw %A[t], r0\n\t"          /* ph0 gh0 @2 */
+    "muls %B[ph], %B[gh]\n\tmovw %C[t], r0\n\t"         /* ph1 gh1 @4 */
+    "mul %A[ph], %A[gl]\n\tmovw %A[t01], r0\n\t"          /* ph0 gl0 @0 */
+    G_SP("%B[ph]", "%A[gh]", "%B[t]", "%C[t]", G_SBC("%D[t]"), G_ADC("%D[t]"))     /* ph1 gh0 @3 */
+    G_SP("%B[gh]", "%A[ph]", "%B[t]", "%C[t]", G_SBC("%D[t]"), G_ADC("%D[t]"))     /* gh1 ph0 @3 */
+    G_SP("%B[ph]", "%B[gl]", "%A[t]", "%B[t]", G_SBC("%C[t]") G_SBC("%D[t]"), G_ADC("%C[t]") G_ADC("%D[t]"))   /* ph1 gl1 @2 */
+    G_SP("%B[gh]", "%B[pl]", "%A[t]", "%B[t]", G_SBC("%C[t]") G_SBC("%D[t]"), G_ADC("%C[t]") G_ADC("%D[t]"))   /* gh1 pl1 @2 */
+    G_SP("%B[ph]", "%A[gl]", "%B[t01]", "%A[t]", G_SBC("%B[t]") G_SBC("%C[t]") G_SBC("%D[t]"), G_ADC("%B[t]") G_ADC("%C[t]") G_ADC("%D[t]"))   /* ph1 gl0 @1 */
+    G_SP("%B[gh]", "%A[pl]", "%B[t01]", "%A[t]", G_SBC("%B[t]") G_SBC("%C[t]") G_SBC("%D[t]"), G_ADC("%B[t]") G_ADC("%C[t]") G_ADC("%D[t]"))   /* gh1 pl0 @1 */
+    G_UP("%A[ph]", "%B[gl]", "%B[t01]", "%A[t]", G_ADC("%B[t]") G_ADC("%C[t]") G_ADC("%D[t]"))   /* ph0 gl1 @1 */
+    G_UP("%B[pl]", "%A[gh]", "%B[t01]", "%A[t]", G_ADC("%B[t]") G_ADC("%C[t]") G_ADC("%D[t]"))   /* pl1 gh0 @1 */
+    G_UP("%A[pl]", "%A[gh]", "%A[t01]", "%B[t01]", G_ADC("%A[t]") G_ADC("%B[t]") G_ADC("%C[t]") G_ADC("%D[t]"))   /* pl0 gh0 @0 */
+    /* bits 14..45: bytes 1..5 shifted left twice, bytes 2..5 */
+    "lsl %B[t01]\n\trol %A[t]\n\trol %B[t]\n\trol %C[t]\n\trol %D[t]\n\t"
+    "lsl %B[t01]\n\trol %A[t]\n\trol %B[t]\n\trol %C[t]\n\trol %D[t]\n\t"
+    "clr r1\n\t"
+    : [t] "=&r" (t), [t01] "=&r" (t01), [z] "=&r" (z)
+    : [ph] "a" (ph), [pl] "a" (pl), [gh] "a" (gh), [gl] "a" (gl)
+    : "r0", "r1");
+  return (int32_t)t;
+}
+#else
+static NINEDOF_TEMP_INLINE int32_t gain_term(int32_t p, int32_t g)
+{
+  int16_t ph = (int16_t)((uint32_t)p >> 16), gh = (int16_t)((uint32_t)g >> 16);
+  uint16_t pl = (uint16_t)p, gl = (uint16_t)g;
+  int64_t sum = (int64_t)((int32_t)ph * gh) * 65536 + (int64_t)ph * gl + (int64_t)gh * pl;
+
+  return (int32_t)(sum >> 14);
+}
+#endif
+
+/* shape_q14 for the gain path: the same rounding with error feedback, the
+ * stored residual kept within [-(2^13 - E), 2^13 - E] (resid_margin), so
+ * |out - (u - 2^13) / 2^14| <= 1 - E / 2^14 (ninedof_cal.h). */
+static NINEDOF_TEMP_INLINE int16_t shape_q14_temp(int32_t u, uint16_t *fb)
+{
+  uint32_t v = (uint32_t)u + (uint32_t)(*fb ^ 0x2000u) - 0x2000UL;
+  uint8_t top = (uint8_t)(v >> 24) & 0xE0;             /* bits 31..29 */
+
+  if (top == 0x00 || top == 0xE0) {
+    *fb = resid_margin((uint16_t)(((uint16_t)v & 0x3FFFu) ^ 0x2000u));   /* r' mod 2^14 */
+    return (int16_t)(uint16_t)((v << 2) >> 16);          /* bits 29..14 */
+  }
+  *fb = 0;
+  return (top & 0x80) ? (int16_t)INT16_MIN : (int16_t)INT16_MAX;
 }
 
-/* A sensor with temperature terms (shift 14, ninedof_cal.h):
- * out = sat((p + floor(p g16 / 2^16) + c + O + 2^13 + r) >> 14) with the
- * error feedback of shape_q14, wrapping like int32 hardware (only sets that
- * were never validated can wrap). */
+/* A sensor with temperature gain terms (shift 14, ninedof_cal.h):
+ * out = sat((p + t + c + O + 2^13 + r) >> 14), t = gain_term(p, G), with
+ * the error feedback of shape_q14_temp, wrapping like int32 hardware (only
+ * sets that were never validated can wrap). */
 static __attribute__((noinline)) void sensor_temp(ninedof_cal_t *cal, uint8_t k,
                                                   const int16_t *in, int16_t *out)
 {
   ninedof_cal_sensor_native_t *s = &cal->eff[k];           /* c + O, residuals */
-  const int16_t *g = cal->tg[k];
+  const int32_t *g = cal->tg[k];
   int32_t acc[3];
   uint8_t r;
 
@@ -855,8 +968,8 @@ static __attribute__((noinline)) void sensor_temp(ninedof_cal_t *cal, uint8_t k,
   for (r = 0; r < 3; r++) {
     uint32_t u = (uint32_t)acc[r];
     int32_t p = (int32_t)(u - (uint32_t)s->c[r] - (uint32_t)ROUND_Q14);   /* A raw */
-    u += (uint32_t)mulhi16(p, g[r]);
-    out[r] = shape_q14((int32_t)u, &s->fb[r]);
+    u += (uint32_t)gain_term(p, g[r]);
+    out[r] = shape_q14_temp((int32_t)u, &s->fb[r]);
   }
 }
 

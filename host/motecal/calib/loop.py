@@ -15,7 +15,10 @@ error on held-out data.
    more than ``extra_terms.Z_ACCEPT`` standard errors; otherwise the plain
    calibration stays (what leaving out unbiased repeats changes is chance);
 3. terms the calibration can fit (``calib.extra_terms``): the gyroscope's
-   g-sensitivity and warm-up drift, the accelerometer's nonlinearity, and
+   g-sensitivity and warm-up drift (the warm-up in time only when the
+   gyroscope has no temperature model: a session with temperature whose
+   term passed its gate has its drift modelled against temperature, and one
+   model of it is used, not both), the accelerometer's nonlinearity, and
    for a small field disturbance the disturbed time spans of the sweep, each
    when the session can determine it (``content.term_support``) and kept
    only when the held-out error falls likewise.
@@ -167,6 +170,17 @@ def _gyro_terms(data, board, wanted: list, k: int, used, unused, z=X.Z_ACCEPT, l
         for c in wanted:
             unused.append(f"gyro {c}: the session gives no gyroscope calibration")
         return
+    if "bias_drift" in wanted and sc.temperature is not None:
+        # one model of the drift: the temperature's, when the session carries
+        # it and the term passed its gate (calib.thermal); a warm-up in time on
+        # top would correct the same drift twice
+        wanted = [c for c in wanted if c != "bias_drift"]
+        why = ("the drift is modelled against the board temperature instead (the session "
+               "carries it and the temperature term passed its gate); a time-only warm-up on "
+               "top would correct the same drift twice")
+        unused.append(f"gyro bias_drift: not fitted: {why}")
+        sc.notes.append(f"warm-up drift: the temperature model used, not the time-only "
+                        f"warm-up: {why}")
     W, A, T, N = _pose_table(data, board)
     use = {"g_sensitivity": False, "bias_drift": False}
     for c in wanted:
@@ -217,7 +231,17 @@ def _gyro_terms(data, board, wanted: list, k: int, used, unused, z=X.Z_ACCEPT, l
         sc.notes.append(f"warm-up drift from the diagnosis (tau {tau:g} s): the bias delivered is "
                         "the one at the end of the session, ("
                         + ", ".join(f"{v:.4f}" for v in b_end) + ") deg/s, instead of the "
-                        "session mean (" + ", ".join(f"{v:.4f}" for v in b_mean) + ")")
+                        "session mean (" + ", ".join(f"{v:.4f}" for v in b_mean) + "); "
+                        "a warm-up in time, not against temperature: " + _why_no_temp(data, board))
+
+
+def _why_no_temp(data, board) -> str:
+    """Why the gyroscope's drift is not modelled against temperature."""
+    if not data.has_temp:
+        return "the session carries no temperature"
+    why = (board.settings.get("temperature") or {}).get("not_fitted", {}).get("gyro")
+    return f"the temperature term did not pass its gate ({why})" if why else \
+        "the temperature term was not fitted"
 
 
 def _accel_nonlinearity(data, board, k: int, used, unused, z=X.Z_ACCEPT, log=None):

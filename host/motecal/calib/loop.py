@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import UserError
+from ..maths.heldout import interleaved, kfold_heldout
 from . import extra_terms as X
 from . import fit as _fit
 from .board import mag_data_sets
@@ -90,29 +91,30 @@ def magnitude_heldout(sensor, data, sc_base, sc_cand, rows_base, rows_cand, grou
         return X.Decision(False, float("nan"), float("nan"), 0, 0.0,
                           why=f"too few poses to hold any out ({len(ids)} poses, {need} "
                               "parameters)")
-    fold_of = {g: i % k for i, g in enumerate(ids)}
-    fold = np.array([fold_of.get(g, -1) for g in group])
+    fold = interleaved(len(ids), k)                  # per group, in the order of ids
     out = {}
     for key, sc, rows in (("base", sc_base, rows_base), ("cand", sc_cand, rows_cand)):
         theta = np.array([p.value for p in sc.params], float)
-        e = np.full(len(ids), np.nan)
-        for f in range(k):
-            tr = rows & (fold != f) & (fold >= 0)
-            te = rows_base & (fold == f) & test_ok
-            if not te.any() or tr.sum() < 20:
-                continue
+
+        def fit(train, rows=rows, theta=theta):
+            tr = rows & np.isin(group, ids[train])
+            if tr.sum() < 20:
+                return None
             th, _ = _fit.polish(mdl, theta, u[tr])
-            H = float(mdl.affine(th)[2])
-            for i, g in enumerate(ids):
-                if fold_of[g] != f:
-                    continue
-                m = te & (group == g)
+            return th, float(mdl.affine(th)[2])
+
+        def score(model, test):
+            th, H = model
+            e = np.full(int(test.sum()), np.nan)
+            for i, g in enumerate(ids[test]):
+                m = rows_base & test_ok & (group == g)
                 if not m.any():
                     continue
                 x = u[m].mean(axis=0, keepdims=True) if pose_means else u[m]
                 r = mdl.residuals(th, x) / H
                 e[i] = float(np.mean(r * r))
-        out[key] = e
+            return e
+        out[key] = kfold_heldout(fold, fit, score)
     return X.heldout_decision(out["base"], out["cand"], z)
 
 
@@ -121,19 +123,21 @@ def gyro_heldout_bias(data, rows_base, rows_cand, test_ok, k, z=X.Z_ACCEPT) -> X
     rates) from two sets of rows: per held-out pose, |pose mean - bias|^2."""
     g = data.sensor("gyro") / data.scales["gyro"]
     ids = np.unique(data.label[rows_base & (data.label >= 1)])
-    fold_of = {p: i % k for i, p in enumerate(ids)}
-    e = {"base": np.full(len(ids), np.nan), "cand": np.full(len(ids), np.nan)}
-    for f in range(k):
-        hold = np.isin(data.label, [p for p in ids if fold_of[p] == f])
-        for key, rows in (("base", rows_base), ("cand", rows_cand)):
-            tr = rows & ~hold
-            if not tr.any():
-                continue
-            b = g[tr].mean(axis=0)
-            for i, p in enumerate(ids):
-                m = (data.label == p) & rows_base & test_ok
-                if fold_of[p] == f and m.any():
-                    e[key][i] = float(np.sum((g[m].mean(axis=0) - b) ** 2))
+    fold = interleaved(len(ids), k)                  # per pose, in the order of ids
+
+    def score(b, test):
+        e = np.full(int(test.sum()), np.nan)
+        for i, p in enumerate(ids[test]):
+            m = (data.label == p) & rows_base & test_ok
+            if m.any():
+                e[i] = float(np.sum((g[m].mean(axis=0) - b) ** 2))
+        return e
+    e = {}
+    for key, rows in (("base", rows_base), ("cand", rows_cand)):
+        def fit(train, rows=rows):
+            tr = rows & ~np.isin(data.label, ids[~train])
+            return g[tr].mean(axis=0) if tr.any() else None
+        e[key] = kfold_heldout(fold, fit, score)
     return X.heldout_decision(e["base"], e["cand"], z)
 
 

@@ -23,6 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
+from ..maths.heldout import interleaved, kfold_heldout
+
 Z_ACCEPT = 2.5              # held-out improvement must exceed this many standard errors
 TAU_GRID_S = (20.0, 60.0, 150.0, 400.0, 1000.0)
 
@@ -65,7 +67,7 @@ def heldout_decision(e_without: np.ndarray, e_with: np.ndarray,
 
 
 def pose_folds(n_poses: int, k: int) -> np.ndarray:
-    return np.arange(n_poses) % max(2, k)
+    return interleaved(n_poses, max(2, k))
 
 
 # ---------------------------------------------------------------------------
@@ -113,13 +115,12 @@ def gyro_heldout(w, a, t, n, k, base: tuple, cand: tuple) -> tuple[Decision, np.
     fold = pose_folds(len(w), k)
     e = {}
     for key, (ua, ut) in (("base", base), ("cand", cand)):
-        err = np.full(len(w), np.nan)
-        for f in np.unique(fold):
-            tr, te = fold != f, fold == f
-            coef, tau = _gyro_fit(w[tr], a[tr], t[tr], n[tr], ua, ut)
+        def score(model, te, ua=ua, ut=ut):
+            coef, tau = model
             X = gyro_design(int(te.sum()), a[te] if ua else None, t[te] if ut else None, tau)
-            err[te] = np.sum((w[te] - X @ coef) ** 2, axis=1)
-        e[key] = err
+            return np.sum((w[te] - X @ coef) ** 2, axis=1)
+        e[key] = kfold_heldout(fold, lambda tr, ua=ua, ut=ut: _gyro_fit(w[tr], a[tr], t[tr],
+                                                                         n[tr], ua, ut), score)
     return heldout_decision(e["base"], e["cand"]), e["base"], e["cand"]
 
 
@@ -181,14 +182,15 @@ def nl_heldout(U, w, A0, c0, k) -> tuple[Decision, np.ndarray, np.ndarray]:
     """Held-out squared magnitude error of the pose means (folds of poses),
     the full model alone against the full model with h."""
     fold = pose_folds(len(U), k)
-    e = {True: np.full(len(U), np.nan), False: np.full(len(U), np.nan)}
-    for f in np.unique(fold):
-        tr, te = fold != f, fold == f
-        for nl in (False, True):
-            A, c, p, _ = nl_fit(U[tr], w[tr], A0, c0, nl=nl)
-            r = nl_residuals(_pack(A, c, p), U[te], np.ones(te.sum()), nl=nl)
-            e[nl][te] = r * r
-    return heldout_decision(e[False], e[True]), e[False], e[True]
+
+    def fit(tr):
+        return [nl_fit(U[tr], w[tr], A0, c0, nl=nl)[:3] for nl in (False, True)]
+
+    def score(fits, te):
+        return np.column_stack([nl_residuals(_pack(*f), U[te], np.ones(te.sum()), nl=nl) ** 2
+                                for f, nl in zip(fits, (False, True))])
+    e = kfold_heldout(fold, fit, score)
+    return heldout_decision(e[:, 0], e[:, 1]), e[:, 0], e[:, 1]
 
 
 def apply_nonlinearity(sc, raw_counts) -> np.ndarray:

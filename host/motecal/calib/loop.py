@@ -15,7 +15,10 @@ error on held-out data.
    more than ``extra_terms.Z_ACCEPT`` standard errors; otherwise the plain
    calibration stays (what leaving out unbiased repeats changes is chance);
 3. terms the calibration can fit (``calib.extra_terms``): the gyroscope's
-   g-sensitivity and warm-up drift, the accelerometer's nonlinearity, and
+   g-sensitivity and warm-up drift (the warm-up in time only when the
+   gyroscope has no temperature model: a session with temperature whose
+   term passed its gate has its drift modelled against temperature, and one
+   model of it is used, not both), the accelerometer's nonlinearity, and
    for a small field disturbance the disturbed time spans of the sweep, each
    when the session can determine it (``content.term_support``) and kept
    only when the held-out error falls likewise.
@@ -28,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import UserError
+from ..maths.heldout import interleaved, kfold_heldout
 from . import extra_terms as X
 from . import fit as _fit
 from .board import mag_data_sets
@@ -87,29 +91,30 @@ def magnitude_heldout(sensor, data, sc_base, sc_cand, rows_base, rows_cand, grou
         return X.Decision(False, float("nan"), float("nan"), 0, 0.0,
                           why=f"too few poses to hold any out ({len(ids)} poses, {need} "
                               "parameters)")
-    fold_of = {g: i % k for i, g in enumerate(ids)}
-    fold = np.array([fold_of.get(g, -1) for g in group])
+    fold = interleaved(len(ids), k)                  # per group, in the order of ids
     out = {}
     for key, sc, rows in (("base", sc_base, rows_base), ("cand", sc_cand, rows_cand)):
         theta = np.array([p.value for p in sc.params], float)
-        e = np.full(len(ids), np.nan)
-        for f in range(k):
-            tr = rows & (fold != f) & (fold >= 0)
-            te = rows_base & (fold == f) & test_ok
-            if not te.any() or tr.sum() < 20:
-                continue
+
+        def fit(train, rows=rows, theta=theta):
+            tr = rows & np.isin(group, ids[train])
+            if tr.sum() < 20:
+                return None
             th, _ = _fit.polish(mdl, theta, u[tr])
-            H = float(mdl.affine(th)[2])
-            for i, g in enumerate(ids):
-                if fold_of[g] != f:
-                    continue
-                m = te & (group == g)
+            return th, float(mdl.affine(th)[2])
+
+        def score(model, test):
+            th, H = model
+            e = np.full(int(test.sum()), np.nan)
+            for i, g in enumerate(ids[test]):
+                m = rows_base & test_ok & (group == g)
                 if not m.any():
                     continue
                 x = u[m].mean(axis=0, keepdims=True) if pose_means else u[m]
                 r = mdl.residuals(th, x) / H
                 e[i] = float(np.mean(r * r))
-        out[key] = e
+            return e
+        out[key] = kfold_heldout(fold, fit, score)
     return X.heldout_decision(out["base"], out["cand"], z)
 
 
@@ -118,19 +123,21 @@ def gyro_heldout_bias(data, rows_base, rows_cand, test_ok, k, z=X.Z_ACCEPT) -> X
     rates) from two sets of rows: per held-out pose, |pose mean - bias|^2."""
     g = data.sensor("gyro") / data.scales["gyro"]
     ids = np.unique(data.label[rows_base & (data.label >= 1)])
-    fold_of = {p: i % k for i, p in enumerate(ids)}
-    e = {"base": np.full(len(ids), np.nan), "cand": np.full(len(ids), np.nan)}
-    for f in range(k):
-        hold = np.isin(data.label, [p for p in ids if fold_of[p] == f])
-        for key, rows in (("base", rows_base), ("cand", rows_cand)):
-            tr = rows & ~hold
-            if not tr.any():
-                continue
-            b = g[tr].mean(axis=0)
-            for i, p in enumerate(ids):
-                m = (data.label == p) & rows_base & test_ok
-                if fold_of[p] == f and m.any():
-                    e[key][i] = float(np.sum((g[m].mean(axis=0) - b) ** 2))
+    fold = interleaved(len(ids), k)                  # per pose, in the order of ids
+
+    def score(b, test):
+        e = np.full(int(test.sum()), np.nan)
+        for i, p in enumerate(ids[test]):
+            m = (data.label == p) & rows_base & test_ok
+            if m.any():
+                e[i] = float(np.sum((g[m].mean(axis=0) - b) ** 2))
+        return e
+    e = {}
+    for key, rows in (("base", rows_base), ("cand", rows_cand)):
+        def fit(train, rows=rows):
+            tr = rows & ~np.isin(data.label, ids[~train])
+            return g[tr].mean(axis=0) if tr.any() else None
+        e[key] = kfold_heldout(fold, fit, score)
     return X.heldout_decision(e["base"], e["cand"], z)
 
 
@@ -167,6 +174,17 @@ def _gyro_terms(data, board, wanted: list, k: int, used, unused, z=X.Z_ACCEPT, l
         for c in wanted:
             unused.append(f"gyro {c}: the session gives no gyroscope calibration")
         return
+    if "bias_drift" in wanted and sc.temperature is not None:
+        # one model of the drift: the temperature's, when the session carries
+        # it and the term passed its gate (calib.thermal); a warm-up in time on
+        # top would correct the same drift twice
+        wanted = [c for c in wanted if c != "bias_drift"]
+        why = ("the drift is modelled against the board temperature instead (the session "
+               "carries it and the temperature term passed its gate); a time-only warm-up on "
+               "top would correct the same drift twice")
+        unused.append(f"gyro bias_drift: not fitted: {why}")
+        sc.notes.append(f"warm-up drift: the temperature model used, not the time-only "
+                        f"warm-up: {why}")
     W, A, T, N = _pose_table(data, board)
     use = {"g_sensitivity": False, "bias_drift": False}
     for c in wanted:
@@ -217,7 +235,17 @@ def _gyro_terms(data, board, wanted: list, k: int, used, unused, z=X.Z_ACCEPT, l
         sc.notes.append(f"warm-up drift from the diagnosis (tau {tau:g} s): the bias delivered is "
                         "the one at the end of the session, ("
                         + ", ".join(f"{v:.4f}" for v in b_end) + ") deg/s, instead of the "
-                        "session mean (" + ", ".join(f"{v:.4f}" for v in b_mean) + ")")
+                        "session mean (" + ", ".join(f"{v:.4f}" for v in b_mean) + "); "
+                        "a warm-up in time, not against temperature: " + _why_no_temp(data, board))
+
+
+def _why_no_temp(data, board) -> str:
+    """Why the gyroscope's drift is not modelled against temperature."""
+    if not data.has_temp:
+        return "the session carries no temperature"
+    why = (board.settings.get("temperature") or {}).get("not_fitted", {}).get("gyro")
+    return f"the temperature term did not pass its gate ({why})" if why else \
+        "the temperature term was not fitted"
 
 
 def _accel_nonlinearity(data, board, k: int, used, unused, z=X.Z_ACCEPT, log=None):

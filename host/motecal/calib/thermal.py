@@ -43,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..maths.heldout import kfold_heldout
 from ..sessions.session import HMC5883L_OVERFLOW, LABEL_NONE, LABEL_ROT, SessionData
 from .content import MIN_POSE_ORIENTATIONS, MIN_TEMP_SPAN_C, TempContent
 from .result import BoardCalibration, TempModel
@@ -282,22 +283,33 @@ def _set_sigma(s: ObsSet) -> float:
 
 def _heldout(sets) -> tuple[float, float]:
     """rms of held-out observations without and with the temperature term
-    (each fold refitted on the others)."""
+    (each fold refitted on the others: ``maths.heldout.kfold_heldout``)."""
+    fold = np.concatenate([s.fold for s in sets]) if sets else np.zeros(0, int)
+    ends = np.cumsum([len(s.y) for s in sets])
+
+    def part(mask):
+        return [dataclasses.replace(s, y=s.y[m], Xt=s.Xt[m], Xn=s.Xn[m])
+                for s, m in zip(sets, np.split(mask, ends[:-1]))]
+
+    def fit(tr):
+        return [_solve(*_design(part(tr), th))[0] for th in (False, True)]
+
+    def score(betas, te):
+        cols = []
+        for th, beta in zip((False, True), betas):
+            Xe, ye, _ = _design(part(te), th)
+            cols.append(ye - Xe @ beta)
+        return np.column_stack(cols)
+    r = kfold_heldout(fold, fit, score)
+    ncol = {th: _design(sets, th)[0].shape[1] for th in (False, True)} if sets else {}
     sq = {False: 0.0, True: 0.0}
     n = 0
-    for f in range(FOLDS):
-        tr = [dataclasses.replace(s, y=s.y[s.fold != f], Xt=s.Xt[s.fold != f],
-                                  Xn=s.Xn[s.fold != f]) for s in sets]
-        te = [dataclasses.replace(s, y=s.y[s.fold == f], Xt=s.Xt[s.fold == f],
-                                  Xn=s.Xn[s.fold == f]) for s in sets]
-        if not sum(len(s.y) for s in te):
-            continue
-        for th in (False, True):
-            X, y, w = _design(tr, th)
-            beta, _, _ = _solve(X, y, w)
-            Xe, ye, _ = _design(te, th)
-            sq[th] += float(np.sum((ye - Xe @ beta) ** 2)) if X.shape[1] else float(ye @ ye)
-        n += sum(len(s.y) for s in te)
+    for f in np.unique(fold):
+        te = fold == f
+        for j, th in enumerate((False, True)):
+            e = r[te, j]
+            sq[th] += float(np.sum(e ** 2)) if ncol[th] else float(e @ e)
+        n += int(te.sum())
     n = max(n, 1)
     return float(np.sqrt(sq[False] / n)), float(np.sqrt(sq[True] / n))
 

@@ -5,10 +5,12 @@ The decisions live here, as explicit state machines, one per followed mote
 
 * ``PoseCapture`` (``--guided static80``):  MOVE -> WAIT_STILL -> CAPTURE ->
   (accept) MOVE ... -> DONE.  The board must move between poses; when the
-  trailing stillness window (``still.StillDetector``) becomes still, the
-  window's rows (less the first ``settle_s``) start a capture; ``samples``
-  still rows in a row make the pose (labelled with its index), a moving row first discards the capture and the
-  same pose is tried again.  A pose whose gravity direction lies within
+  trailing stillness window (``still.live_detector``: the offline rule,
+  ``TurnStillDetector``) becomes still, the window's rows (less the first
+  ``settle_s``) start a capture; ``samples`` still rows in a row, followed
+  by ``confirm`` more (a move shows in the trailing window a little late),
+  make the pose (labelled with its index), a moving row first discards the
+  capture and the same pose is tried again.  A pose whose gravity direction lies within
   ``min_angle_deg`` of an accepted one is refused with a warning -- the one
   accept/reject point is ``PoseCapture._consider``.
 * ``AdaptiveCapture`` (``--guided adaptive``): the same states and
@@ -39,7 +41,7 @@ import numpy as np
 from ..maths.sphere import (COVERAGE_BANDS, COVERAGE_SECTORS, SphereCoverage, angle_deg,
                             fibonacci_sphere, sphere_centre, unit)
 from ..sessions.session import LABEL_ROT, NOMINAL_SCALES
-from ..sessions.still import StillDetector, StillThresholds
+from ..sessions.still import StillThresholds, live_detector
 
 DEFAULT_POSES = 80
 DEFAULT_POSE_SAMPLES = 200
@@ -47,8 +49,8 @@ DEFAULT_MIN_ANGLE = 15.0
 DEFAULT_ROT_SAMPLES = 5000
 DEFAULT_COVERAGE = 0.9
 MAX_MIN_ANGLE = 90.0         # degrees: six poses (the +-axes) are 90 deg apart
-DEFAULT_SETTLE_S = 0.2       # the first rows of a still window are left out: the end of
-#                              a smooth move is indistinguishable from stillness
+DEFAULT_SETTLE_S = 0.3       # the first rows of a still window are left out: the slow end
+#                              of a smooth move passes the integrated-rotation limit
 MAG_OVERFLOW = -4096
 
 
@@ -165,8 +167,12 @@ class PoseCapture:
         self.min_angle = min_angle_deg
         self.auto = auto
         self.armed = auto
-        self.det = StillDetector(rate_hz, scales or NOMINAL_SCALES, thresholds)
+        self.det = live_detector(rate_hz, scales or NOMINAL_SCALES, thresholds)
         self.settle = int(round(settle_s * rate_hz))
+        # a pose's last row is still by the window centred on it (as offline):
+        # half a window of still rows after it confirms it
+        self.confirm = self.det.w // 4
+        self._confirmed = 0
         if not 0 <= self.settle < self.det.w:
             raise ValueError("settle_s must be shorter than the still window")
         if samples < self.det.w - self.settle:
@@ -257,6 +263,7 @@ class PoseCapture:
                 self.phase = Phase.CAPTURE
                 self.warning = ""
                 self.captured = len(window)
+                self._confirmed = 0
                 self._cap_sum = window.sum(axis=0)
                 self._cap_sq = (window * window).sum(axis=0)
                 self._cap_lo = int(all_seq[lo])
@@ -265,16 +272,18 @@ class PoseCapture:
                                          f"mote {self.mote}: pose {self.next_pose} still, "
                                          "capturing"))
             elif self.phase is Phase.CAPTURE:
-                need = self.samples - self.captured
+                need = self.samples + self.confirm - self.captured - self._confirmed
                 seg = still[i:i + need]
                 bad = np.flatnonzero(~seg)
                 take = int(bad[0]) if len(bad) else len(seg)
-                if take:
-                    self.captured += take
-                    part = raw[i:i + take]
+                into = min(take, self.samples - self.captured)    # rows of the pose
+                if into:
+                    self.captured += into
+                    part = raw[i:i + into]
                     self._cap_sum += part.sum(axis=0)
                     self._cap_sq += (part * part).sum(axis=0)
-                    self._cap_hi = int(seq[i + take - 1])
+                    self._cap_hi = int(seq[i + into - 1])
+                self._confirmed += take - into                     # still rows after it
                 i += take
                 if len(bad):
                     self.discards += 1
@@ -284,7 +293,7 @@ class PoseCapture:
                         f"({self.captured}/{self.samples}): hold it still again"))
                     self.phase = Phase.WAIT_STILL
                     self.captured = 0
-                elif self.captured >= self.samples:
+                elif self.captured >= self.samples and self._confirmed >= self.confirm:
                     self._finish(events)
         keep = min(w, len(all_seq))
         self._hist_seq = all_seq[-keep:].copy()

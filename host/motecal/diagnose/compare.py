@@ -216,14 +216,25 @@ def read_times(data: SessionData, t_sim: np.ndarray) -> np.ndarray:
 
 def simulate_like(data: SessionData, model_json: dict, traj, t_sim, seed: int = 0) -> SessionData:
     """The session simulated with ``model_json`` along ``traj`` at the rows'
-    read times (``read_times``)."""
+    read times (``read_times``).  A session with temperature (``data.temp``)
+    gives the twin's board the session's measured temperature (interpolated
+    between its readings) instead of the model's own curve, and the twin
+    carries it: a drift that follows the temperature is simulated as it
+    happened (by a model with the temperature term), not missed."""
     model = SimModel.from_json(model_json, model_json.get("name", "<diagnosis>"))
     mote = data.motes[0]
     board = model.board(mote, seed)
     tr = read_times(data, t_sim)
     order = np.argsort(tr, kind="stable")
+    sampler = board.sampler(traj, seed)
+    temp = None
+    if data.has_temp:
+        temp = data.temp.copy()
+        ok = np.isfinite(temp[order])
+        t_known, T_known = tr[order][ok], temp[order][ok]
+        sampler.temperature_c = lambda t: np.interp(np.asarray(t, float), t_known, T_known)
     raw = np.empty((len(tr), 9))
-    raw[order] = board.sampler(traj, seed).read(tr[order]).astype(float)
+    raw[order] = sampler.read(tr[order]).astype(float)
     for s, sl in (("accel", slice(0, 3)), ("gyro", slice(3, 6)), ("mag", slice(6, 9))):
         miss = ~data.has(s)
         raw[miss, sl] = np.nan
@@ -231,7 +242,7 @@ def simulate_like(data: SessionData, model_json: dict, traj, t_sim, seed: int = 
     meta["source"] = "sim"
     return SessionData(data.name + "-sim", raw, data.mote.copy(), data.seq.copy(),
                        data.t.copy(), data.label.copy(), np.zeros(len(data), np.uint8),
-                       data.kind, dict(NOMINAL_SCALES), dict(NOMINAL_CHIPS), meta)
+                       data.kind, dict(NOMINAL_SCALES), dict(NOMINAL_CHIPS), meta, temp=temp)
 
 
 # ---------------------------------------------------------------------------

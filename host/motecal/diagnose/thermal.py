@@ -43,6 +43,7 @@ from scipy import stats
 
 from ..calib.content import MIN_TEMP_SPAN_C
 from ..calib.thermal import sym_cols
+from ..maths.heldout import fold_sums, interleaved, kfold_heldout
 from ..sessions.session import SessionData
 from . import gain as G
 
@@ -137,19 +138,15 @@ class TempTest:
     def heldout_rms(self, temperature: bool, time: bool, fixed=None) -> tuple[float, np.ndarray]:
         """rms (counts) of held-out block means over ``KFOLD`` interleaved folds,
         each predicted by the model fitted on the other folds; per-fold rms."""
-        fold = np.arange(len(self.y)) % KFOLD
-        sq, per = 0.0, []
-        for f in range(KFOLD):
-            te = fold == f
-            if not te.any():
-                continue
-            betas, _, _ = self.fit(temperature, time, rows=~te, fixed=fixed)
+        fold = interleaved(len(self.y), KFOLD)
+
+        def score(betas, te):
             pred = self.predict(betas, temperature, time)
-            r = (self.y[te] - pred[te]) * np.sqrt(self.w[te] / self.w[te].mean(axis=0))
-            s = float(np.sum(r ** 2))
-            sq += s
-            per.append(np.sqrt(s / r.size))
-        return float(np.sqrt(sq / self.y.size)), np.array(per)
+            return ((self.y[te] - pred[te]) * np.sqrt(self.w[te] / self.w[te].mean(axis=0))) ** 2
+        sums = fold_sums(kfold_heldout(
+            fold, lambda tr: self.fit(temperature, time, rows=tr, fixed=fixed)[0], score), fold)
+        per = [np.sqrt(s / size) for _, s, size in sums]
+        return float(np.sqrt(sum(s for _, s, _ in sums) / self.y.size)), np.array(per)
 
     def truth_heldout_rms(self, coef_counts) -> float:
         """The held-out rms the *true* coefficients (counts/C per axis, e.g.
@@ -334,19 +331,15 @@ class PoseTempTest(TempTest):
         return betas[0][9:12] * self.K, np.sqrt(np.clip(np.diag(cov)[9:12], 0, None)) * self.K
 
     def heldout_rms(self, temperature: bool, time: bool, fixed=None):
-        fold = np.arange(len(self.y)) % KFOLD
-        sq, per = 0.0, []
-        for f in range(KFOLD):
-            te = fold == f
-            if not te.any():
-                continue
-            betas, _, _ = self.fit(temperature, time, rows=~te, fixed=fixed)
-            r = (self.y[te, 0] - self.predict(betas, temperature, time)[te, 0]) \
-                * np.sqrt(self.w[te, 0] / self.w[te, 0].mean())
-            s = float(np.sum(r ** 2))
-            sq += s
-            per.append(np.sqrt(s / len(r)))
-        return float(np.sqrt(sq / len(self.y))) * self.K, np.array(per)
+        fold = interleaved(len(self.y), KFOLD)
+
+        def score(betas, te):
+            return ((self.y[te, 0] - self.predict(betas, temperature, time)[te, 0])
+                    * np.sqrt(self.w[te, 0] / self.w[te, 0].mean())) ** 2
+        sums = fold_sums(kfold_heldout(
+            fold, lambda tr: self.fit(temperature, time, rows=tr, fixed=fixed)[0], score), fold)
+        per = [np.sqrt(s / size) for _, s, size in sums]
+        return float(np.sqrt(sum(s for _, s, _ in sums) / len(self.y))) * self.K, np.array(per)
 
 
 def make_pose_test(data: SessionData, o, st) -> PoseTempTest | None:

@@ -1,8 +1,9 @@
 """Stillness detection: is the board at rest?
 
-One definition used live by the logger's guided flow (``StillDetector``) and
-offline by the importer and diagnosis (``segment_still``; ``segment_recording``
-for a recording whose sensors may run on separate clocks).
+One definition used live by the logger's guided flow (``TurnStillDetector``,
+``live_detector``) and offline by the importer and diagnosis
+(``segment_still``; ``segment_recording`` for a recording whose sensors may
+run on separate clocks).
 
 A window of ``window_s`` seconds is *still* when the board's orientation
 stays put over it, judged by every sensor present:
@@ -20,10 +21,11 @@ stays put over it, judged by every sensor present:
   other sensors call still (``BIAS_S`` blocks).  A hand's tremor (0.05-0.3
   deg rms at 1-8 Hz) turns the board at several deg/s but goes nowhere:
   the integrated angle stays within its amplitude, while a turn of 5 deg/s
-  or more moves it beyond the threshold within one window.  (The rate's
-  own spread, ``gyro_dps``, which tremor breaks, is only used live.)
-* gyroscope, live (``StillDetector``, the guided logger), and offline with
-  ``gyro_rule="rate"`` (a turntable's steady turns, ``foreign``): the
+  or more moves it beyond the threshold within one window.  Live
+  (``TurnStillDetector``) the same, over trailing windows, bias and limit
+  from the rows so far.
+* gyroscope with ``gyro_rule="rate"`` (a turntable's steady turns,
+  ``foreign``; live: ``StillDetector``): the
   standard deviation of the rate below ``gyro_dps`` (1.5 deg/s; ITG3200
   noise ~0.4 deg/s rms).
 
@@ -294,3 +296,151 @@ class StillDetector:
         self._buf = x_all[-w:].copy()
         self._n += n
         return ok
+
+
+TREMOR_LIVE_S = 60.0   # live: the tremor's quartile is taken over the quiet rows of this span
+
+
+def tremor_limit(lim_deg: float, quiet_spreads: np.ndarray) -> float:
+    """The integrated-rotation limit for a hand that trembles: ``lim_deg``,
+    or ``TREMOR_K`` x the ``TREMOR_Q`` quantile of the spreads seen over quiet
+    rows (the holds' tremor), whichever is larger (``turn_spread_ok``'s rule)."""
+    q = np.asarray(quiet_spreads, float)
+    q = q[np.isfinite(q)]
+    if not len(q):
+        return float(lim_deg)
+    return max(float(lim_deg), TREMOR_K * float(np.quantile(q, TREMOR_Q)))
+
+
+def _window_ok(x: np.ndarray, w: int, lim: float | None):
+    """Trailing windows of w rows over x (n + w - 1, 3): per window, (absent,
+    ok) -- absent: every value NaN (the sensor is not there); ok: no NaN and
+    every axis' std below ``lim`` (``lim`` None: only the NaN rule)."""
+    isnan = np.isnan(x)
+    nans = np.concatenate([[0], np.cumsum(isnan.sum(axis=1))])
+    nans = nans[w:] - nans[:-w]
+    absent = nans == 3 * w
+    if lim is None:
+        return absent, nans == 0
+    ref = np.nanmean(x, axis=0) if not isnan.all() else np.zeros(3)
+    xc = np.where(isnan, 0.0, x - np.nan_to_num(ref))       # centred: no cancellation
+    sd = _moving_std(xc, w)[w - 1:]
+    return absent, (nans == 0) & (sd < lim).all(axis=1)
+
+
+class TurnStillDetector:
+    """Live stillness on the offline rule (``still_mask`` with
+    ``gyro_rule="turn"``), incremental over the trailing window of one mote:
+    push rows, ask ``still``.
+
+    A row is still when the trailing window of ``window_rows`` rows ending at
+    it is still by the accelerometer and magnetometer spreads (the offline
+    limits) -- the row is then *quiet* -- and by the gyroscope's integrated
+    rotation: the spread over the window of ``cumsum(rate - bias) / rate_hz``
+    below ``tremor_limit(gyro_turn_deg, spreads of the quiet rows of the last
+    TREMOR_LIVE_S)``.  The bias is the median rate of the quiet rows of the
+    last ``BIAS_S`` (``gyro_bias``'s rule, looking back only; while fewer than
+    max(3, 5 %) are quiet, as at the start, the median of the last window's
+    rows).  Bias and limit are brought up to
+    date every ``window_rows`` rows, counted from the first row, so the
+    decisions do not depend on how the rows are chunked (``push_many`` =
+    ``push`` row by row), the first after ``window_rows - 1`` rows (the first
+    full window is judged with a bias).  Before the first full window nothing
+    is still.
+    """
+
+    def __init__(self, rate_hz: float, scales: dict | None = None,
+                 th: StillThresholds = StillThresholds()):
+        self.th = th
+        self.rate = float(rate_hz)
+        self.scales = scales or NOMINAL_SCALES
+        self.w = window_rows(rate_hz, th)
+        self.nb = max(3, int(round(BIAS_S * rate_hz)))
+        self.nt = max(self.w, int(round(TREMOR_LIVE_S * rate_hz)))
+        self.reset()
+
+    def reset(self):
+        self._buf = np.full((self.w - 1, 9), np.nan)      # the last w-1 rows (counts)
+        self._n = 0
+        self._g = np.zeros((0, 3))                          # rates since the last update ...
+        self._q = np.zeros(0, bool)                         # ... and whether quiet
+        self._sp = np.zeros(0)                              # their spreads where quiet
+        self._hist_g = np.zeros((0, 3))                     # last BIAS_S of rates, quiet flags
+        self._hist_q = np.zeros(0, bool)
+        self._hist_sp = np.zeros(0)                         # last TREMOR_LIVE_S quiet spreads
+        self.bias = np.zeros(3)
+        self.limit = float(self.th.gyro_turn_deg)
+        self._last = False
+
+    def _update(self) -> None:
+        """Bring bias and limit up to date with the rows since the last update."""
+        self._hist_g = np.vstack([self._hist_g, self._g])[-self.nb:]
+        self._hist_q = np.concatenate([self._hist_q, self._q])[-self.nb:]
+        self._hist_sp = np.concatenate([self._hist_sp, self._sp])[-self.nt:]
+        self._g, self._q, self._sp = np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0)
+        g, q = self._hist_g, self._hist_q
+        rows = g[q] if q.sum() >= max(3, 0.05 * len(q)) else g[-self.w:]
+        rows = rows[np.isfinite(rows).all(axis=1)]
+        if len(rows):
+            self.bias = np.median(rows, axis=0)
+        self.limit = tremor_limit(self.th.gyro_turn_deg, self._hist_sp)
+
+    def push(self, rows: np.ndarray) -> bool:
+        """Push rows; True while the window ending at the last one is still."""
+        self.push_many(rows)
+        return self.still
+
+    @property
+    def still(self) -> bool:
+        return self._last
+
+    def push_many(self, rows: np.ndarray) -> np.ndarray:
+        """Push rows; per row, whether the trailing window ending at it is still."""
+        rows = np.asarray(rows, float).reshape(-1, 9)
+        n = len(rows)
+        if n == 0:
+            return np.zeros(0, bool)
+        w = self.w
+        raw_all = np.vstack([self._buf, rows])
+        x_all = np.empty_like(raw_all)
+        for name, sl in (("accel", slice(0, 3)), ("gyro", slice(3, 6)), ("mag", slice(6, 9))):
+            x_all[:, sl] = raw_all[:, sl] / self.scales[name]
+        full = (self._n + np.arange(1, n + 1)) >= w
+        quiet = full.copy()
+        for sl, lim in ((slice(0, 3), self.th.accel_g), (slice(6, 9), self.th.mag_gauss)):
+            absent, ok = _window_ok(x_all[:, sl], w, lim)
+            quiet &= absent | ok
+        g_absent, g_whole = _window_ok(x_all[:, 3:6], w, None)
+        out = np.zeros(n, bool)
+        a = 0
+        while a < n:
+            # rows a .. c-1 share the bias and limit; updates come after every
+            # w rows, the first after w - 1 (the first full window has a bias)
+            d = (w - 1 - self._n) % w or w
+            c = min(n, a + d)
+            g = x_all[a:c + w - 1, 3:6] - self.bias
+            theta = np.cumsum(np.where(np.isnan(g), 0.0, g), axis=0) / self.rate
+            theta -= theta[0]
+            spread = _moving_std(theta, w)[w - 1:].max(axis=1)
+            spread = np.where(g_whole[a:c], spread, np.inf)
+            gyro_ok = g_absent[a:c] | (spread < self.limit)
+            out[a:c] = quiet[a:c] & gyro_ok
+            self._g = np.vstack([self._g, rows[a:c, 3:6] / self.scales["gyro"]])
+            self._q = np.concatenate([self._q, quiet[a:c]])
+            self._sp = np.concatenate([self._sp, spread[quiet[a:c] & g_whole[a:c]]])
+            self._n += c - a
+            if self._n % w == w - 1:
+                self._update()
+            a = c
+        self._buf = raw_all[-(w - 1):].copy()
+        self._last = bool(out[-1])
+        return out
+
+
+def live_detector(rate_hz: float, scales: dict | None = None,
+                  th: StillThresholds = StillThresholds()):
+    """The live detector for ``th.gyro_rule``: ``TurnStillDetector`` ("turn",
+    the offline rule), ``StillDetector`` ("rate", the rate's spread)."""
+    if th.gyro_rule == "rate":
+        return StillDetector(rate_hz, scales, th)
+    return TurnStillDetector(rate_hz, scales, th)

@@ -290,6 +290,17 @@ def test_unescape_takes_a_corrupted_escape_as_the_general_rule_does():
         assert P.unescape(data) == simple_unescape(data), data
 
 
+def test_an_escape_never_reaches_into_the_next_run():
+    # a run ending in 0x7D, the next one (CRC intact) starting with 0x5E or 0x5D
+    good = P.encode_am(P.AMPacket(0xFFFF, 1, 0x22, 0x5F, b"payload"))
+    for first in (0x5E, 0x5D):
+        data = good + b"AB\x7d" + P.encode_frame(bytes((first,)) + b"xyz") + good
+        fast, simple = P.FrameDecoder(), SimpleDecoder()
+        assert fast.feed(data) == simple.feed(data)
+        assert fast.stats == simple.stats and fast.stats.frames == 2, fast.stats
+        assert fast.stats.bad_frames == 2 and fast.stats.crc_errors == 0
+
+
 @pytest.mark.parametrize("seed", SEEDS)
 def test_logged_rows_and_counters_equal_the_simple_path(seed, tmp_path):
     rng = np.random.default_rng(200 + seed)

@@ -246,10 +246,19 @@ def corrupt(rng, data: bytes, rate: float) -> bytes:
 # the tests
 # --------------------------------------------------------------------------
 @pytest.mark.parametrize("seed", SEEDS)
-def test_frames_and_counters_equal_the_simple_deframer(seed):
+@pytest.mark.parametrize("reads", ["whole", "random", "small"])
+def test_frames_and_counters_equal_the_simple_deframer(seed, reads):
+    # "whole": every frame checked together; "small": reads of a few frames
+    # (checked one by one, FEW_FRAMES); "random": both
     rng = np.random.default_rng(seed)
     data = corrupt(rng, line(rng, n_msgs=300), rate=0.004 * (seed + 1))
-    cuts = np.sort(rng.integers(0, len(data), int(rng.integers(1, 60))))
+    if reads == "whole":
+        cuts = []
+    elif reads == "small":
+        cuts = np.cumsum(rng.integers(1, 400, len(data)))
+        cuts = cuts[cuts < len(data)]
+    else:
+        cuts = np.sort(rng.integers(0, len(data), int(rng.integers(1, 60))))
     fast, simple = P.FrameDecoder(), SimpleDecoder()
     got, want = [], []
     prev = 0

@@ -429,6 +429,7 @@ class FrameBlock:
 _EMPTY = np.zeros(0, np.int64)
 _NO_CRC = operator.itemgetter(slice(None, -2))
 MAX_RUN = 2 * MAX_FRAME + 2        # escaped bytes between flags: longer is garbage
+FEW_FRAMES = 16                     # reads with at most this many runs: one by one
 
 
 def unescape_runs(data: bytes, lengths: np.ndarray) -> tuple[bytes, np.ndarray] | None:
@@ -510,7 +511,9 @@ class FrameDecoder:
     CRC or AM length is wrong, and never raises on any input.  A run between
     two flags that fails is counted, not returned.  ``feed`` gives ``Frame``s,
     ``feed_block`` the same frames as a ``FrameBlock`` (what the logger reads:
-    every frame of a read checked together, see ``check_frames``).
+    the frames of a read checked together, see ``check_frames``; a read of
+    at most FEW_FRAMES runs, what a live line mostly gives, one by one with
+    ``parse_frame_body``, which costs less there).
     """
 
     def __init__(self):
@@ -539,6 +542,40 @@ class FrameDecoder:
                 stats.garbage_bytes += len(tail)
                 tail = b""
         parts = list(filter(None, parts))          # back-to-back flags leave empty runs
+        if len(parts) <= FEW_FRAMES:
+            block = self._one_by_one(parts)
+        else:
+            block = self._together(parts)
+        stats.frames += len(block)
+        if len(tail) > MAX_RUN:
+            # far too long to be a frame: drop it and wait for the next flag
+            stats.garbage_bytes += len(tail)
+            tail = b""
+            self._synced = False
+        self._buf = tail
+        return block
+
+    def _one_by_one(self, parts: list[bytes]) -> FrameBlock:
+        """A few runs (what a live line's read holds): ``parse_frame_body`` each."""
+        stats = self.stats
+        frames = []
+        for p in parts:
+            if len(p) > MAX_RUN:
+                stats.garbage_bytes += len(p)
+                continue
+            raw = unescape(p) if b"\x7d" in p else p
+            frame = parse_frame_body(raw)
+            if frame is not None:
+                frames.append(frame)
+            elif len(raw) >= 4 and crc16(raw[:-2]) != (raw[-2] | (raw[-1] << 8)):
+                stats.crc_errors += 1
+            else:
+                stats.bad_frames += 1
+        return FrameBlock.from_frames(frames)
+
+    def _together(self, parts: list[bytes]) -> FrameBlock:
+        """Many runs: unescaped (``unescape_runs``) and checked (``check_frames``) at once."""
+        stats = self.stats
         lengths = np.fromiter(map(len, parts), np.int64, len(parts))
         big = lengths > MAX_RUN
         if big.any():
@@ -557,13 +594,6 @@ class FrameDecoder:
         block, crc_errors, bad = check_frames(data, lengths)
         stats.crc_errors += crc_errors
         stats.bad_frames += bad
-        stats.frames += len(block)
-        if len(tail) > MAX_RUN:
-            # far too long to be a frame: drop it and wait for the next flag
-            stats.garbage_bytes += len(tail)
-            tail = b""
-            self._synced = False
-        self._buf = tail
         return block
 
     def finish(self) -> list[Frame]:

@@ -94,7 +94,7 @@ class Logger:
         try:
             while not self._time_up():
                 try:
-                    frames = src.read()
+                    frames = src.read_block()
                 except S.SourceEnded:
                     self.handle(src.flush())
                     self.request_stop("end of input")
@@ -114,7 +114,7 @@ class Logger:
                         break
                     continue
                 now = time.monotonic()
-                if frames:
+                if len(frames):
                     self.handle(frames)
                     last_data = now
                 self.tracker.decoder(src.stats)
@@ -169,8 +169,8 @@ class Logger:
                           f"{lost} received samples not stored; session {w.name} {state}",
                           exit_code=failure.exit_code)
 
-    def handle(self, frames: list[P.Frame]) -> None:
-        if not frames:
+    def handle(self, frames: P.FrameBlock | list[P.Frame]) -> None:
+        if not len(frames):
             return
         batch, others = decode_sample_frames(frames)
         if others:

@@ -16,7 +16,6 @@ _AMH = P.AM_HEADER.size                       # 7: dest(2) src(2) len(1) group(1
 _SRC, _TYPE = 2, 6
 _SH = P.SAMPLES_HEADER.size                   # 4: seq(2) flags(1) count(1)
 _REC = P.NINEDOF_RECORD_SIZE                  # 18
-_REC_BYTES = np.arange(_REC)
 
 
 @dataclass
@@ -35,18 +34,16 @@ class SampleBatch:
         return len(self.src)
 
 
-def decode_sample_frames(frames: list[P.Frame]) -> tuple[SampleBatch, list[P.Frame]]:
-    """Split frames into sample messages (decoded together with numpy, the
-    same result as ``protocol.decode_message`` frame by frame) and the rest."""
-    n = len(frames)
-    bodies = [f.body for f in frames]
-    lens = np.fromiter(map(len, bodies), np.int64, n)
-    is_am = np.fromiter((f.dispatch == P.DISPATCH_AM for f in frames), bool, n)
-    blob = np.frombuffer(b"".join(bodies), np.uint8)
-    starts = np.zeros(n, np.int64)
-    if n > 1:
-        np.cumsum(lens[:-1], out=starts[1:])
-    has_type = is_am & (lens >= _AMH)
+def decode_sample_frames(frames: P.FrameBlock | list[P.Frame]) \
+        -> tuple[SampleBatch, list[P.Frame]]:
+    """Split frames (a ``FrameBlock`` or a list of ``Frame``s) into sample
+    messages (decoded together with numpy, the same result as
+    ``protocol.decode_message`` frame by frame) and the rest, as ``Frame``s."""
+    block = frames if isinstance(frames, P.FrameBlock) else P.FrameBlock.from_frames(frames)
+    blob = np.frombuffer(block.data, np.uint8)
+    starts, lens = block.start, block.length
+    n = len(block)
+    has_type = (block.dispatch == P.DISPATCH_AM) & (lens >= _AMH)
     typ = np.full(n, -1, np.int64)
     typ[has_type] = blob[starts[has_type] + _TYPE]
     is_samples = typ == P.AM_NINEDOF_SAMPLES_MSG
@@ -64,11 +61,16 @@ def decode_sample_frames(frames: list[P.Frame]) -> tuple[SampleBatch, list[P.Fra
     rec_msg = np.repeat(np.arange(len(idx)), cnt)
     first = np.cumsum(cnt) - cnt
     rec_index = np.arange(total) - first[rec_msg]
-    off = s[rec_msg] + _AMH + _SH + _REC * rec_index
-    records = blob[off[:, None] + _REC_BYTES].copy().view(P.RECORD_DTYPE).reshape(total, 9) \
-        .astype(np.int16)
-    others = [frames[i] for i in np.flatnonzero(~ok & ~is_samples)]
+    # the records' bytes, message after message: mark where each message's
+    # records begin (+1) and end (-1) and keep the bytes inside
+    inside = np.zeros(len(blob) + 1, np.int8)
+    r0 = s + _AMH + _SH
+    inside[r0] = 1
+    inside[r0 + _REC * cnt] -= 1
+    mask = np.cumsum(inside[:-1], dtype=np.int8).view(bool)
+    records = blob[mask].view(P.RECORD_DTYPE).reshape(total, 9).astype(np.int16)
+    rest = np.flatnonzero(~ok & ~is_samples)
+    others = block.frames(rest) if len(rest) else []
     batch = SampleBatch(src, seq, flags, cnt, records, rec_msg, rec_index,
                         bad=int((is_samples & ~ok).sum()))
     return batch, others
-

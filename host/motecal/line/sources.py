@@ -167,6 +167,12 @@ class Source(abc.ABC):
         """Checked frames of what arrived (waits up to READ_TIMEOUT); raises
         SourceLost when the port went away, SourceEnded at the end of a file."""
 
+    def read_block(self) -> P.FrameBlock:
+        """``read``, the frames as one ``protocol.FrameBlock`` (what the logger
+        reads: a source that decodes HDLC itself gives it without a ``Frame``
+        per frame)."""
+        return P.FrameBlock.from_frames(self.read())
+
     def flush(self) -> list[P.Frame]:
         """The stream ended (closed, lost, the reader stops): a frame cut off is
         counted in ``cut_off``, not kept (a complete one whose closing flag
@@ -247,6 +253,9 @@ class SerialSource(Source):
             raise PortError(f"cannot open port {spec}: {_reason(e)}") from None
 
     def read(self) -> list[P.Frame]:
+        return self.read_block().frames()
+
+    def read_block(self) -> P.FrameBlock:
         try:
             if self._socket:
                 data = self.ser.read(READ_SIZE)
@@ -255,7 +264,7 @@ class SerialSource(Source):
                 data = self.ser.read(min(n, READ_SIZE) if n > 0 else 1)
         except (serial.SerialException, OSError) as e:
             raise SourceLost(_reason(e)) from None
-        return self.decoder.feed(data) if data else []
+        return self.decoder.feed_block(data)
 
     def send(self, am: P.AMPacket, ack_seq: int | None = None) -> None:
         try:
@@ -359,10 +368,13 @@ class FileSource(Source):
             raise PortError(f"cannot open {spec}: {_reason(e)}") from None
 
     def read(self) -> list[P.Frame]:
+        return self.read_block().frames()
+
+    def read_block(self) -> P.FrameBlock:
         data = self.f.read(READ_SIZE)
         if not data:
             raise SourceEnded(str(self.spec))
-        return self.decoder.feed(data)
+        return self.decoder.feed_block(data)
 
     def send(self, am: P.AMPacket, ack_seq: int | None = None) -> None:
         raise PortError(f"{self.spec} is a recorded file: nothing can be sent to it")

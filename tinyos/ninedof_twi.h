@@ -119,7 +119,9 @@ enum {
 typedef struct {
   uint8_t *buf;       /* data written or read */
   uint8_t len;        /* bytes in buf */
-  uint8_t idx;        /* bytes done */
+  uint8_t *p;         /* the next byte to write or read */
+  uint8_t left;       /* bytes still to write or read */
+  uint8_t last;       /* the command for the last byte read: NEXT (NACK), or NEXT_ACK with ACK_END */
   uint8_t sla;        /* address byte: addr << 1 | R/W */
   uint8_t flags;      /* I2CPacket flags of the operation */
   uint8_t state;      /* NINEDOF_TWI_* state */
@@ -167,6 +169,27 @@ static inline uint8_t ninedof_twi_wait_stop(volatile uint8_t *twcr)
   return 1;
 }
 
+/* A START (or repeated START) is on the bus within about one SCL period
+ * (22 cycles at TWBR 3), and then TWINT is set.  The master waits for it
+ * where it asked for it, reading TWCR at most NINEDOF_TWI_START_SPINS
+ * times (about 5 cycles each: 0.1 ms at 8 MHz, 7 SCL periods at 364 kHz),
+ * and sends the address byte at once: an interrupt for it would cost the
+ * handler's entry and exit, and it waits while interrupts are off (an
+ * interrupt handler running the client's next command, the scheduler's
+ * loop before it sleeps).  Returns 1 when TWINT is set; 0 when the START
+ * has not come (the bus is busy: another master, a slave holding SCL),
+ * and then the interrupt (TWIE, set with the START) takes it. */
+enum { NINEDOF_TWI_START_SPINS = 160 };
+
+static inline uint8_t ninedof_twi_wait_twint(volatile uint8_t *twcr)
+{
+  uint8_t n = NINEDOF_TWI_START_SPINS;
+  while (!(*twcr & NINEDOF_TWINT))
+    if (--n == 0)
+      return 0;
+  return 1;
+}
+
 /* Power-up: no operation, no transfer open. */
 void ninedof_twi_init(ninedof_twi_t *t);
 
@@ -181,6 +204,15 @@ NINEDOF_TWI_FN uint8_t ninedof_twi_begin(ninedof_twi_t *t, uint8_t read, uint8_t
 /* One TWI interrupt: status = TWSR & 0xF8, data = TWDR.  Returns the next
  * TWCR command (.out for TWDR); state DONE when the operation has ended. */
 NINEDOF_TWI_FN uint8_t ninedof_twi_step(ninedof_twi_t *t, uint8_t status, uint8_t data);
+
+/* The START the current operation asked for has come (TWINT after the
+ * START command; status = TWSR & 0xF8): what ninedof_twi_step does in that
+ * state, for a master that waits for the START where it asked for it
+ * (ninedof_twi_wait_twint) instead of in its interrupt handler.  Returns
+ * the next TWCR command (.out: the address byte); NINEDOF_TWCR_IDLE if no
+ * START was asked.  State DONE if the START failed (arbitration lost, bus
+ * error). */
+NINEDOF_TWI_FN uint8_t ninedof_twi_started(ninedof_twi_t *t, uint8_t status);
 
 /* The watchdog gave up on the operation under way (the TWI is reset and
  * the bus cleared by the caller): state DONE, result ABORTED, no transfer

@@ -64,7 +64,7 @@ implementation
     signal SplitControl.stopDone(err);
   }
 
-  uint8_t current() {
+  inline uint8_t current() {
     atomic return state;
   }
 
@@ -249,7 +249,18 @@ implementation
       finish(err);
   }
 
+  /* The transfers of a read (once a sample, on the board's held bus):
+   * the command written, then at once, from its writeDone, the data read
+   * after a repeated START, and from that readDone the end.  Between the
+   * two the bus is held (SCL low), so this path is kept short. */
   async event void I2CPacket.writeDone(error_t error, uint16_t a, uint8_t len, uint8_t *data) {
+    if (error == SUCCESS && current() == S_READING) {
+      const ninedof_chip_t *d = desc();
+      step = 1;
+      error = call I2CPacket.read(I2C_START | I2C_STOP, d->addr, d->data_len, buf);
+      if (error == SUCCESS)
+        return;
+    }
     if (error != SUCCESS)
       finish(error);
     else
@@ -257,9 +268,10 @@ implementation
   }
 
   async event void I2CPacket.readDone(error_t error, uint16_t a, uint8_t len, uint8_t *data) {
-    if (error != SUCCESS)
-      finish(error);
-    else if (step == 1 && current() == S_STARTING && !ninedof_chip_id_ok(chip, buf))
+    uint8_t s = current();
+    if (error != SUCCESS || s == S_READING)
+      finish(error);                          /* a read ends with its data */
+    else if (step == 1 && s == S_STARTING && !ninedof_chip_id_ok(chip, buf))
       finish(FAIL);                           /* another chip answered */
     else
       next();

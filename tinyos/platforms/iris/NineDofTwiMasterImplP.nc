@@ -135,6 +135,30 @@ implementation
     }
   }
 
+  /* An operation with START: the START goes on the bus first (after a
+   * STOP still going out: one SCL period; bounded: if a slave holds SCL,
+   * the TWI is reset and the START waits for a free bus, the board's
+   * watchdog takes over if it never is), the operation is set up while it
+   * does, and the address byte goes out from here as soon as the START is
+   * done (bounded wait; else the interrupt sends it). */
+  void beginWithStart(uint8_t read, i2c_flags_t flags, uint8_t addr,
+                      uint8_t len, uint8_t *data) {
+    uint8_t cmd;
+    if (!ninedof_twi_wait_stop(&TWCR)) {
+      TWCR = 0;
+      twiOn();
+    }
+    TWCR = NINEDOF_TWCR_START;
+    (void)ninedof_twi_begin(&twi, read, flags, addr, len, data);
+    if (ninedof_twi_wait_twint(&TWCR)) {
+      cmd = ninedof_twi_started(&twi, TWSR & 0xF8);
+      TWDR = twi.out;
+      TWCR = cmd;
+      if (twi.state == NINEDOF_TWI_DONE)
+        post doneTask();                    /* lost at the START: no signal from inside the call */
+    }
+  }
+
   error_t begin(uint8_t id, uint8_t read, i2c_flags_t flags, uint16_t addr,
                 uint8_t len, uint8_t *data) {
     atomic {
@@ -145,6 +169,11 @@ implementation
         return EOFF;
       if (twi.state != NINEDOF_TWI_IDLE)
         return EBUSY;
+      if (flags & I2C_START) {
+        beginWithStart(read, flags, (uint8_t)addr, len, data);
+        return SUCCESS;
+      }
+      /* continuing the transfer left open (TWINT is set), or only a STOP */
       cmd = ninedof_twi_begin(&twi, read, flags, (uint8_t)addr, len, data);
       if (twi.state == NINEDOF_TWI_DONE) {
         if (twi.result != NINEDOF_TWI_OK) {   /* refused: nothing to do */
@@ -155,17 +184,7 @@ implementation
         post doneTask();                    /* no signal from inside the call */
         return SUCCESS;
       }
-      if (cmd & NINEDOF_TWSTA) {
-        /* a STOP still going out (one SCL period); bounded: if a slave
-         * holds SCL, the TWI is reset and the START waits for a free bus
-         * (the board's watchdog takes over if it never is) */
-        if (!ninedof_twi_wait_stop(&TWCR)) {
-          TWCR = 0;
-          twiOn();
-        }
-      } else {
-        TWDR = twi.out;                     /* continuing: TWINT is set */
-      }
+      TWDR = twi.out;
       TWCR = cmd;
     }
     return SUCCESS;

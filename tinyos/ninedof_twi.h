@@ -169,21 +169,23 @@ static inline uint8_t ninedof_twi_wait_stop(volatile uint8_t *twcr)
   return 1;
 }
 
-/* A START (or repeated START) is on the bus within about one SCL period
- * (22 cycles at TWBR 3), and then TWINT is set.  The master waits for it
- * where it asked for it, reading TWCR at most NINEDOF_TWI_START_SPINS
- * times (about 5 cycles each: 0.1 ms at 8 MHz, 7 SCL periods at 364 kHz),
- * and sends the address byte at once: an interrupt for it would cost the
- * handler's entry and exit, and it waits while interrupts are off (an
- * interrupt handler running the client's next command, the scheduler's
- * loop before it sleeps).  Returns 1 when TWINT is set; 0 when the START
- * has not come (the bus is busy: another master, a slave holding SCL),
- * and then the interrupt (TWIE, set with the START) takes it. */
-enum { NINEDOF_TWI_START_SPINS = 160 };
+/* The next TWINT, when it is due soon: a START (or repeated START) is on
+ * the bus within about one SCL period (22 cycles at TWBR 3), a byte
+ * within nine (198 cycles).  The master waits for it where it asked for
+ * it, reading TWCR at most NINEDOF_TWI_TWINT_SPINS times (about 5 cycles
+ * each: 0.1 ms at 8 MHz, 36 SCL periods at 364 kHz): after a START, to
+ * send the address byte at once; in the interrupt handler, for the first
+ * byte of an operation the client began from its done event.  Taking an
+ * interrupt instead costs the handler's entry and exit, and it waits
+ * while interrupts are off (the handler running the client's chain, the
+ * scheduler's loop before it sleeps).  Returns 1 when TWINT is set; 0
+ * when it has not come (the bus is busy: another master, a slave holding
+ * SCL), and then the interrupt (TWIE) takes it. */
+enum { NINEDOF_TWI_TWINT_SPINS = 160 };
 
 static inline uint8_t ninedof_twi_wait_twint(volatile uint8_t *twcr)
 {
-  uint8_t n = NINEDOF_TWI_START_SPINS;
+  uint8_t n = NINEDOF_TWI_TWINT_SPINS;
   while (!(*twcr & NINEDOF_TWINT))
     if (--n == 0)
       return 0;

@@ -128,6 +128,24 @@ implementation
       signal I2CPacket.writeDone[client](err, twi.sla >> 1, twi.len, twi.buf);
   }
 
+  /* The end of an operation, from the interrupt handler.  Its event may
+   * begin the client's next operation (a chip's data read after its
+   * register pointer, the next chip): that one's first byte is then on
+   * the wire, and its TWINT is waited for here (bounded) and served at
+   * once: returning would leave it to the scheduler's loop and a new
+   * entry to the handler, with SCL held meanwhile. */
+  void endFromHandler() {
+    uint8_t cmd;
+    signalDone();
+    if (twi.state < NINEDOF_TWI_ADDR || !ninedof_twi_wait_twint(&TWCR))
+      return;                               /* nothing on the wire, or not yet */
+    cmd = ninedof_twi_step(&twi, TWSR & 0xF8, TWDR);
+    TWDR = twi.out;
+    TWCR = cmd;
+    if (twi.state == NINEDOF_TWI_DONE)
+      signalDone();                         /* (an address NACK: at most once more) */
+  }
+
   task void doneTask() {
     atomic {
       if (twi.state == NINEDOF_TWI_DONE)
@@ -221,7 +239,7 @@ implementation
     TWDR = twi.out;
     TWCR = cmd;
     if (twi.state == NINEDOF_TWI_DONE)
-      NINEDOF_TWI_CALL_SAVING(signalDone);   /* no call-clobber prologue */
+      NINEDOF_TWI_CALL_SAVING(endFromHandler);   /* no call-clobber prologue */
   }
 
   default event void Resource.granted[uint8_t id]() { }

@@ -129,6 +129,21 @@ NINEDOF_TWI_FN uint8_t ninedof_twi_started(ninedof_twi_t *t, uint8_t status)
   return twi_started(t, status);
 }
 
+NINEDOF_TWI_FN uint8_t ninedof_twi_rx_more(const ninedof_twi_t *t, uint8_t status)
+{
+  if (t->state != NINEDOF_TWI_RX || status != NINEDOF_TW_MR_DATA_ACK || t->left < 2)
+    return 0;
+  return t->left > 2 ? NINEDOF_TWCR_NEXT_ACK : t->last;
+}
+
+NINEDOF_TWI_FN void ninedof_twi_rx_store(ninedof_twi_t *t, uint8_t data)
+{
+  uint8_t *p = t->p;
+  *p++ = data;
+  t->p = p;
+  t->left--;
+}
+
 NINEDOF_TWI_FN uint8_t ninedof_twi_step(ninedof_twi_t *t, uint8_t status, uint8_t data)
 {
   /* the states in order of frequency (20 of the 36 interrupts of a sample

@@ -207,6 +207,15 @@ NINEDOF_TWI_FN uint8_t ninedof_twi_begin(ninedof_twi_t *t, uint8_t read, uint8_t
  * TWCR command (.out for TWDR); state DONE when the operation has ended. */
 NINEDOF_TWI_FN uint8_t ninedof_twi_step(ninedof_twi_t *t, uint8_t status, uint8_t data);
 
+/* A byte read while more are to come (state RX, status MR_DATA_ACK, at
+ * least one byte left after this one): the command for the next byte, the
+ * same ninedof_twi_step would return; 0 otherwise (then ninedof_twi_step).
+ * The handler writes it to TWCR first and stores the byte after
+ * (ninedof_twi_rx_store, with TWDR read before): SCL is held only for the
+ * decision, and the bookkeeping runs while the next byte is on the wire. */
+NINEDOF_TWI_FN uint8_t ninedof_twi_rx_more(const ninedof_twi_t *t, uint8_t status);
+NINEDOF_TWI_FN void ninedof_twi_rx_store(ninedof_twi_t *t, uint8_t data);
+
 /* The START the current operation asked for has come (TWINT after the
  * START command; status = TWSR & 0xF8): what ninedof_twi_step does in that
  * state, for a master that waits for the START where it asked for it
@@ -215,6 +224,27 @@ NINEDOF_TWI_FN uint8_t ninedof_twi_step(ninedof_twi_t *t, uint8_t status, uint8_
  * START was asked.  State DONE if the START failed (arbitration lost, bus
  * error). */
 NINEDOF_TWI_FN uint8_t ninedof_twi_started(ninedof_twi_t *t, uint8_t status);
+
+/* One TWI interrupt, as every user of the machine runs it (the nesC
+ * master, the tests): TWSR and TWDR read, the command written to TWCR
+ * (TWDR first when a byte is to be sent).  Returns 1 when the operation
+ * has ended (state DONE: the caller reports its outcome). */
+static inline __attribute__((always_inline)) uint8_t
+ninedof_twi_interrupt(ninedof_twi_t *t, volatile uint8_t *twsr, volatile uint8_t *twdr,
+                      volatile uint8_t *twcr)
+{
+  uint8_t status = *twsr & 0xF8, data = *twdr;
+  uint8_t cmd = ninedof_twi_rx_more(t, status);
+  if (cmd) {                        /* a byte read, more to come */
+    *twcr = cmd;
+    ninedof_twi_rx_store(t, data);
+    return 0;
+  }
+  cmd = ninedof_twi_step(t, status, data);
+  *twdr = t->out;
+  *twcr = cmd;
+  return t->state == NINEDOF_TWI_DONE;
+}
 
 /* The watchdog gave up on the operation under way (the TWI is reset and
  * the bus cleared by the caller): state DONE, result ABORTED, no transfer

@@ -26,9 +26,7 @@ static ninedof_twi_t twi;
 
 ISR(TWI_vect)
 {
-  uint8_t cmd = ninedof_twi_step(&twi, TWSR & 0xF8, TWDR);
-  TWDR = twi.out;
-  TWCR = cmd;
+  (void)ninedof_twi_interrupt(&twi, &TWSR, &TWDR, &TWCR);
 }
 
 static uint8_t op(uint8_t read, uint8_t flags, uint8_t addr, uint8_t len, uint8_t *buf)

@@ -135,14 +135,10 @@ implementation
    * once: returning would leave it to the scheduler's loop and a new
    * entry to the handler, with SCL held meanwhile. */
   void endFromHandler() {
-    uint8_t cmd;
     signalDone();
     if (twi.state < NINEDOF_TWI_ADDR || !ninedof_twi_wait_twint(&TWCR))
       return;                               /* nothing on the wire, or not yet */
-    cmd = ninedof_twi_step(&twi, TWSR & 0xF8, TWDR);
-    TWDR = twi.out;
-    TWCR = cmd;
-    if (twi.state == NINEDOF_TWI_DONE)
+    if (ninedof_twi_interrupt(&twi, &TWSR, &TWDR, &TWCR))
       signalDone();                         /* (an address NACK: at most once more) */
   }
 
@@ -235,10 +231,7 @@ implementation
 
   /* ---- the TWI interrupt: one step, the command at once ---- */
   AVR_ATOMIC_HANDLER(SIG_2WIRE_SERIAL) {
-    uint8_t cmd = ninedof_twi_step(&twi, TWSR & 0xF8, TWDR);
-    TWDR = twi.out;
-    TWCR = cmd;
-    if (twi.state == NINEDOF_TWI_DONE)
+    if (ninedof_twi_interrupt(&twi, &TWSR, &TWDR, &TWCR))
       NINEDOF_TWI_CALL_SAVING(endFromHandler);   /* no call-clobber prologue */
   }
 

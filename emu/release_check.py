@@ -184,12 +184,9 @@ def pose_magnitudes(db: Path, session: str) -> dict:
     out = {}
     for m in data.motes:
         d = data.for_mote(m)
-        acc, mag = [], []
-        for k in d.poses():
-            sel = d.label == k
-            acc.append(np.linalg.norm(np.nanmean(d.physical("accel")[sel], axis=0)))
-            mag.append(np.linalg.norm(np.nanmean(d.physical("mag")[sel], axis=0)))
-        out[m] = {"poses": len(d.poses()), "acc": np.array(acc), "mag": np.array(mag),
+        out[m] = {"poses": len(d.poses()),
+                  "acc": np.linalg.norm(d.pose_means("accel"), axis=1),
+                  "mag": np.linalg.norm(d.pose_means("mag"), axis=1),
                   "flags": np.asarray(d.flags), "samples": len(d.flags),
                   "link": links["motes"].get(m, {})}
     return out

@@ -76,12 +76,8 @@ def magnitudes(db: Path, session: str) -> dict:
     out = {}
     for m in data.motes:
         d = data.for_mote(m)
-        acc, mag = [], []
-        for k in d.poses():
-            sel = d.label == k
-            acc.append(np.linalg.norm(np.nanmean(d.physical("accel")[sel], axis=0)))
-            mag.append(np.linalg.norm(np.nanmean(d.physical("mag")[sel], axis=0)))
-        out[m] = (np.array(acc), np.array(mag), bool(np.all(d.flags & 1)))
+        out[m] = (np.linalg.norm(d.pose_means("accel"), axis=1),
+                  np.linalg.norm(d.pose_means("mag"), axis=1), bool(np.all(d.flags & 1)))
     return out
 
 

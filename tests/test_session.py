@@ -43,3 +43,20 @@ def test_sample_times_from_seq_when_t_is_batch_receive_time():
     # unknown times: seq
     assert np.allclose(_data(np.full(n, np.nan), np.zeros((n, 9)), {"rate_hz": 50.0})
                        .sample_times(), np.arange(n) / 50.0)
+
+
+def test_pose_means_in_pose_order_at_the_session_scales():
+    """Each static pose's mean (missing values left out); free rows (label 0) ignored."""
+    label = np.array([0, 2, 2, 1, 1, 1, 0])
+    raw = np.zeros((7, 9))
+    raw[:, 0:3] = np.arange(21).reshape(7, 3)
+    raw[4, 1] = np.nan
+    d = SessionData("s", raw, np.ones(7), np.arange(7), np.arange(7) / 100.0, label,
+                    np.zeros(7), meta={})
+    k = d.physical("accel")[3] / raw[3, 0:3]                        # the session's scale
+    assert d.poses() == [1, 2]
+    assert np.allclose(d.pose_means("accel"),
+                       k * np.array([[12, (10 + 16) / 2, 14], [4.5, 5.5, 6.5]]))
+    empty = SessionData("s", raw, np.ones(7), np.arange(7), np.arange(7) / 100.0,
+                        np.zeros(7), np.zeros(7), meta={})
+    assert empty.pose_means("mag").shape == (0, 3)

@@ -13,7 +13,8 @@ MAX_DATA_BYTES = 2 << 30          # a data file (CSV, logs): 2 GiB
 MAX_JSON_BYTES = 64 << 20         # a cal.json or model file: 64 MiB
 
 
-def _kind(mode: int) -> str:
+def file_kind(mode: int) -> str:
+    """What a non-regular file is, in words (for one-line errors)."""
     for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"),
                        (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
                        (stat.S_ISSOCK, "a socket")):
@@ -32,7 +33,7 @@ def check_input_file(path, *, what: str = "", max_bytes: int | None = MAX_DATA_B
     except (OSError, ValueError) as e:
         raise UserError(f"cannot read {label}: {getattr(e, 'strerror', None) or e}") from None
     if not stat.S_ISREG(st.st_mode):
-        raise UserError(f"cannot read {label}: it is {_kind(st.st_mode)}, not a regular file")
+        raise UserError(f"cannot read {label}: it is {file_kind(st.st_mode)}, not a regular file")
     if max_bytes is not None and st.st_size > max_bytes:
         raise UserError(f"cannot read {label}: {st.st_size} bytes, more than the "
                         f"{max_bytes} such a file may have")

@@ -32,6 +32,7 @@ import stat
 import sys
 
 from .errors import UserError
+from .inputs import file_kind
 
 STDOUT = "-"
 SQLITE_MAGIC = b"SQLite format 3\x00"
@@ -55,15 +56,6 @@ def file_path(target) -> str | None:
     if "://" in t:
         return None
     return t
-
-
-def _kind(mode: int) -> str:
-    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"),
-                       (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
-                       (stat.S_ISSOCK, "a socket")):
-        if test(mode):
-            return name
-    return "not a regular file"
 
 
 def is_sqlite_file(path) -> bool:
@@ -118,7 +110,7 @@ def check_output(path, *, inputs=(), force: bool = False, what: str = "") -> str
         if stat.S_ISDIR(st.st_mode):
             raise UserError(f"cannot write {label}: it is a directory")
         if not stat.S_ISREG(st.st_mode):
-            raise UserError(f"refusing to replace {label}: it is {_kind(st.st_mode)}, not a "
+            raise UserError(f"refusing to replace {label}: it is {file_kind(st.st_mode)}, not a "
                             "regular file (use '-' for standard output)")
         if not force and is_sqlite_file(real):
             raise UserError(f"refusing to overwrite {label}: it is a sqlite database "

@@ -207,3 +207,10 @@ class SessionData:
     def poses(self) -> list[int]:
         """Static pose labels present, sorted."""
         return sorted(int(v) for v in np.unique(self.label) if v >= 1)
+
+    def pose_means(self, name: str) -> np.ndarray:
+        """(poses, 3) mean of each static pose of sensor ``name`` in physical
+        units at the session's scales, in the order of ``poses()``."""
+        x = self.physical(name)
+        return np.array([np.nanmean(x[self.label == k], axis=0) for k in self.poses()]
+                        ).reshape(-1, 3)

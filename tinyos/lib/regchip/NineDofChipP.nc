@@ -91,6 +91,13 @@ implementation
     return call I2CPacket.write(I2C_START, d->addr, d->read_len, buf);
   }
 
+  /* Its second: the data bytes after a repeated START, with STOP. */
+  inline error_t readData() __attribute__((always_inline)) {
+    const ninedof_chip_t *d = desc();
+    step = 1;
+    return call I2CPacket.read(I2C_START | I2C_STOP, d->addr, d->data_len, buf);
+  }
+
   /* Issue transfer `step` of the current operation. */
   error_t transfer() {
     const ninedof_chip_t *d = desc();
@@ -104,9 +111,7 @@ implementation
     case S_CONFIG:
       return writeReg(&d->config[step]);
     case S_READING:
-      if (step == 0)
-        return readCommand();
-      return call I2CPacket.read(I2C_START | I2C_STOP, d->addr, d->data_len, buf);
+      return step == 0 ? readCommand() : readData();
     case S_REGISTER:
       if (step == 0)
         return pointTo(reg);
@@ -286,9 +291,7 @@ implementation
    * two the bus is held (SCL low), so this path is kept short. */
   async event void I2CPacket.writeDone(error_t error, uint16_t a, uint8_t len, uint8_t *data) {
     if (error == SUCCESS && current() == S_READING) {
-      const ninedof_chip_t *d = desc();
-      step = 1;
-      error = call I2CPacket.read(I2C_START | I2C_STOP, d->addr, d->data_len, buf);
+      error = readData();
       if (error == SUCCESS)
         return;
     }

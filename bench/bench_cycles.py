@@ -209,7 +209,8 @@ def main() -> int:
            "<= 1500 cycles (#5)", asm["correct_9axes_temp"], "cycles",
            asm["correct_9axes_temp"] <= 1500, digits=4,
            note=f"gain terms on all 9 axes: {asm['correct_block5_temp'] / BATCH:.0f} per record "
-                f"in a batch of {BATCH}, the kernel's sums exact then the gain in C "
+                f"in a batch of {BATCH}, the kernel's sums exact, the gain term (G in "
+                f"Q30) from twelve 8x8 multiplies, the rounding in C "
                 f"({100 * asm['correct_block5_temp'] / BATCH * 125 / avrsim.F_CPU:.1f} % of "
                 "the CPU at 125 Hz)")
     period = avrsim.F_CPU / 125

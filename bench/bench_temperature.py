@@ -89,6 +89,7 @@ def mote_correction():
         # one set in force for the whole hold: the rounding residuals carry on
         # across the temperature updates, as on the mote
         cor = MC.Corrector(calset) if hasattr(MC, "Corrector") else None
+        b = P.NINEDOF_BATCH
         for j in range(0, len(raw), n):
             tin = None if j == 0 else int(np.rint(traw[j - n:j].mean()))
             if cor is None:
@@ -96,7 +97,13 @@ def mote_correction():
                 continue
             if tin is not None:
                 cor.set_temperature(tin)
-            out[j:j + n] = cor.correct(raw[j:j + n].astype(np.int16))
+                out[j:j + n] = cor.correct(raw[j:j + n].astype(np.int16))
+                continue
+            # the first second, before any mean: each batch at the TEMP_OUT
+            # of the read that completes it (NineDofAppP; sim.mote)
+            for i in range(j, min(j + n, len(raw)), b):
+                cor.set_temperature(int(traw[min(i + b, len(raw) - 1)]))
+                out[i:i + b] = cor.correct(raw[i:min(i + b, j + n)].astype(np.int16))
         sl = {"accel": slice(0, 3), "gyro": slice(3, 6), "mag": slice(6, 9)}
         return {s: out[:, sl[s]] / NOMINAL_SCALES[s] for s in phys}
     return run, None
@@ -229,8 +236,9 @@ def main(argv=None):
                    float(mo.max()), "x floor", bool(np.all(mo <= 2.0)),
                    note=f"median {np.median(mo):.2f}x; fixed-point set with temperature "
                         f"terms, the previous second's mean TEMP_OUT in force, from the "
-                        f"second second on (the first second, before any temperature, "
-                        f"is corrected at t_ref: median error {first[s]:.3g} {units[s]}); "
+                        f"second second on (the first second, before any mean, is "
+                        f"corrected at the latest single reading: median error "
+                        f"{first[s]:.3g} {units[s]}); "
                         f"whole counts rounded with error feedback: unbiased (plain "
                         f"rounding would give a still board up to half a count of bias, "
                         f"{0.5 / NOMINAL_SCALES[s]:.2g} {units[s]})")

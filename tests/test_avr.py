@@ -41,6 +41,16 @@ def _vectors(rng):
     # a set that is decodable but not valid: Q8 entries too big for Q14
     wild = FP.FixedSensor(np.array([[30000, -30000, 20000]] * 3), np.array([2**30, 0, -5]), 8)
     calsets.append(FP.pack_calset(MOTE + 1, 6, {"accel": wild, "gyro": fixed(), "mag": wild}))
+    # the magnetometer's clipping at its edges (offsets -1, +1, -1/2 count:
+    # raw -4095 gives exactly -4096, clipped), and temperature offsets on
+    # the gyroscope alone (its eff[], the others' s[]) at a temperature
+    edge = FP.FixedSensor(np.diag([16384] * 3), np.array([-16384, 16384, -8192]), 14)
+    calsets.append(FP.pack_calset(MOTE, 10, {"accel": fixed(), "gyro": fixed(), "mag": edge}))
+    temps.append(None)
+    offs_only = FP.FixedTemp(-16000, -19000, -12000, [30000, -20000, 111], [0, 0, 0], 22, 30)
+    calsets.append(FP.pack_calset(MOTE, 11, {n: fixed() for n in P.SENSORS},
+                                  {"gyro": offs_only}))
+    temps.append(-17500)
     # temperature terms (164-byte set), corrected at three temperatures: at
     # the reference, inside the range and clamped beyond it
     tf = FP.FixedTemp(-16000, -19000, -12000, [30000, -20000, 111], [9000, -30000, 5],
@@ -50,10 +60,21 @@ def _vectors(rng):
         calsets.append(FP.pack_calset(MOTE, v, temp_sensors,
                                       {"gyro": tf, "mag": tf, "accel": tf}))
         temps.append(t)
+    # G at exactly the 1/8 limit (gshift 20: G = g dT << 10, clamped beyond
+    # t_hi) and a gshift of 46 (G = g dT rounded to Q30)
+    edge = FP.FixedTemp(-16000, -20096, -11904, [1000, -3000, 0], [32, -32, 7], 14, 20)
+    fine = FP.FixedTemp(-16000, -19000, -12000, [30000, -20000, 111], [30000, -30000, 12345],
+                        40, 46)
+    for v, tf_, t in ((10, edge, -1000), (11, fine, -12500)):
+        calsets.append(FP.pack_calset(MOTE, v, temp_sensors,
+                                      {"gyro": tf_, "mag": tf_, "accel": tf_}))
+        temps.append(t)
     raw = rng.integers(-32768, 32768, (NREC, 9))
     raw[:8] = np.array([-32768, 32767, 0, -1, 1, -32767, 16384, -16384])[:, None]
     raw[8:40, 6:] = rng.integers(-2100, 2100, (32, 3))
     raw[40:60, 6 + rng.integers(0, 3, 20)] = -4096
+    edges = np.array([-4098, -4097, -4095, -4094, -4093, 4093, 4094, 4095, 4096, 4097])
+    raw[60:90, 6:] = rng.permutation(np.resize(edges, 90)).reshape(30, 3)
     raw = raw.astype(np.int16)
 
     # upload script: shuffled fragments with duplicates, a corrupted set, a
@@ -128,15 +149,15 @@ def test_correction_is_bit_identical_on_the_avr(avr_run):
         assert decode == 0 and valid == M.validate(cs, MOTE)
         got = _hex16(tok[5:]).reshape(-1, 9)
         np.testing.assert_array_equal(got, M.correct(cs, raw, t))
-    # the temperature terms changed the output, and stay within 1 LSB (and
-    # the terms' own rounding) of the float reference wherever it is not saturated
+    # the temperature terms changed the output, and stay within
+    # TEMP_BOUND_LSB (< 1 LSB, ninedof_cal.h) of the float reference
     assert len(calsets[-1]) == P.CALSET_TEMP_SIZE and M.validate(calsets[-1], MOTE) == 0
     assert not np.array_equal(M.correct(calsets[-1], raw, 20000), M.correct(calsets[-1], raw))
-    for cs, t in zip(calsets[-3:], temps[-3:]):
-        ref = FP.reference_correct(cs, raw, t)
-        ok = np.abs(ref) < 32000
-        err = np.abs(M.correct(cs, raw, t) - ref) - FP.temp_kernel_bound(cs, raw)
-        assert err[ok].max() < 1.0
+    for cs, t in zip(calsets, temps):
+        if len(cs) == P.CALSET_TEMP_SIZE:
+            assert M.validate(cs, MOTE) == 0
+            err = np.abs(M.correct(cs, raw, t) - FP.reference_correct(cs, raw, t))
+            assert err.max() < FP.TEMP_BOUND_LSB
     # the vectors did exercise saturation, overflow passthrough and raw sensors
     sat = M.correct(calsets[3], raw)
     assert np.any(sat[:, :6] == 32767) and np.any(sat[:, :6] == -32768)

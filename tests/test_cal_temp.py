@@ -60,9 +60,9 @@ def raw_records(rng, n):
 @given(st.integers(0, 2**32 - 1))
 def test_within_one_lsb_of_the_float_reference(seed):
     """Random valid sets with temperature terms on random sensors, at random
-    temperatures inside and outside the range: |C - reference| < 1 LSB plus
-    the documented error of the temperature terms before the output rounding
-    (fixedpoint.temp_kernel_bound: 2^-17 |A raw| + 2^-14 + 2^-15)."""
+    temperatures inside and outside the range: |C - reference| below
+    fixedpoint.TEMP_BOUND_LSB (1 - 2^-11, ninedof_cal.h), and the C output
+    is the integer model's (fixedpoint.feedback_correct) bit for bit."""
     rng = np.random.default_rng(seed)
     sensors = {n: random_fixed(rng) for n in P.SENSORS}
     names = [n for n in P.SENSORS if rng.random() < 0.7] or ["gyro"]
@@ -73,10 +73,12 @@ def test_within_one_lsb_of_the_float_reference(seed):
     worst = 0.0
     for t in [None] + [int(v) for v in rng.integers(-32768, 32768, 3)] + \
             [max(temps[names[0]].t_lo - 500, -32768), temps[names[0]].t_hi + 500]:
-        err = np.abs(M.correct(cs, raw, t) - FP.reference_correct(cs, raw, t)) \
-            - FP.temp_kernel_bound(cs, raw)
+        got = M.correct(cs, raw, t)
+        np.testing.assert_array_equal(got, FP.feedback_correct(cs, raw, None, t),
+                                      err_msg=f"seed {seed}, T {t}")
+        err = np.abs(got - FP.reference_correct(cs, raw, t))
         worst = max(worst, float(err.max()))
-    assert worst < 1.0, f"seed {seed}: {worst} LSB beyond the kernel's bound"
+    assert worst < FP.TEMP_BOUND_LSB, f"seed {seed}: {worst} LSB from the float reference"
 
 
 def test_clamped_outside_the_range_and_reference_at_t_ref():
@@ -359,3 +361,59 @@ def test_cli_dry_run_and_show_the_temperature_terms(cal_temp):
     lines = show_lines(inf, cal)
     assert sum("temperature: t_ref 25.00 C" in ln for ln in lines) == 2
     assert lines[-1].startswith("  equals ")
+
+
+# --------------------------------------------------------------------------
+# The first second after power-on: the latest TEMP_OUT reading, not t_ref
+# --------------------------------------------------------------------------
+def _booted_with(tmp_path, tset, celsius):
+    """A world whose mote 1 boots with `tset` in its EEPROM (slot 0) and a
+    board at temperature celsius(t) (t: seconds since power-on)."""
+    rx = M.CalReceiver(1)
+    assert _upload(rx, tset, 1)["status"] == P.CAL_OK
+    ee = bytearray(b"\xff" * M.EepromWriter.SIZE)
+    img = rx.image(1)
+    at = M.library().ninedof_slot_addr(0)
+    ee[at:at + len(img)] = img
+    path = tmp_path / "ee.json"
+    path.write_text(json.dumps({"format": "motecal-sim-eeprom", "motes": {"1": ee.hex()}}))
+    w = World(motes=1, session="idle", seed=4, duration=3600.0, eeprom=path)
+    w.motes[1].temperature_c = celsius
+    w.run_until(2.5)
+    return w
+
+
+def test_first_second_corrected_at_the_latest_reading(tmp_path):
+    """Before the first temperature message's mean, the simulated mote (as
+    the firmware, NineDofAppP) corrects each batch at the TEMP_OUT reading
+    of the read that completed it; a warm board is not corrected at t_ref."""
+    ft = FP.FixedTemp(int(P.temp_raw(25.0)), int(P.temp_raw(10.0)), int(P.temp_raw(50.0)),
+                      [30000, -30000, 20000], [0, 0, 0], 22, 30)       # 20-30 counts at 40 C
+    fs = FP.FixedSensor(np.eye(3, dtype=np.int64) << 14, [0, 0, 0], 14)
+    tset = FP.pack_calset(1, 1, {"gyro": fs}, {"gyro": ft})
+    # a constant 40 C: every sample from the first corrected at 40 C (-> 1 LSB)
+    w = _booted_with(tmp_path, tset, lambda t: np.full(np.shape(t), 40.0))
+    sent = w.sent[1]
+    at40 = M.correct(tset, sent.raw, int(P.temp_raw(40.0)))
+    base = M.correct(tset, sent.raw)                                   # at t_ref
+    assert np.all(sent.flags & P.FLAG_CORRECTED) and len(sent) > 250
+    assert np.abs(at40[:, 3:6].astype(int) - base[:, 3:6]).min() >= 15
+    assert np.abs(sent.records.astype(int) - at40).max() <= 1
+    # warming fast (3 C/s): batch by batch at the completing read's TEMP_OUT
+    # until the first mean (the mote's first temperature message)
+    warm = lambda t: 30.0 + 3.0 * np.asarray(t, float)                # noqa: E731
+    w = _booted_with(tmp_path, tset, warm)
+    mote, sent = w.motes[1], w.sent[1]
+    first = mote.temps[0][0]                    # newest sample of the first mean
+    seq, raw, got = sent.seq, sent.raw, sent.records
+    cor = M.Corrector(tset)
+    checked = 0
+    for k0 in range(0, first - 5, 5):
+        rows = (seq >= k0) & (seq < k0 + 5)
+        if rows.sum() != 5:
+            continue
+        t_read = int(np.rint(P.temp_raw(warm(mote.sample_times(k0 + 5, k0 + 6)))[0]))
+        cor.set_temperature(t_read)
+        np.testing.assert_array_equal(got[rows], cor.correct(raw[rows]), err_msg=f"k0 {k0}")
+        checked += 1
+    assert checked >= 10

@@ -209,9 +209,9 @@ def hold_errors(bc, model, board, seed: int, hold_s: float = 1200.0, mote_c=None
     """``thermal_error`` for every sensor of ``bc`` with a temperature model
     on one fresh hold: ``{sensor: {"uncompensated", "compensated", "floor",
     "mote" (the C correction, when ``mote_c(bc, raw, temp_raw_per_row)``
-    is given: its output in the unit; from the second second on, since the
-    mote has no temperature before its first second's mean -- that first
-    second's error is ``mote_first_s``)}}``.  The twin is kept at each
+    is given: its output in the unit; from the second second on, once the
+    mote has its first second's mean -- the first second, at single
+    readings, is ``mote_first_s``)}}``.  The twin is kept at each
     sensor's ``t_ref``."""
     traj = make_trajectory("idle", seed, duration=hold_s)
     t = board.sample_times(hold_s)

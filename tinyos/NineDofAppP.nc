@@ -24,7 +24,10 @@
  * and sent as a ninedof_mote_temp_msg every NINEDOF_TEMP_PERIOD_MS, from
  * its own buffer without acknowledgement, and the second's mean becomes
  * the temperature of the on-mote correction (Calibration.setTemperature)
- * for the next second.  The calibration
+ * for the next second.  Until the first mean (the first second after
+ * boot), the correction takes the latest single reading instead (set
+ * before each batch is corrected, when it changed), so a warming board is
+ * not corrected at the sensors' reference temperature.  The calibration
  * upload, the set in force and its EEPROM image are NineDofCalibrationC's
  * (lib/calibration); this module only reads the set in force
  * (NineDofCalibration) to correct and flag each batch.
@@ -117,6 +120,11 @@ implementation
   uint16_t readSeq;
   ninedof_align_t align;             /* the read waiting for its field */
   ninedof_temp_acc_t temps;          /* TEMP_OUT readings of this second */
+  /* before the first second's mean: the latest reading, for the correction */
+  int16_t tempLatest;
+  bool tempSeen = FALSE;             /* tempLatest holds a reading */
+  bool tempFresh = FALSE;            /* tempLatest changed, not yet in force */
+  bool tempMeanKnown = FALSE;        /* a second's mean is in force */
   ninedof_raw_t pending[PENDING];
   uint16_t pendingSeq[PENDING];
   uint8_t pendingHead, pendingCount;
@@ -244,8 +252,14 @@ implementation
     atomic {
       reading = FALSE;
 #ifndef NINEDOF_ITG_RATES_ONLY   /* (a comparison build without the temperature) */
-      if (err == SUCCESS)
+      if (err == SUCCESS) {
         ninedof_temp_add(&temps, readSeq, val.temp);   /* the temperature of sample readSeq */
+        if (!tempMeanKnown && (!tempSeen || val.temp != tempLatest)) {
+          tempLatest = val.temp;              /* a new reading for the correction */
+          tempSeen = TRUE;
+          tempFresh = TRUE;
+        }
+      }
 #endif
       if (err != SUCCESS) {
         counters.i2c_errors++;
@@ -305,6 +319,15 @@ implementation
   }
 
   task void processSamples() {
+    int16_t t;
+    bool fresh;
+    atomic {
+      fresh = tempFresh;
+      t = tempLatest;
+      tempFresh = FALSE;
+    }
+    if (fresh)                                /* no mean yet: the latest reading */
+      call Calibration.setTemperature(t);
     for (;;) {
       ninedof_raw_t v;
       uint16_t seq;
@@ -406,7 +429,13 @@ implementation
     ninedof_mote_temp_msg_t msg, *p;
     int16_t mean;
     uint8_t have;
-    atomic have = ninedof_temp_pack(&temps, &msg, &mean);
+    atomic {
+      have = ninedof_temp_pack(&temps, &msg, &mean);
+      if (have) {
+        tempMeanKnown = TRUE;                 /* from now on the second's mean */
+        tempFresh = FALSE;
+      }
+    }
     if (have)
       call Calibration.setTemperature(mean);
     if (tempBusy)

@@ -31,17 +31,41 @@
  * for a sensor with its bit in temp_sensors (its shift must be 14), with T
  * the temperature in force (ninedof_cal_set_temp: raw TEMP_OUT; until one
  * is set, each sensor's t_ref, i.e. no temperature term) and
- * dT = clamp(T, t_lo, t_hi) - t_ref, per row i:
- *   p_i   = sum_j a_ij raw_j                                (Q14, exact)
- *   out_i = sat((p_i + floor(p_i * g16 / 2^16) + c_i + O + 2^13) >> 14)
- * with g16 = round(g_i dT / 2^(gshift - 16)) (Q16, |g16| <= 2^13: at most
- * 1/8) and O = round(o_i dT / 2^(oshift - 14)) (Q14), both recomputed only
- * when T changes.  Against the exact value ((1 + g_i dT / 2^gshift) p_i + c_i)
- * / 2^14 + o_i dT / 2^oshift this is off by at most 2^-17 |p_i| / 2^14
- * (g16's rounding) + 2^-14 + 2^-15 before the final rounding (which adds
- * the residual r_i as above): with it, |out - exact| < 1 + 2^-13 LSB (the
- * float reference: fixedpoint.reference_correct) wherever the output is
- * not saturated (|p_i| / 2^14 < 47000 counts).
+ * dT = clamp(T, t_lo, t_hi) - t_ref, per row i, in Q14 units:
+ *   p   = sum_j a_ij raw_j                                  (exact)
+ *   G   = round(g_i dT 2^(30 - gshift))    (Q30, exact for gshift <= 30)
+ *   O   = round(o_i dT 2^(14 - oshift))    (Q14)
+ *   t   = floor((ph gh 2^16 + ph gl + pl gh) / 2^14)  with p = ph 2^16 + pl,
+ *         G = gh 2^16 + gl (16-bit halves, the high ones signed)
+ *   x'  = p + t + c_i + O,   out_i = sat((x' + r_i + 2^13) >> 14)
+ * G and O are recomputed only when T changes.  Offsets only (every G of
+ * the sensor 0) is the plain kernel with c + O and its residuals; with a
+ * gain, after each rounding the stored residual is clamped to
+ * [-(2^13 - E), 2^13 - E], E = NINEDOF_TEMP_MARGIN = 16 (e = 2^-10 LSB),
+ * and set_temp clamps it so on entering the gain path.
+ *
+ * Bound: with X = ((1 + g_i dT / 2^gshift) p + c_i) + o_i dT 2^(14-oshift)
+ * the exact value (Q14; fixedpoint.reference_correct, in LSB X / 2^14),
+ * |out_i - X / 2^14| < 1 - 2^-11 LSB for every valid set, T and input.
+ * Proof.  (1) d = |x' - X| < 6.25: p G / 2^30 - t is in [0, 5) (the
+ * dropped pl gl / 2^30 < 4, and the floor), |p| |G / 2^30 - g dT /
+ * 2^gshift| <= |p| 2^-31 < 0.75 (validation: |p| <= (32767 + 2 * 8192)
+ * 2^15 < 0.75 * 2^31), |O - o dT 2^(14-oshift)| <= 1/2.  (2) Rounding with
+ * error feedback: v = x' + r + 2^13, out 2^14 = v - 2^13 - r' with the new
+ * raw residual r' in [-2^13, 2^13), so out 2^14 - x' = r - r'; on the gain
+ * path the stored r is in [-(2^13 - E), 2^13 - E], hence |out 2^14 - x'|
+ * <= 2^14 - E, and |out - X / 2^14| <= (2^14 - E + d) / 2^14 < 1 - 9.75 /
+ * 2^14 < 1 - 2^-11.  Offsets only: t = 0, d <= 1/2, and r, r' are
+ * integers in [-2^13, 2^13), so |r - r'| <= 2^14 - 1 and the error is <=
+ * 1 - 2^-15.  Saturation (int16, the magnetometer's +-4095) clips out and
+ * the reference alike and clipping never increases a distance.  []
+ * The clamp costs the mean at most e per clamped sample: over N samples
+ * sum(out - x' / 2^14) = r_0 - r'_N + (what the clamps dropped), so the
+ * mean of N outputs is within (1 + e n_c) / N + d / 2^14 of the exact mean,
+ * n_c the clamped samples (a clamp needs |r'| > 1/2 - e: rare; e at worst).
+ * Validation keeps the sums in int32: |G| <= 1/8 (|G| <= 2^27 at both
+ * ends of the range), |O| <= 4096 counts, (9/8) sum_j |a_ij| 2^15 + |c_i|
+ * + |O| + 2^14 + 5 < 2^31; then |ph| <= 24576 and |gh| <= 2^11.
  */
 #ifndef NINEDOF_CAL_H
 #define NINEDOF_CAL_H
@@ -83,7 +107,10 @@ typedef struct {
 #define NINEDOF_OSHIFT_MAX 40
 #define NINEDOF_GSHIFT_MIN 16
 #define NINEDOF_GSHIFT_MAX 46
-#define NINEDOF_LIMIT_GAIN_Q16 8192          /* |g dT| <= 1/8 over the range */
+#define NINEDOF_LIMIT_GAIN_Q30 (1L << 27)    /* |g dT| <= 1/8 over the range */
+/* The gain path's residuals stay within [-(2^13 - E), 2^13 - E] (Q14): E =
+ * 16, e = E / 2^14 = 2^-10 LSB (the header comment's bound) */
+#define NINEDOF_TEMP_MARGIN 16u
 
 /* Native form of a calibration set */
 typedef struct {
@@ -102,7 +129,7 @@ typedef struct {
    * gain terms are all 0 (then the kernel alone is the whole correction) */
   ninedof_cal_sensor_native_t eff[NINEDOF_SENSORS];
   uint8_t gain_zero;                /* bit k: tg[k] all 0 */
-  int16_t tg[NINEDOF_SENSORS][3];   /* g16, Q16 */
+  int32_t tg[NINEDOF_SENSORS][3];   /* G = g dT / 2^gshift, Q30 */
 } ninedof_cal_t;
 
 /* Bytes of a set of the given format (0 for an unknown format). */
@@ -125,7 +152,8 @@ uint8_t ninedof_cal_decode(const void *wire, uint8_t len, ninedof_cal_t *out);
 uint8_t ninedof_cal_encode(const ninedof_cal_t *cal, void *wire);
 
 /* Put the board temperature `raw` (TEMP_OUT) in force for the temperature
- * terms: recomputes tc and tg (a few multiplications per sensor). */
+ * terms: recomputes eff[].c (c + O) and tg (G), a few multiplications per
+ * sensor, and limits the residuals of sensors on the gain path to 1/2 - e. */
 void ninedof_cal_set_temp(ninedof_cal_t *cal, int16_t raw);
 
 /* The raw (identity) set: no sensor corrected. */
@@ -136,8 +164,8 @@ void ninedof_cal_identity(ninedof_cal_t *cal, uint16_t mote, uint16_t version);
  * (diagonal, off-diagonal and offset limits above, scaled to the set's
  * shift, and sum_j |a_ij| * 32768 + |c_i| < 2^31 for every row; with
  * temperature terms, at both ends of the range: t_lo <= t_hi, |dT| <=
- * 32767, |g dT| <= 1/8, |O| <= 4096 counts, and the accumulator
- * (9/8) sum_j |a_ij| 32768 + |c_i| + |O| + 2^13 < 2^31). */
+ * 32767, |G| <= 2^27 (|g dT| <= 1/8), |O| <= 4096 counts, and the
+ * accumulator (9/8) sum_j |a_ij| 32768 + |c_i| + |O| + 2^14 + 5 < 2^31). */
 uint8_t ninedof_cal_validate(const ninedof_cal_t *cal, uint16_t my_id);
 
 /* Correct one record (9 axes, ax..mz) / n records, raw and out may alias.

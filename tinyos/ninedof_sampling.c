@@ -110,7 +110,9 @@ uint8_t ninedof_batch_add(ninedof_batch_t *b, uint16_t seq, const int16_t rec[9]
 uint8_t ninedof_batch_pack(ninedof_batch_t *b, ninedof_calrx_t *rx,
                            ninedof_samples_msg_t *msg)
 {
-  uint8_t i, k, n = b->count;
+  uint8_t k, n = b->count;
+  const int16_t *src = &b->rec[0][0];
+  uint8_t *dst = (uint8_t *)msg->rec;     /* n records of 9 big-endian int16 */
 
   if (n == 0)
     return 0;
@@ -118,10 +120,10 @@ uint8_t ninedof_batch_pack(ninedof_batch_t *b, ninedof_calrx_t *rx,
   nxp_set_u16(&msg->seq, b->seq);
   nxp_set_u8(&msg->flags, ninedof_calrx_flags(rx));
   nxp_set_u8(&msg->count, n);
-  for (i = 0; i < n; i++) {
-    nx_int16_t *dst = &msg->rec[i].ax;
-    for (k = 0; k < 9; k++)
-      nxp_set_i16(&dst[k], b->rec[i][k]);
+  for (k = (uint8_t)(9 * n); k; k--) {    /* one pointer each way (NINEDOF_BATCH <= 28) */
+    uint16_t v = (uint16_t)*src++;
+    *dst++ = (uint8_t)(v >> 8);
+    *dst++ = (uint8_t)v;
   }
   b->count = 0;
   return (uint8_t)(sizeof(msg->seq) + sizeof(msg->flags) + sizeof(msg->count) +

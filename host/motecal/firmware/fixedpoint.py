@@ -49,7 +49,7 @@ INPUT_RANGE = {"accel": 4096, "gyro": 32768, "mag": 2048}
 
 OSHIFT_MIN, OSHIFT_MAX = 14, 40      # ninedof_cal.h: NINEDOF_OSHIFT_MIN/MAX
 GSHIFT_MIN, GSHIFT_MAX = 16, 46      # NINEDOF_GSHIFT_MIN/MAX
-GAIN_LIMIT_Q16 = 8192                # |g dT| <= 1/8 over the range (NINEDOF_LIMIT_GAIN_Q16)
+GAIN_LIMIT_Q30 = 1 << 27             # |g dT| <= 1/8 over the range (NINEDOF_LIMIT_GAIN_Q30)
 INT16_MIN = -32768
 
 
@@ -320,7 +320,8 @@ def reference_correct(calset, raw, temp_raw=None) -> np.ndarray:
     sensor with temperature terms, at board temperature ``temp_raw`` (raw
     TEMP_OUT, one value or one per row; None: each sensor at its t_ref):
     ``(1 + g dT) (matrix @ raw) + offset + o dT`` with the stored
-    coefficients exactly; the mote is within 1 LSB of it (ninedof_cal.h).
+    coefficients exactly; the mote is within ``TEMP_BOUND_LSB`` (< 1 LSB)
+    of it (ninedof_cal.h).
     """
     cs = unpack_calset(calset) if isinstance(calset, (bytes, bytearray)) else calset
     raw = np.asarray(raw, np.float64).reshape(-1, 9)
@@ -351,30 +352,61 @@ Q14 = 14
 OUTPUT_ROUNDING_LSB = 1.0           # |output - exact| < 1 with error feedback
 
 
-def temp_kernel_bound(calset, raw) -> np.ndarray:
-    """How far the mote's exact value (before its output rounding) may be
-    from ``reference_correct`` for a set with temperature terms, per sample
-    and axis, in LSB (ninedof_cal.h): g16's rounding, 2^-17 |A raw|, plus
-    2^-14 + 2^-15 (O's rounding and the gain product's floor); 0 on sensors
-    without temperature terms.  The output is within 1 LSB more."""
-    cs = unpack_calset(calset) if isinstance(calset, (bytes, bytearray)) else calset
-    raw = np.asarray(raw, np.float64).reshape(-1, 9)
-    out = np.zeros_like(raw)
-    for name, ft in cs.temps.items():
-        if name in cs.sensors:
-            sl = SENSOR_SLICES[name]
-            out[:, sl] = np.abs(raw[:, sl] @ cs.sensors[name].matrix.T) * 2.0**-17 \
-                + 2.0**-14 + 2.0**-15
-    return out
+# The temperature path (ninedof_cal.h): G = g dT / 2^gshift in Q30, O in Q14,
+# the gain term t = floor((ph gh 2^16 + ph gl + pl gh) / 2^14), and on the
+# gain path the residual kept within 1/2 - e, e = TEMP_MARGIN / 2^14 LSB.
+TEMP_MARGIN = 16                    # NINEDOF_TEMP_MARGIN, Q14 units: e = 2^-10 LSB
+GAIN_SAT_Q30 = 1 << 28              # G saturates here (sets that fail validation only)
+# The mote's output against reference_correct for any valid set with
+# temperature terms, any temperature and input (ninedof_cal.h proves it):
+# |out - ref| <= 1 - e + d with d < 6.25 / 2^14 (the gain and offset terms'
+# own rounding), so strictly below this:
+TEMP_BOUND_LSB = 1.0 - 2.0**-11
 
 
-def feedback_round(x_q14, resid, limit: int = INT16_MAX) -> np.ndarray:
+def _round_shift(v, n: int):
+    """round(v / 2^n) half up, as the C round_shift (arithmetic shift)."""
+    v = np.asarray(v, np.int64)
+    return v if n == 0 else (v + (1 << (n - 1))) >> n
+
+
+def temp_terms(ft: FixedTemp, temp_raw) -> tuple[np.ndarray, np.ndarray]:
+    """G (3,) in Q30 and O (3,) in Q14 of one sensor at raw temperature
+    ``temp_raw`` (None: dT = 0), exactly as ``ninedof_cal_set_temp``."""
+    dt = 0 if temp_raw is None else int(ft.dt(temp_raw))
+    if abs(dt) > 32767:                 # never for a valid set
+        dt = 0
+    gd = np.asarray(ft.g, np.int64) * dt
+    if ft.gshift >= 30:
+        G = _round_shift(gd, ft.gshift - 30)
+    else:
+        lim = GAIN_SAT_Q30 >> (30 - ft.gshift)
+        G = np.clip(gd, -lim, lim) << (30 - ft.gshift)
+    G = np.clip(G, -GAIN_SAT_Q30, GAIN_SAT_Q30)
+    O = _round_shift(np.asarray(ft.o, np.int64) * dt, ft.oshift - Q14)
+    return G, O
+
+
+def gain_term(p, G) -> np.ndarray:
+    """The mote's t ~ p G / 2^30 (Q14) for p = A raw (int, Q14) and G (Q30):
+    floor((ph gh 2^16 + ph gl + pl gh) / 2^14), the halves of p and G as
+    16-bit words (ninedof_cal.c gain_term); p G / 2^30 - 5 < t <= p G / 2^30."""
+    p = np.asarray(p, np.int64)
+    G = np.asarray(G, np.int64)
+    ph, pl = p >> 16, p & 0xFFFF
+    gh, gl = G >> 16, G & 0xFFFF
+    return ((ph * gh << 16) + ph * gl + pl * gh) >> 14
+
+
+def feedback_round(x_q14, resid, limit: int = INT16_MAX, margin: int = 0) -> np.ndarray:
     """Round exact Q14 values ``x_q14`` ((n, 3) integers, one row per sample
     in sampling order) to whole counts as the mote does: per axis
     ``y = floor((x + r + 2^13) / 2^14)``, ``r = x + r - y 2^14`` (the residual,
-    in [-2^13, 2^13)).  A sample that saturates (outside int16, or beyond
-    +-``limit`` for the magnetometer's 4095) is clipped and sets its axis's
-    residual to 0.  ``resid`` ((3,) int64) is updated in place."""
+    in [-2^13, 2^13)); with ``margin`` m (the temperature gain path:
+    TEMP_MARGIN) r is then clipped to [-(2^13 - m), 2^13 - m].  A sample
+    that saturates (outside int16, or beyond +-``limit`` for the
+    magnetometer's 4095) is clipped and sets its axis's residual to 0.
+    ``resid`` ((3,) int64) is updated in place."""
     x = np.asarray(x_q14, np.int64).reshape(-1, 3)
     y = np.empty_like(x)
     r = resid
@@ -383,6 +415,8 @@ def feedback_round(x_q14, resid, limit: int = INT16_MAX) -> np.ndarray:
         v = x[i] + r + half
         yi = v >> Q14
         r[:] = v - half - (yi << Q14)
+        if margin:
+            np.clip(r, margin - half, half - margin, out=r)
         sat = (yi < -32768) | (yi > INT16_MAX)
         yi = np.clip(yi, -32768, INT16_MAX)
         if limit < INT16_MAX:
@@ -393,24 +427,36 @@ def feedback_round(x_q14, resid, limit: int = INT16_MAX) -> np.ndarray:
     return y
 
 
-def feedback_correct(calset, raw, resid=None) -> np.ndarray:
-    """The mote's int16 output for a set WITHOUT temperature terms, exactly
-    (integers; ``ninedof_correct_block``): ``a @ raw + c`` rescaled to Q14,
-    then ``feedback_round``; a magnetometer sample with an axis at -4096 is
-    (-4096,) * 3 and resets the magnetometer's residuals.  ``resid`` ((9,)
-    int64, updated in place) carries the residuals from block to block;
-    None: a freshly applied set (all 0)."""
+def feedback_correct(calset, raw, resid=None, temp_raw=None) -> np.ndarray:
+    """The mote's int16 output, exactly (integers; ``ninedof_correct_block``):
+    ``a @ raw + c`` rescaled to Q14, then ``feedback_round``; a magnetometer
+    sample with an axis at -4096 is (-4096,) * 3 and resets the
+    magnetometer's residuals.  ``resid`` ((9,) int64, updated in place)
+    carries the residuals from block to block; None: a freshly applied set
+    (all 0).  A sensor with temperature terms at ``temp_raw`` (the
+    temperature put in force before this block, ``ninedof_cal_set_temp``;
+    None: none yet, each sensor at its t_ref) adds O, and where a gain G is
+    not 0 the gain term ``gain_term(A raw, G)`` with the residual kept
+    within 1/2 - e (clipped on entry, as set_temp does, and after every
+    rounding)."""
     cs = unpack_calset(calset) if isinstance(calset, (bytes, bytearray)) else calset
-    if cs.temps:
-        raise ValueError("feedback_correct: a set with temperature terms")
     raw = np.asarray(raw, np.int64).reshape(-1, 9)
     resid = np.zeros(9, np.int64) if resid is None else resid
     out = raw.copy()
     for name, fs in cs.sensors.items():
         sl = SENSOR_SLICES[name]
-        x = (raw[:, sl] @ np.asarray(fs.a, np.int64).T + np.asarray(fs.c, np.int64)) \
-            << (Q14 - fs.shift)
+        p = raw[:, sl] @ np.asarray(fs.a, np.int64).T
+        x = (p + np.asarray(fs.c, np.int64)) << (Q14 - fs.shift)
         r = resid[sl]
+        margin = 0
+        ft = cs.temps.get(name)
+        if ft is not None and temp_raw is not None:
+            G, O = temp_terms(ft, temp_raw)
+            x = x + O
+            if np.any(G != 0):
+                x = x + gain_term(p, G)
+                margin = TEMP_MARGIN
+                np.clip(r, margin - (1 << (Q14 - 1)), (1 << (Q14 - 1)) - margin, out=r)
         if name == "mag":
             y = np.empty_like(x)
             over = np.any(raw[:, sl] == HMC5883L_OVERFLOW, axis=1)
@@ -419,9 +465,9 @@ def feedback_correct(calset, raw, resid=None) -> np.ndarray:
                     y[i] = HMC5883L_OVERFLOW
                     r[:] = 0
                 else:
-                    y[i] = feedback_round(x[i:i + 1], r, MAG_LIMIT)[0]
+                    y[i] = feedback_round(x[i:i + 1], r, MAG_LIMIT, margin)[0]
         else:
-            y = feedback_round(x, r)
+            y = feedback_round(x, r, margin=margin)
         resid[sl] = r
         out[:, sl] = y
     return out

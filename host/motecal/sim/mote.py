@@ -177,6 +177,9 @@ class SimMote:
         self.temps: list[tuple] = []         # (newest sample k, count, temp_sum) of each
         self._temp_k = 0                     # first sample not yet in a temperature sum
         self.temperature_c = board_temperature(sampler)
+        self._temp_reads = bool(temperature)  # the image reads TEMP_OUT
+        self._temp_mean = False              # a second's mean is in force
+        self._temp_latest = None             # before it: the reading in force
         self._schedule_batch()
         self.loop.at(rng.random() * self.status_period, self._status, None)
         if temperature:
@@ -223,6 +226,7 @@ class SimMote:
         flags = self._flags
         rec = raw
         if self.cal is not None:
+            self._early_temperature(k1)
             if flags & P.FLAG_CORRECTED:
                 rec = np.asarray(self.cal.correct(raw), np.int16)
         if len(self.queue) >= QUEUE_LEN:
@@ -338,6 +342,23 @@ class SimMote:
         self.loop.at(now + self.status_period, self._status, None)
 
     # ------------------------------------------------------------- temperature
+    def _temp_raw(self, k0: int, k1: int) -> np.ndarray:
+        """The raw TEMP_OUT readings of samples k0..k1-1."""
+        return np.clip(np.rint(P.temp_raw(self.temperature_c(self.sample_times(k0, k1)))),
+                       -32768, 32767).astype(np.int64)
+
+    def _early_temperature(self, k1: int) -> None:
+        """As the firmware (NineDofAppP processSamples): until the first
+        second's mean is in force, the batch that the read of sample k1
+        completes is corrected at that read's own TEMP_OUT (set when it
+        changed), not at the sensors' reference temperature."""
+        if self._temp_mean or not self._temp_reads or not hasattr(self.cal, "set_temperature"):
+            return
+        t = int(self._temp_raw(k1, k1 + 1)[0])
+        if t != self._temp_latest:
+            self._temp_latest = t
+            self.cal.set_temperature(t)
+
     def _temperature(self, _) -> None:
         """The temperature message: every sample read since the last one
         contributed its raw TEMP_OUT reading (the burst read of the gyroscope)."""
@@ -347,8 +368,7 @@ class SimMote:
         k1 = self.generated(now)
         k0 = self._temp_k
         self._temp_k = k1
-        raw = np.clip(np.rint(P.temp_raw(self.temperature_c(self.sample_times(k0, k1)))),
-                      -32768, 32767).astype(np.int64)
+        raw = self._temp_raw(k0, k1)
         count = min(k1 - k0, 255)
         total = int(raw[len(raw) - count:].sum())
         newest = k1 - 1
@@ -359,6 +379,7 @@ class SimMote:
             # ninedof_temp_pack) is the on-mote correction's temperature from now on
             mean = (abs(total) + count // 2) // count
             self.cal.set_temperature(mean if total >= 0 else -mean)
+            self._temp_mean = True
         if self.temp_msg is not None:                 # the last one is still on its way
             self.temp_dropped += 1
         else:

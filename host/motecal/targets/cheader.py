@@ -83,10 +83,9 @@ def apply_fns(calset: bytes) -> dict:
             raw = np.asarray(raw, float)
             full = np.zeros((len(raw), 9))
             full[:, SENSOR_SLICES[s]] = raw
-            if cs.temps:                 # no exact model: the float value rounded
-                y = np.floor(FP.reference_correct(cs, full)[:, SENSOR_SLICES[s]] + 0.5)
-            else:
-                y = FP.feedback_correct(cs, full)[:, SENSOR_SLICES[s]]
+            # (a set with temperature terms: at each sensor's t_ref, as
+            # the mote before it has a temperature)
+            y = FP.feedback_correct(cs, full)[:, SENSOR_SLICES[s]]
             return y / NOMINAL_SCALES[s]
         out[s] = f
     return out

@@ -157,10 +157,10 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
     findings: list[Finding] = []
     screens: list[SC.Screen] = []
 
-    def decide(sensor, cause, p, g, practical=True, fitted=True, wins=None):
+    def decide(sensor, cause, p, g, practical=True, fitted=True, wins=None, paired_p=None):
         if force is not None:
             return (sensor, cause) in force
-        return G.accepted(p, a_test, g if fitted else None, practical, wins)
+        return G.accepted(p, a_test, g if fitted else None, practical, wins, paired_p)
 
     def record(sensor, cause, p, kept, **kw):
         tests.append({"sensor": sensor, "cause": cause, "p": _num(p), "level": _num(a_test),
@@ -260,7 +260,7 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
             before, after = st.heldout.get(c, (None, None))
             g = before / after if before and after else None
             ok = decide(s, c, min(t.p for t in st.tests if t.cause == c), g,
-                        wins=st.fold_wins.get(c))
+                        wins=st.fold_wins.get(c), paired_p=st.heldout_p.get(c))
             for t in tests:
                 if t["sensor"] == s and t["cause"] == c:
                     t["kept"] = ok
@@ -269,7 +269,9 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
             else:
                 notes.append(f"{s}: {c} passed the F-test but not the held-out check "
                              f"(gain {g if g is None else round(g, 3)}, better in "
-                             f"{st.fold_wins.get(c)} of {ST.KFOLD} folds); not kept")
+                             f"{st.fold_wins.get(c)} of {ST.KFOLD} folds"
+                             + (f", held-out points' paired test p {st.heldout_p[c]:.2g}"
+                                if st.heldout_p.get(c) is not None else "") + "); not kept")
         fd = _excess_finding(s, st, o, sobs, structures, a_test, record, mot, force)
         if fd is not None:
             findings.append(fd)

@@ -40,7 +40,8 @@ def render(d) -> str:
     out.append("")
     out.append(f"2-4. Causes, extension and gain ({d.n_tests} tests; a finding needs "
                f"p < {d.alpha:g}/{d.n_tests} = {level:.2g}, and a fitted term a held-out "
-               f"gain > 1 in >= {MIN_FOLD_WINS} of 5 folds):")
+               f"gain > 1 in >= {MIN_FOLD_WINS} of 5 folds, or under tremor by a paired "
+               f"test of its held-out points):")
     if d.clean:
         out.append("   clean: nothing beyond the paper's starting model.")
     for f in d.findings:

@@ -14,9 +14,17 @@ and the bias b unknown, by weighted least squares (a complementary
 smoother over the block: the gyroscope gives the shape of the tremor, the
 directions where it leads).  Gravity shows the turn across itself, the field
 the turn about gravity.  Using the whole path rather than the directions at
-the block's two ends, and the hold's edges beyond the still stretch while
-the gyroscope says the board has not turned yet (``EXTEND_DEG``), is what
-makes the estimate useful: a slope over T is known as T^-1.5.  The
+the block's two ends, and the hold's edges beyond the still stretch, is what makes the estimate
+useful: a slope over T is known as T^-1.5.  An unlabelled session's still
+stretches are cut well inside the holds (1.1 of 1.7 s in the bench's fast
+hand sessions): the accelerometer's span is widened while the gyroscope's
+turn from the block's end stays within the turn the tremor made inside
+the block, less ``BACK_S`` (the accelerometer reads a move's own
+acceleration -- the sensor sits off the turning point: angular acceleration
+times the lever arm -- from the move's first instant, before the board has
+turned by a tenth of a degree); the magnetometer, which feels no
+acceleration, is followed further, into the moves' first degrees
+(``MAG_EXTEND_DEG``).  The
 estimate's variance (the gyroscope's white noise, plus the directions'
 noise through the least squares, scaled by the paths' own leftovers)
 replaces the block mean's, so the tests downstream weigh each block by what
@@ -36,9 +44,13 @@ from .prepare import SensorObs
 
 MIN_ROWS = 20            # readings of a reference sensor a block needs
 MIN_PATH_S = 0.5         # shorter blocks: no turn measured, left out
-EXTEND_S = 0.5           # a block's span is widened over moving readings by at most this ...
-EXTEND_DEG = 0.1         # ... while the board stays this close to the block's end (0.2-0.3 deg
-                         # reach into the moves, whose edges the linear model does not fit)
+EXTEND_S = 0.5           # a block's accelerometer span reaches at most this far into the
+                         # neighbouring moving readings (a still stretch is cut 0.2-0.3 s
+                         # inside its hold: the stillness is judged over windows) ...
+BACK_S = 0.05            # ... and stops this long before the board leaves the tremor's reach
+MAG_EXTEND_S = 0.8       # the magnetometer's readings are used further, into the moves' first
+MAG_EXTEND_DEG = 3.0     # degrees: it feels no acceleration (the accelerometer reads the
+                         # moves' own, a lever arm times the angular acceleration)
 NW_LAGS = 16           # readings (0.13 s at 125 Hz) over which leftovers may be correlated
 MAX_CHI2 = 4.0          # the sensors' turns must agree (median chi-square per dof of the blocks)
 
@@ -54,16 +66,21 @@ def _gyro_turn(gyr: SensorObs, t0: float, t1: float):
     if len(sel) < 10:
         return None
     tg = gyr.t[sel]
-    dt = np.diff(tg, prepend=tg[0])
-    return tg, np.radians(np.cumsum(gyr.x[sel] / gyr.K * dt[:, None], axis=0))
+    w = gyr.x[sel] / gyr.K
+    # the rate is an instantaneous reading: trapezoids (a rectangle rule
+    # delays the turn by half a sample, which matters where the board turns)
+    th = np.zeros_like(w)
+    th[1:] = np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(tg)[:, None], axis=0)
+    return tg, np.radians(th)
 
 
-def _path_bias(gyr: SensorObs, refs: list, t0: float, t1: float):
+def _path_bias(gyr: SensorObs, refs: list, t0: float, t1: float, spans: dict | None = None):
     """The gyro's bias over [t0, t1] from the whole path: every reading of
     the reference sensors (calibrated directions u_k) against the gyro's
     integrated turn theta(t) less the bias b: u_k = c + [u0]x (theta(t_k) -
     b (t_k - tm)), with a constant c per sensor and b (rad/s) unknown,
-    solved by weighted least squares.  Returns (b rad/s, its covariance
+    solved by weighted least squares.  ``spans``: a narrower time span per
+    sensor name (the accelerometer's, where the board did not move).  Returns (b rad/s, its covariance
     from the directions, sum of squared weighted residuals, their degrees
     of freedom, the time span) or None."""
     g = _gyro_turn(gyr, t0, t1)
@@ -74,7 +91,8 @@ def _path_bias(gyr: SensorObs, refs: list, t0: float, t1: float):
     tm = 0.5 * (t0 + t1)
     rows_b = []
     for r, cal in refs:
-        sel = np.flatnonzero((r.t >= t0) & (r.t <= t1) & ~r.overflow)
+        a, z = (spans or {}).get(r.sensor, (t0, t1))
+        sel = np.flatnonzero((r.t >= a) & (r.t <= z) & ~r.overflow)
         if len(sel) < MIN_ROWS:
             continue
         m = np.asarray(cal(r.x[sel], r.t[sel]), float)
@@ -134,15 +152,16 @@ def _path_bias(gyr: SensorObs, refs: list, t0: float, t1: float):
     return beta[3 * nref:], cb, float(e @ (w * e)), max(1, dof), float(tg[-1] - tg[0]), ac
 
 
-def _extended(gyr: SensorObs, rows: np.ndarray, rate_mean: np.ndarray):
-    """The block's time span, widened over the neighbouring moving readings
-    while the board stays within ``EXTEND_DEG`` of its orientation at the
-    block's end (the gyroscope's integrated turn, less the block's mean
-    rate as its rough bias), at most ``EXTEND_S`` each way: a still stretch
-    is cut well inside the hold (its ends trimmed, the stillness judged over
-    windows), and the slope that gives the bias is known as T^-1.5."""
+def _extended(gyr: SensorObs, rows: np.ndarray, rate_mean: np.ndarray,
+              reach_s: float = MAG_EXTEND_S, reach_deg: float = MAG_EXTEND_DEG):
+    """The block's time span for the magnetometer, widened over the
+    neighbouring moving readings while the board stays within ``reach_deg``
+    of its orientation at the block's end (the gyroscope's integrated turn,
+    less the block's mean rate as its rough bias), at most ``reach_s`` each
+    way: the slope that gives the bias is known as T^-1.5, and the small-angle
+    model holds to a few degrees."""
     t0, t1 = float(gyr.t[rows[0]]), float(gyr.t[rows[-1]])
-    if gyr.moving is None or EXTEND_S <= 0:
+    if gyr.moving is None or reach_s <= 0:
         return t0, t1
     out = []
     for end, step in ((rows[0], -1), (rows[-1], 1)):
@@ -151,14 +170,48 @@ def _extended(gyr: SensorObs, rows: np.ndarray, rate_mean: np.ndarray):
         while True:
             j = k + step
             if j < 0 or j >= gyr.n or not gyr.moving[j] \
-                    or abs(gyr.t[j] - gyr.t[end]) > EXTEND_S:
+                    or abs(gyr.t[j] - gyr.t[end]) > reach_s:
                 break
             dt = abs(gyr.t[j] - gyr.t[k])
             ang = ang + (gyr.x[j] - rate_mean) / gyr.K * dt
-            if float(np.linalg.norm(ang)) > EXTEND_DEG:
+            if float(np.linalg.norm(ang)) > reach_deg:
                 break
             k = j
         out.append(float(gyr.t[k]))
+    return out[0], out[1]
+
+
+def _still_span(gyr: SensorObs, rows: np.ndarray, rate_mean: np.ndarray,
+                back_s: float = BACK_S, reach_s: float = EXTEND_S):
+    """The hold's still span around a block: widened over the neighbouring
+    moving readings while the gyroscope's turn from the block's end stays
+    within the turn the tremor made inside the block, then pulled back by
+    ``back_s`` (a move's acceleration starts before its turn leaves the
+    tremor's reach)."""
+    t0, t1 = float(gyr.t[rows[0]]), float(gyr.t[rows[-1]])
+    if gyr.moving is None or reach_s <= 0:
+        return t0, t1
+    out = []
+    for end, step in ((rows[0], -1), (rows[-1], 1)):
+        # the tremor's reach inside the block, seen from this end
+        inner = rows[::-step]
+        dt_in = np.abs(np.diff(gyr.t[inner], prepend=gyr.t[inner[0]]))
+        path = np.cumsum((gyr.x[inner] - rate_mean) / gyr.K * dt_in[:, None], axis=0)
+        reach = float(np.max(np.linalg.norm(path, axis=1)))
+        k = end
+        ang = np.zeros(3)
+        while True:
+            j = k + step
+            if j < 0 or j >= gyr.n or not gyr.moving[j] \
+                    or abs(gyr.t[j] - gyr.t[end]) > reach_s:
+                break
+            dt = abs(gyr.t[j] - gyr.t[k])
+            ang = ang + (gyr.x[j] - rate_mean) / gyr.K * dt
+            if float(np.linalg.norm(ang)) > reach:
+                break
+            k = j
+        te = float(gyr.t[k]) - step * back_s
+        out.append(min(te, t0) if step < 0 else max(te, t1))
     return out[0], out[1]
 
 
@@ -175,10 +228,12 @@ def turn_corrected(gyr: SensorObs, refs: list) -> SensorObs | None:
         return None
     sols = {}
     for i, rows in enumerate(b.rows):
-        t0, t1 = _extended(gyr, rows, b.mean[i])
+        t0, t1 = _still_span(gyr, rows, b.mean[i])
         if t1 - t0 < MIN_PATH_S:
             continue
-        sol = _path_bias(gyr, refs, t0, t1)
+        m0, m1 = _extended(gyr, rows, b.mean[i])
+        m0, m1 = min(m0, t0), max(m1, t1)
+        sol = _path_bias(gyr, refs, m0, m1, {"accel": (t0, t1)})
         if sol is not None:
             sols[i] = sol
     if not sols:

@@ -267,6 +267,19 @@ int chip_addr(emu_chip_t *c, int read, uint64_t now)
     return 1;
 }
 
+/* The register pointer after an access to reg.  The HMC5883L's (datasheet
+ * rev. E, "I2C Communication Protocol"): "if (address pointer = 08) then
+ * address pointer = 03, else if (address pointer >= 12) then address
+ * pointer = 0, else (address pointer) = (address pointer) + 1": a burst
+ * through the data registers starts over at X MSB, and a read without a
+ * pointer write after one reads the data again. */
+static uint8_t next_ptr(const emu_chip_t *c, uint8_t reg)
+{
+    if (c->kind != CHIP_HMC5883L)
+        return (uint8_t)(reg + 1);
+    return (uint8_t)(reg == 0x08 ? 0x03 : reg >= 12 ? 0 : reg + 1);
+}
+
 int chip_write(emu_chip_t *c, uint8_t v, uint64_t now)
 {
     if (!powered(c, now))
@@ -283,7 +296,7 @@ int chip_write(emu_chip_t *c, uint8_t v, uint64_t now)
     case CHIP_ITG3200: itg_write(c, reg, v, now); break;
     case CHIP_HMC5883L: hmc_write(c, reg, v, now); break;
     }
-    c->ptr = (uint8_t)(c->kind == CHIP_HMC5883L && reg >= 12 ? 0 : reg + 1);
+    c->ptr = next_ptr(c, reg);
     return 1;
 }
 
@@ -321,7 +334,7 @@ uint8_t chip_read(emu_chip_t *c, uint64_t now)
         }
         break;
     }
-    c->ptr = (uint8_t)(c->kind == CHIP_HMC5883L ? (reg >= 12 ? 0 : reg + 1) : reg + 1);
+    c->ptr = next_ptr(c, reg);
     return v;
 }
 

@@ -159,6 +159,21 @@ def test_hmc5883l_single_measurement_takes_6_ms(plain):
     assert hmc2 != hmc8
 
 
+def test_hmc5883l_pointer_rolls_back_to_the_data(plain):
+    # HMC5883L datasheet rev. E, "I2C Communication Protocol": the pointer
+    # moves on by one after each register, except that from 08 (Y LSB, the
+    # last data byte) it rolls back to 03 (X MSB) and from 12 or above it
+    # goes to 00.  So a read without a pointer write after a read of the six
+    # data registers gets them again (a seventh byte is X MSB again), and
+    # after the identification registers (0x0A..0x0C) it reads CRA, CRB.
+    _, lines, _ = plain
+    hmc8 = next(ln for ln in lines if ln.startswith("HMC8")).split()[1]
+    r1, six, r2, seven, r3, two = next(ln for ln in lines if ln.startswith("HMCP")).split()[1:]
+    assert (r1, r2, r3) == ("0", "0", "0")
+    assert six == hmc8 and seven == hmc8 + hmc8[:2]
+    assert two == "1820"                     # CRA, CRB of tinyos/ninedof_board.c
+
+
 def test_bus_timing_follows_twbr(plain):
     # TWBR = 3, no prescaler: SCL period 16 + 2 * 3 = 22 cycles; a byte is 9
     # periods, so no two bytes end closer than 198 cycles = 24.75 us at 8 MHz

@@ -51,6 +51,8 @@ uint8_t ninedof_fault_tick(ninedof_fault_t *f, uint16_t now_ms)
 uint8_t ninedof_fault_check_pick(ninedof_fault_t *f)
 {
   uint8_t chip;
+  if (!f->check_mask)               /* the common case, at the end of every sample */
+    return NINEDOF_CHECK_NONE;
   for (chip = 0; chip < NINEDOF_CHIPS; chip++) {
     if (f->check_mask & (1u << chip)) {
       f->check_mask &= (uint8_t)~(1u << chip);

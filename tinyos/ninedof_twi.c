@@ -20,8 +20,9 @@
 
 void ninedof_twi_init(ninedof_twi_t *t)
 {
-  t->buf = 0;
-  t->len = t->idx = t->sla = t->flags = t->out = 0;
+  t->buf = t->p = 0;
+  t->len = t->left = t->sla = t->flags = t->out = 0;
+  t->last = NINEDOF_TWCR_NEXT;
   t->state = NINEDOF_TWI_IDLE;
   t->result = NINEDOF_TWI_OK;
   t->open = 0;
@@ -50,21 +51,32 @@ TWI_INLINE uint8_t twi_fail(ninedof_twi_t *t, uint8_t result, uint8_t cmd)
   return cmd;
 }
 
-/* Command for receiving byte number idx (0-based): ACK unless it is the
- * last one and ACK_END is not set. */
-TWI_INLINE uint8_t twi_rx_cmd(const ninedof_twi_t *t, uint8_t idx)
+/* Command for receiving the next byte: ACK while more are to come after
+ * it; the last one ACKed only with ACK_END. */
+TWI_INLINE uint8_t twi_rx_cmd(const ninedof_twi_t *t)
 {
-  return (uint8_t)(idx + 1) < t->len || (t->flags & NINEDOF_I2C_ACK_END)
-      ? NINEDOF_TWCR_NEXT_ACK : NINEDOF_TWCR_NEXT;
+  return t->left > 1 ? NINEDOF_TWCR_NEXT_ACK : t->last;
+}
+
+/* The next byte to send, or the end of the operation */
+TWI_INLINE uint8_t twi_tx(ninedof_twi_t *t)
+{
+  uint8_t *p = t->p;
+  if (t->left == 0)
+    return twi_finish(t);
+  t->left--;
+  t->out = *p++;
+  t->p = p;
+  return NINEDOF_TWCR_NEXT;
 }
 
 NINEDOF_TWI_FN uint8_t ninedof_twi_begin(ninedof_twi_t *t, uint8_t read, uint8_t flags,
                                          uint8_t addr, uint8_t len, uint8_t *buf)
 {
   read = read ? 1 : 0;
-  t->buf = buf;
-  t->len = len;
-  t->idx = 0;
+  t->buf = t->p = buf;
+  t->len = t->left = len;
+  t->last = (flags & NINEDOF_I2C_ACK_END) ? NINEDOF_TWCR_NEXT_ACK : NINEDOF_TWCR_NEXT;
   t->flags = flags;
   t->sla = (uint8_t)((addr & 0x7F) << 1) | read;
   t->out = t->sla;
@@ -84,66 +96,92 @@ NINEDOF_TWI_FN uint8_t ninedof_twi_begin(ninedof_twi_t *t, uint8_t read, uint8_t
     return twi_finish(t);           /* only a STOP (or nothing) */
   if (read) {
     t->state = NINEDOF_TWI_RX;
-    return twi_rx_cmd(t, 0);
+    return twi_rx_cmd(t);
   }
   t->state = NINEDOF_TWI_TX;
-  t->out = buf[0];
-  t->idx = 1;
-  return NINEDOF_TWCR_NEXT;
+  return twi_tx(t);
+}
+
+/* Any status a step does not expect: arbitration lost (the bus is left to
+ * the other master), else a bus error. */
+TWI_INLINE uint8_t twi_unexpected(ninedof_twi_t *t, uint8_t status)
+{
+  if (status == NINEDOF_TW_ARB_LOST)
+    return twi_fail(t, NINEDOF_TWI_ARB_LOST, NINEDOF_TWCR_RELEASE);
+  return twi_fail(t, NINEDOF_TWI_BUS_ERROR, NINEDOF_TWCR_STOP);
+}
+
+/* The START (or repeated START) is on the bus: the address byte next. */
+TWI_INLINE uint8_t twi_started(ninedof_twi_t *t, uint8_t status)
+{
+  if (status == NINEDOF_TW_START || status == NINEDOF_TW_REP_START) {
+    /* out is still the address byte ninedof_twi_begin set */
+    t->state = NINEDOF_TWI_ADDR;
+    return NINEDOF_TWCR_NEXT;
+  }
+  return twi_unexpected(t, status);
+}
+
+NINEDOF_TWI_FN uint8_t ninedof_twi_started(ninedof_twi_t *t, uint8_t status)
+{
+  if (t->state != NINEDOF_TWI_START)
+    return NINEDOF_TWCR_IDLE;       /* no START asked: nothing to do */
+  return twi_started(t, status);
+}
+
+NINEDOF_TWI_FN uint8_t ninedof_twi_rx_more(const ninedof_twi_t *t, uint8_t status)
+{
+  if (t->state != NINEDOF_TWI_RX || status != NINEDOF_TW_MR_DATA_ACK || t->left < 2)
+    return 0;
+  return t->left > 2 ? NINEDOF_TWCR_NEXT_ACK : t->last;
+}
+
+NINEDOF_TWI_FN void ninedof_twi_rx_store(ninedof_twi_t *t, uint8_t data)
+{
+  uint8_t *p = t->p;
+  *p++ = data;
+  t->p = p;
+  t->left--;
 }
 
 NINEDOF_TWI_FN uint8_t ninedof_twi_step(ninedof_twi_t *t, uint8_t status, uint8_t data)
 {
-  /* the states in order of frequency (18 of the 34 interrupts of a sample
+  /* the states in order of frequency (20 of the 36 interrupts of a sample
    * are bytes read): the dispatch is part of the time SCL is held */
-  uint8_t i, s = t->state;
+  uint8_t s = t->state;
   if (s == NINEDOF_TWI_RX) {
     if ((status & 0xF0) == 0x50) {  /* MR_DATA_ACK 0x50 or MR_DATA_NACK 0x58 */
-      i = t->idx;
-      t->buf[i++] = data;
-      t->idx = i;
-      if (i < t->len)
-        return twi_rx_cmd(t, i);
+      uint8_t *p = t->p;
+      *p++ = data;
+      t->p = p;
+      if (--t->left)
+        return twi_rx_cmd(t);
       return twi_finish(t);
     }
   } else if (s == NINEDOF_TWI_TX) {
-    if (status == NINEDOF_TW_MT_DATA_ACK) {
-    send:
-      i = t->idx;
-      if (i < t->len) {
-        t->out = t->buf[i];
-        t->idx = i + 1;
-        return NINEDOF_TWCR_NEXT;
-      }
-      return twi_finish(t);
-    }
+    if (status == NINEDOF_TW_MT_DATA_ACK)
+      return twi_tx(t);
     if (status == NINEDOF_TW_MT_DATA_NACK)
       return twi_fail(t, NINEDOF_TWI_DATA_NACK, NINEDOF_TWCR_STOP);
   } else if (s == NINEDOF_TWI_ADDR) {
     if (status == NINEDOF_TW_MT_SLA_ACK) {
       t->state = NINEDOF_TWI_TX;
-      goto send;
+      return twi_tx(t);
     }
     if (status == NINEDOF_TW_MR_SLA_ACK) {
       t->state = NINEDOF_TWI_RX;
-      if (t->len == 0)              /* as the stock master: nothing read */
+      if (t->left == 0)             /* as the stock master: nothing read */
         return twi_finish(t);
-      return twi_rx_cmd(t, 0);
+      return twi_rx_cmd(t);
     }
     if (status == NINEDOF_TW_MT_SLA_NACK || status == NINEDOF_TW_MR_SLA_NACK)
       return twi_fail(t, NINEDOF_TWI_ADDR_NACK, NINEDOF_TWCR_STOP);
   } else if (s == NINEDOF_TWI_START) {
-    if (status == NINEDOF_TW_START || status == NINEDOF_TW_REP_START) {
-      /* out is still the address byte ninedof_twi_begin set */
-      t->state = NINEDOF_TWI_ADDR;
-      return NINEDOF_TWCR_NEXT;
-    }
+    return twi_started(t, status);
   } else {                          /* IDLE / DONE: an interrupt nobody asked for */
     return NINEDOF_TWCR_IDLE;       /* no interrupt, no outcome */
   }
-  if (status == NINEDOF_TW_ARB_LOST)
-    return twi_fail(t, NINEDOF_TWI_ARB_LOST, NINEDOF_TWCR_RELEASE);
-  return twi_fail(t, NINEDOF_TWI_BUS_ERROR, NINEDOF_TWCR_STOP);
+  return twi_unexpected(t, status);
 }
 
 uint8_t ninedof_twi_abort(ninedof_twi_t *t)

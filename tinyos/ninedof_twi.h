@@ -119,7 +119,9 @@ enum {
 typedef struct {
   uint8_t *buf;       /* data written or read */
   uint8_t len;        /* bytes in buf */
-  uint8_t idx;        /* bytes done */
+  uint8_t *p;         /* the next byte to write or read */
+  uint8_t left;       /* bytes still to write or read */
+  uint8_t last;       /* the command for the last byte read: NEXT (NACK), or NEXT_ACK with ACK_END */
   uint8_t sla;        /* address byte: addr << 1 | R/W */
   uint8_t flags;      /* I2CPacket flags of the operation */
   uint8_t state;      /* NINEDOF_TWI_* state */
@@ -167,6 +169,29 @@ static inline uint8_t ninedof_twi_wait_stop(volatile uint8_t *twcr)
   return 1;
 }
 
+/* The next TWINT, when it is due soon: a START (or repeated START) is on
+ * the bus within about one SCL period (22 cycles at TWBR 3), a byte
+ * within nine (198 cycles).  The master waits for it where it asked for
+ * it, reading TWCR at most NINEDOF_TWI_TWINT_SPINS times (about 5 cycles
+ * each: 0.1 ms at 8 MHz, 36 SCL periods at 364 kHz): after a START, to
+ * send the address byte at once; in the interrupt handler, for the first
+ * byte of an operation the client began from its done event.  Taking an
+ * interrupt instead costs the handler's entry and exit, and it waits
+ * while interrupts are off (the handler running the client's chain, the
+ * scheduler's loop before it sleeps).  Returns 1 when TWINT is set; 0
+ * when it has not come (the bus is busy: another master, a slave holding
+ * SCL), and then the interrupt (TWIE) takes it. */
+enum { NINEDOF_TWI_TWINT_SPINS = 160 };
+
+static inline uint8_t ninedof_twi_wait_twint(volatile uint8_t *twcr)
+{
+  uint8_t n = NINEDOF_TWI_TWINT_SPINS;
+  while (!(*twcr & NINEDOF_TWINT))
+    if (--n == 0)
+      return 0;
+  return 1;
+}
+
 /* Power-up: no operation, no transfer open. */
 void ninedof_twi_init(ninedof_twi_t *t);
 
@@ -181,6 +206,45 @@ NINEDOF_TWI_FN uint8_t ninedof_twi_begin(ninedof_twi_t *t, uint8_t read, uint8_t
 /* One TWI interrupt: status = TWSR & 0xF8, data = TWDR.  Returns the next
  * TWCR command (.out for TWDR); state DONE when the operation has ended. */
 NINEDOF_TWI_FN uint8_t ninedof_twi_step(ninedof_twi_t *t, uint8_t status, uint8_t data);
+
+/* A byte read while more are to come (state RX, status MR_DATA_ACK, at
+ * least one byte left after this one): the command for the next byte, the
+ * same ninedof_twi_step would return; 0 otherwise (then ninedof_twi_step).
+ * The handler writes it to TWCR first and stores the byte after
+ * (ninedof_twi_rx_store, with TWDR read before): SCL is held only for the
+ * decision, and the bookkeeping runs while the next byte is on the wire. */
+NINEDOF_TWI_FN uint8_t ninedof_twi_rx_more(const ninedof_twi_t *t, uint8_t status);
+NINEDOF_TWI_FN void ninedof_twi_rx_store(ninedof_twi_t *t, uint8_t data);
+
+/* The START the current operation asked for has come (TWINT after the
+ * START command; status = TWSR & 0xF8): what ninedof_twi_step does in that
+ * state, for a master that waits for the START where it asked for it
+ * (ninedof_twi_wait_twint) instead of in its interrupt handler.  Returns
+ * the next TWCR command (.out: the address byte); NINEDOF_TWCR_IDLE if no
+ * START was asked.  State DONE if the START failed (arbitration lost, bus
+ * error). */
+NINEDOF_TWI_FN uint8_t ninedof_twi_started(ninedof_twi_t *t, uint8_t status);
+
+/* One TWI interrupt, as every user of the machine runs it (the nesC
+ * master, the tests): TWSR and TWDR read, the command written to TWCR
+ * (TWDR first when a byte is to be sent).  Returns 1 when the operation
+ * has ended (state DONE: the caller reports its outcome). */
+static inline __attribute__((always_inline)) uint8_t
+ninedof_twi_interrupt(ninedof_twi_t *t, volatile uint8_t *twsr, volatile uint8_t *twdr,
+                      volatile uint8_t *twcr)
+{
+  uint8_t status = *twsr & 0xF8, data = *twdr;
+  uint8_t cmd = ninedof_twi_rx_more(t, status);
+  if (cmd) {                        /* a byte read, more to come */
+    *twcr = cmd;
+    ninedof_twi_rx_store(t, data);
+    return 0;
+  }
+  cmd = ninedof_twi_step(t, status, data);
+  *twdr = t->out;
+  *twcr = cmd;
+  return t->state == NINEDOF_TWI_DONE;
+}
 
 /* The watchdog gave up on the operation under way (the TWI is reset and
  * the bus cleared by the caller): state DONE, result ABORTED, no transfer

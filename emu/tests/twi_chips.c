@@ -8,6 +8,7 @@
  *   CFG <result of each register write, 11 digits>;
  *   S <i> <adxl 6 bytes> <itg temp+gyro 8 bytes> <hmc 6 bytes> <results>;   x 20, every 8 ms
  *   HMC2 <6 bytes>; HMC8 <6 bytes>;    read 2 ms / 8 ms after a trigger
+ *   HMCP <r> <6 bytes> <r> <7 bytes> <r> <2 bytes>;   reads without a pointer write
  *   MARK;                              a write to 0x77 (nobody): the fault phase starts
  *   F <i> <adxl r> <power_ctl> <itg r> <who_am_i>;  x 40, every 5 ms
  *   END
@@ -26,9 +27,7 @@ static ninedof_twi_t twi;
 
 ISR(TWI_vect)
 {
-  uint8_t cmd = ninedof_twi_step(&twi, TWSR & 0xF8, TWDR);
-  TWDR = twi.out;
-  TWCR = cmd;
+  (void)ninedof_twi_interrupt(&twi, &TWSR, &TWDR, &TWCR);
 }
 
 static uint8_t op(uint8_t read, uint8_t flags, uint8_t addr, uint8_t len, uint8_t *buf)
@@ -109,6 +108,17 @@ int main(void)
   _delay_ms(6);
   read_regs(HMC5883L_ADDR, HMC5883L_DATA_X_MSB, 6, m);
   out_s("HMC8 "); out_hex(m, 6); out_c(';');
+  /* the HMC5883L's pointer without a pointer write: after HMC8's six
+   * bytes (0x03..0x08) it is back at 0x03, so six more are the same data
+   * and a seventh is X MSB again; after the identification (0x0A..0x0C)
+   * it is at 0x00 (CRA, CRB) */
+  r1 = op(1, NINEDOF_I2C_START | NINEDOF_I2C_STOP, HMC5883L_ADDR, 6, m);
+  out_s("HMCP "); out_digit(r1); out_c(' '); out_hex(m, 6);
+  r1 = op(1, NINEDOF_I2C_START | NINEDOF_I2C_STOP, HMC5883L_ADDR, 7, m);
+  out_c(' '); out_digit(r1); out_c(' '); out_hex(m, 7);
+  read_regs(HMC5883L_ADDR, HMC5883L_ID_A, 3, m);
+  r1 = op(1, NINEDOF_I2C_START | NINEDOF_I2C_STOP, HMC5883L_ADDR, 2, m);
+  out_c(' '); out_digit(r1); out_c(' '); out_hex(m, 2); out_c(';');
 
   out_s("MARK ");
   out_digit(write_reg(0x77, 0, 0));

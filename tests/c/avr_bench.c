@@ -32,10 +32,7 @@ static void twi_signal_done(void) { twi_done++; }
 
 ISR(TWI_vect)
 {
-  uint8_t cmd = ninedof_twi_step(&twi, twsr & 0xF8, twdr);
-  twdr = twi.out;
-  twcr = cmd;
-  if (twi.state == NINEDOF_TWI_DONE) {
+  if (ninedof_twi_interrupt(&twi, &twsr, &twdr, &twcr)) {
     twi.state = NINEDOF_TWI_IDLE;
     NINEDOF_TWI_CALL_SAVING(twi_signal_done);
   }

@@ -181,8 +181,26 @@ static uint8_t bus_cmd(uint8_t cmd, uint8_t twdr)
 }
 
 /* One operation, run as NineDofTwiMasterP runs it: begin, then per
- * interrupt step, until the outcome.  Returns the outcome (0xEE: hung). */
+ * interrupt ninedof_twi_interrupt (on stand-ins for TWSR, TWDR, TWCR),
+ * until the outcome.  Returns the outcome (0xEE: hung). */
 static ninedof_twi_t twi;
+static uint16_t rx_fast;            /* interrupts that took the byte-read fast path */
+static uint16_t starts_inline;      /* STARTs served by ninedof_twi_started */
+
+static uint8_t interrupt(void)
+{
+  if (twi.state == NINEDOF_TWI_START) {
+    /* the master waits for its START where it asked for it (NineDofTwiMasterImplP) */
+    uint8_t cmd = ninedof_twi_started(&twi, bus.status);
+    starts_inline++;
+    return cmd;
+  }
+  volatile uint8_t twsr = bus.status, twdr = bus.twdr, twcr = 0;
+  uint8_t fast = ninedof_twi_rx_more(&twi, bus.status) != 0;
+  (void)ninedof_twi_interrupt(&twi, &twsr, &twdr, &twcr);
+  rx_fast += fast;
+  return twcr;
+}
 
 static uint8_t op(uint8_t read, uint8_t flags, uint8_t addr, uint8_t len, uint8_t *buf)
 {
@@ -199,7 +217,7 @@ static uint8_t op(uint8_t read, uint8_t flags, uint8_t addr, uint8_t len, uint8_
       CHECK(0);
       return 0xEE;
     }
-    cmd = ninedof_twi_step(&twi, bus.status, bus.twdr);
+    cmd = interrupt();
   }
   twi.state = NINEDOF_TWI_IDLE;     /* the module does this before it signals */
   return twi.result;
@@ -453,6 +471,47 @@ static void test_abort_and_stop_wait(void)
   out_s(":-;");
 }
 
+static void test_started_and_fast_paths(void)
+{
+  /* the master that waits for its START where it asked for it: the same
+   * outcome as the interrupt's step; the bounded TWINT wait; the byte-read
+   * fast path only while more bytes are to come */
+  uint8_t d[3], p = 0x01;
+  volatile uint8_t twcr;
+  ninedof_twi_init(&twi);
+  CHECK(ninedof_twi_started(&twi, NINEDOF_TW_START) == NINEDOF_TWCR_IDLE);  /* none asked */
+  CHECK(twi.state == NINEDOF_TWI_IDLE);
+  (void)ninedof_twi_begin(&twi, 1, NINEDOF_I2C_START | NINEDOF_I2C_STOP, 0x1E, 3, d);
+  CHECK(ninedof_twi_started(&twi, NINEDOF_TW_REP_START) == NINEDOF_TWCR_NEXT);
+  CHECK(twi.state == NINEDOF_TWI_ADDR && twi.out == 0x3D);
+  CHECK(ninedof_twi_rx_more(&twi, NINEDOF_TW_MR_DATA_ACK) == 0);          /* not reading yet */
+  CHECK(ninedof_twi_step(&twi, NINEDOF_TW_MR_SLA_ACK, 0) == NINEDOF_TWCR_NEXT_ACK);
+  CHECK(ninedof_twi_rx_more(&twi, NINEDOF_TW_MR_DATA_NACK) == 0);         /* NACKed: the end */
+  CHECK(ninedof_twi_rx_more(&twi, NINEDOF_TW_MR_DATA_ACK) == NINEDOF_TWCR_NEXT_ACK);
+  ninedof_twi_rx_store(&twi, 7);
+  CHECK(ninedof_twi_rx_more(&twi, NINEDOF_TW_MR_DATA_ACK) == NINEDOF_TWCR_NEXT);  /* NACK the last */
+  ninedof_twi_rx_store(&twi, 8);
+  CHECK(ninedof_twi_rx_more(&twi, NINEDOF_TW_MR_DATA_ACK) == 0);          /* the last: step */
+  CHECK(ninedof_twi_step(&twi, NINEDOF_TW_MR_DATA_NACK, 9) == NINEDOF_TWCR_STOP);
+  CHECK(d[0] == 7 && d[1] == 8 && d[2] == 9 && twi.state == NINEDOF_TWI_DONE);
+  CHECK(twi.result == NINEDOF_TWI_OK && !twi.open);
+  /* a START lost to another master, and a bus error at the START: the
+   * operation ends, nothing is left open */
+  ninedof_twi_init(&twi);
+  (void)ninedof_twi_begin(&twi, 0, NINEDOF_I2C_START, 0x53, 1, &p);
+  CHECK(ninedof_twi_started(&twi, NINEDOF_TW_ARB_LOST) == NINEDOF_TWCR_RELEASE);
+  CHECK(twi.state == NINEDOF_TWI_DONE && twi.result == NINEDOF_TWI_ARB_LOST && !twi.open);
+  ninedof_twi_init(&twi);
+  (void)ninedof_twi_begin(&twi, 0, NINEDOF_I2C_START, 0x53, 1, &p);
+  CHECK(ninedof_twi_started(&twi, NINEDOF_TW_BUS_ERROR) == NINEDOF_TWCR_STOP);
+  CHECK(twi.state == NINEDOF_TWI_DONE && twi.result == NINEDOF_TWI_BUS_ERROR && !twi.open);
+  /* the bounded TWINT wait: returns when TWINT is set, gives up when not */
+  twcr = NINEDOF_TWEN | NINEDOF_TWINT;
+  CHECK(ninedof_twi_wait_twint(&twcr) == 1);
+  twcr = NINEDOF_TWEN;
+  CHECK(ninedof_twi_wait_twint(&twcr) == 0);
+}
+
 int main(void)
 {
   out_init();
@@ -467,6 +526,8 @@ int main(void)
   test_bus_error();
   test_commands();
   test_abort_and_stop_wait();
+  test_started_and_fast_paths();
+  CHECK(rx_fast >= 12 && starts_inline >= 12);             /* the fast path ran (all but the last byte of most reads) */
   check_summary();
   out_end();
   return 0;

@@ -64,7 +64,7 @@ implementation
     signal SplitControl.stopDone(err);
   }
 
-  uint8_t current() {
+  inline uint8_t current() __attribute__((always_inline)) {
     atomic return state;
   }
 
@@ -80,6 +80,24 @@ implementation
     return call I2CPacket.write(I2C_START, desc()->addr, 1, buf);
   }
 
+  /* A read's first transfer: its command (register pointer, or the
+   * HMC5883L's trigger), without STOP; the data read follows from its
+   * writeDone. */
+  error_t readCommand() {
+    const ninedof_chip_t *d = desc();
+    step = 0;
+    buf[0] = d->read_cmd[0];
+    buf[1] = d->read_cmd[1];
+    return call I2CPacket.write(I2C_START, d->addr, d->read_len, buf);
+  }
+
+  /* Its second: the data bytes after a repeated START, with STOP. */
+  inline error_t readData() __attribute__((always_inline)) {
+    const ninedof_chip_t *d = desc();
+    step = 1;
+    return call I2CPacket.read(I2C_START | I2C_STOP, d->addr, d->data_len, buf);
+  }
+
   /* Issue transfer `step` of the current operation. */
   error_t transfer() {
     const ninedof_chip_t *d = desc();
@@ -93,12 +111,7 @@ implementation
     case S_CONFIG:
       return writeReg(&d->config[step]);
     case S_READING:
-      if (step == 0) {
-        buf[0] = d->read_cmd[0];
-        buf[1] = d->read_cmd[1];
-        return call I2CPacket.write(I2C_START, d->addr, d->read_len, buf);
-      }
-      return call I2CPacket.read(I2C_START | I2C_STOP, d->addr, d->data_len, buf);
+      return step == 0 ? readCommand() : readData();
     case S_REGISTER:
       if (step == 0)
         return pointTo(reg);
@@ -123,19 +136,8 @@ implementation
   /* Report the end of the operation (the bus is already released). */
   void report(error_t err) {
     uint8_t s = current();
-    ninedof_xyz_t v;
 
     switch (s) {
-    case S_READING:
-      if (err == SUCCESS) {
-        ninedof_chip_xyz(chip, buf, v.xyz);
-        v.temp = ninedof_chip_temp(chip, buf);
-      } else {
-        v.xyz[0] = v.xyz[1] = v.xyz[2] = v.temp = 0;
-      }
-      atomic state = S_ON;
-      signal ReadNow.readDone(err, v);
-      break;
     case S_REGISTER:
       atomic state = S_ON;
       signal Registers.readRegisterDone(err, err == SUCCESS ? buf[0] : 0);
@@ -153,8 +155,26 @@ implementation
     }
   }
 
+  /* End of a read: release the bus, then report the counts. */
+  void readEnd(error_t err) {
+    ninedof_xyz_t v;
+    call Resource.release();
+    if (err == SUCCESS) {
+      ninedof_chip_xyz(chip, buf, v.xyz);
+      v.temp = ninedof_chip_temp(chip, buf);
+    } else {
+      v.xyz[0] = v.xyz[1] = v.xyz[2] = v.temp = 0;
+    }
+    atomic state = S_ON;
+    signal ReadNow.readDone(err, v);
+  }
+
   /* End the operation: release the bus, then report. */
   void finish(error_t err) {
+    if (current() == S_READING) {
+      readEnd(err);
+      return;
+    }
     call Resource.release();
     report(err);
   }
@@ -230,8 +250,24 @@ implementation
     return err;
   }
 
+  /* runNow(S_READING), with the first transfer issued directly */
   async command error_t ReadNow.read() {
-    return runNow(S_READING);
+    error_t err;
+    atomic {
+      if (state != S_ON)
+        return state == S_OFF ? EOFF : EBUSY;
+      state = S_READING;
+    }
+    if (call Resource.immediateRequest() == SUCCESS) {
+      err = readCommand();
+      if (err != SUCCESS)
+        call Resource.release();
+    } else {
+      err = call Resource.request();          /* bus busy: wait for it */
+    }
+    if (err != SUCCESS)
+      atomic state = S_ON;                    /* no done event will follow */
+    return err;
   }
 
   async command error_t Registers.readRegister(uint8_t r) {
@@ -249,7 +285,16 @@ implementation
       finish(err);
   }
 
+  /* The transfers of a read (once a sample, on the board's held bus):
+   * the command written, then at once, from its writeDone, the data read
+   * after a repeated START, and from that readDone the end.  Between the
+   * two the bus is held (SCL low), so this path is kept short. */
   async event void I2CPacket.writeDone(error_t error, uint16_t a, uint8_t len, uint8_t *data) {
+    if (error == SUCCESS && current() == S_READING) {
+      error = readData();
+      if (error == SUCCESS)
+        return;
+    }
     if (error != SUCCESS)
       finish(error);
     else
@@ -257,9 +302,12 @@ implementation
   }
 
   async event void I2CPacket.readDone(error_t error, uint16_t a, uint8_t len, uint8_t *data) {
-    if (error != SUCCESS)
+    uint8_t s = current();
+    if (s == S_READING)
+      readEnd(error);                         /* a read ends with its data */
+    else if (error != SUCCESS)
       finish(error);
-    else if (step == 1 && current() == S_STARTING && !ninedof_chip_id_ok(chip, buf))
+    else if (step == 1 && s == S_STARTING && !ninedof_chip_id_ok(chip, buf))
       finish(FAIL);                           /* another chip answered */
     else
       next();

@@ -128,10 +128,48 @@ implementation
       signal I2CPacket.writeDone[client](err, twi.sla >> 1, twi.len, twi.buf);
   }
 
+  /* The end of an operation, from the interrupt handler.  Its event may
+   * begin the client's next operation (a chip's data read after its
+   * register pointer, the next chip): that one's first byte is then on
+   * the wire, and its TWINT is waited for here (bounded) and served at
+   * once: returning would leave it to the scheduler's loop and a new
+   * entry to the handler, with SCL held meanwhile. */
+  void endFromHandler() {
+    signalDone();
+    if (twi.state < NINEDOF_TWI_ADDR || !ninedof_twi_wait_twint(&TWCR))
+      return;                               /* nothing on the wire, or not yet */
+    if (ninedof_twi_interrupt(&twi, &TWSR, &TWDR, &TWCR))
+      signalDone();                         /* (an address NACK: at most once more) */
+  }
+
   task void doneTask() {
     atomic {
       if (twi.state == NINEDOF_TWI_DONE)
         signalDone();
+    }
+  }
+
+  /* An operation with START: the START goes on the bus first (after a
+   * STOP still going out: one SCL period; bounded: if a slave holds SCL,
+   * the TWI is reset and the START waits for a free bus, the board's
+   * watchdog takes over if it never is), the operation is set up while it
+   * does, and the address byte goes out from here as soon as the START is
+   * done (bounded wait; else the interrupt sends it). */
+  void beginWithStart(uint8_t read, i2c_flags_t flags, uint8_t addr,
+                      uint8_t len, uint8_t *data) {
+    uint8_t cmd;
+    if (!ninedof_twi_wait_stop(&TWCR)) {
+      TWCR = 0;
+      twiOn();
+    }
+    TWCR = NINEDOF_TWCR_START;
+    (void)ninedof_twi_begin(&twi, read, flags, addr, len, data);
+    if (ninedof_twi_wait_twint(&TWCR)) {
+      cmd = ninedof_twi_started(&twi, TWSR & 0xF8);
+      TWDR = twi.out;
+      TWCR = cmd;
+      if (twi.state == NINEDOF_TWI_DONE)
+        post doneTask();                    /* lost at the START: no signal from inside the call */
     }
   }
 
@@ -145,6 +183,11 @@ implementation
         return EOFF;
       if (twi.state != NINEDOF_TWI_IDLE)
         return EBUSY;
+      if (flags & I2C_START) {
+        beginWithStart(read, flags, (uint8_t)addr, len, data);
+        return SUCCESS;
+      }
+      /* continuing the transfer left open (TWINT is set), or only a STOP */
       cmd = ninedof_twi_begin(&twi, read, flags, (uint8_t)addr, len, data);
       if (twi.state == NINEDOF_TWI_DONE) {
         if (twi.result != NINEDOF_TWI_OK) {   /* refused: nothing to do */
@@ -155,17 +198,7 @@ implementation
         post doneTask();                    /* no signal from inside the call */
         return SUCCESS;
       }
-      if (cmd & NINEDOF_TWSTA) {
-        /* a STOP still going out (one SCL period); bounded: if a slave
-         * holds SCL, the TWI is reset and the START waits for a free bus
-         * (the board's watchdog takes over if it never is) */
-        if (!ninedof_twi_wait_stop(&TWCR)) {
-          TWCR = 0;
-          twiOn();
-        }
-      } else {
-        TWDR = twi.out;                     /* continuing: TWINT is set */
-      }
+      TWDR = twi.out;
       TWCR = cmd;
     }
     return SUCCESS;
@@ -198,11 +231,8 @@ implementation
 
   /* ---- the TWI interrupt: one step, the command at once ---- */
   AVR_ATOMIC_HANDLER(SIG_2WIRE_SERIAL) {
-    uint8_t cmd = ninedof_twi_step(&twi, TWSR & 0xF8, TWDR);
-    TWDR = twi.out;
-    TWCR = cmd;
-    if (twi.state == NINEDOF_TWI_DONE)
-      NINEDOF_TWI_CALL_SAVING(signalDone);   /* no call-clobber prologue */
+    if (ninedof_twi_interrupt(&twi, &TWSR, &TWDR, &TWCR))
+      NINEDOF_TWI_CALL_SAVING(endFromHandler);   /* no call-clobber prologue */
   }
 
   default event void Resource.granted[uint8_t id]() { }

@@ -152,6 +152,23 @@ def _path_bias(gyr: SensorObs, refs: list, t0: float, t1: float, spans: dict | N
     return beta[3 * nref:], cb, float(e @ (w * e)), max(1, dof), float(tg[-1] - tg[0]), ac
 
 
+def _walk(gyr: SensorObs, end: int, step: int, rate_mean: np.ndarray, reach_deg: float,
+          reach_s: float) -> int:
+    """The last moving reading from ``end`` in direction ``step`` (-1 or +1)
+    whose turn from ``end`` (the gyroscope less ``rate_mean``) stays within
+    ``reach_deg`` and whose time within ``reach_s``; ``end`` if none."""
+    k = end
+    ang = np.zeros(3)
+    while True:
+        j = k + step
+        if j < 0 or j >= gyr.n or not gyr.moving[j] or abs(gyr.t[j] - gyr.t[end]) > reach_s:
+            return k
+        ang = ang + (gyr.x[j] - rate_mean) / gyr.K * abs(gyr.t[j] - gyr.t[k])
+        if float(np.linalg.norm(ang)) > reach_deg:
+            return k
+        k = j
+
+
 def _extended(gyr: SensorObs, rows: np.ndarray, rate_mean: np.ndarray,
               reach_s: float = MAG_EXTEND_S, reach_deg: float = MAG_EXTEND_DEG):
     """The block's time span for the magnetometer, widened over the
@@ -165,18 +182,7 @@ def _extended(gyr: SensorObs, rows: np.ndarray, rate_mean: np.ndarray,
         return t0, t1
     out = []
     for end, step in ((rows[0], -1), (rows[-1], 1)):
-        k = end
-        ang = np.zeros(3)
-        while True:
-            j = k + step
-            if j < 0 or j >= gyr.n or not gyr.moving[j] \
-                    or abs(gyr.t[j] - gyr.t[end]) > reach_s:
-                break
-            dt = abs(gyr.t[j] - gyr.t[k])
-            ang = ang + (gyr.x[j] - rate_mean) / gyr.K * dt
-            if float(np.linalg.norm(ang)) > reach_deg:
-                break
-            k = j
+        k = _walk(gyr, end, step, rate_mean, reach_deg, reach_s)
         out.append(float(gyr.t[k]))
     return out[0], out[1]
 
@@ -198,18 +204,7 @@ def _still_span(gyr: SensorObs, rows: np.ndarray, rate_mean: np.ndarray,
         dt_in = np.abs(np.diff(gyr.t[inner], prepend=gyr.t[inner[0]]))
         path = np.cumsum((gyr.x[inner] - rate_mean) / gyr.K * dt_in[:, None], axis=0)
         reach = float(np.max(np.linalg.norm(path, axis=1)))
-        k = end
-        ang = np.zeros(3)
-        while True:
-            j = k + step
-            if j < 0 or j >= gyr.n or not gyr.moving[j] \
-                    or abs(gyr.t[j] - gyr.t[end]) > reach_s:
-                break
-            dt = abs(gyr.t[j] - gyr.t[k])
-            ang = ang + (gyr.x[j] - rate_mean) / gyr.K * dt
-            if float(np.linalg.norm(ang)) > reach:
-                break
-            k = j
+        k = _walk(gyr, end, step, rate_mean, reach, reach_s)
         te = float(gyr.t[k]) - step * back_s
         out.append(min(te, t0) if step < 0 else max(te, t1))
     return out[0], out[1]

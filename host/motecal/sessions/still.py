@@ -14,9 +14,10 @@ stays put over it, judged by every sensor present:
 * magnetometer: the same below ``mag_gauss`` (default 0.012 gauss, about
   1.4 deg of a 0.5 gauss field; HMC5883L noise ~2 LSB = 0.002 gauss) --
   catches turns about the vertical, which the accelerometer cannot see,
-* gyroscope, offline (``still_mask``, ``segment_still``): the standard
+* gyroscope (offline ``still_mask``, ``segment_still``; live
+  ``TurnStillDetector``): the standard
   deviation of the *integrated* rotation over the window below
-  ``gyro_turn_deg`` (default 0.5 deg per axis).  The rate is integrated
+  ``gyro_turn_deg`` (default 0.3 deg per axis).  The rate is integrated
   after removing its bias, a running median of the rate over the rows the
   other sensors call still (``BIAS_S`` blocks).  A hand's tremor (0.05-0.3
   deg rms at 1-8 Hz) turns the board at several deg/s but goes nowhere:
@@ -49,8 +50,8 @@ class StillThresholds:
     gyro_dps: float = 1.5
     mag_gauss: float = 0.012
     min_still_s: float = 1.0     # shortest segment segment_still() labels
-    gyro_turn_deg: float = 0.3   # offline: spread of the integrated rotation (deg per axis)
-    gyro_rule: str = "turn"      # offline: "turn" (the board stays put) or "rate" (the rate
+    gyro_turn_deg: float = 0.3   # spread of the integrated rotation (deg per axis)
+    gyro_rule: str = "turn"      # live and offline: "turn" (the board stays put) or "rate" (the rate
                                  # is steady: a turntable's constant turn counts, gyro_dps)
 
 

@@ -528,6 +528,15 @@ def _dumps(obj) -> str:
     return json.dumps(obj, default=_json_default, sort_keys=True)
 
 
+def _document(obj, what: str) -> str:
+    """``obj`` as stored JSON text; one line (UserError) naming ``what`` when
+    it is not JSON-able."""
+    try:
+        return _dumps(obj)
+    except (TypeError, ValueError) as e:
+        raise UserError(f"{what} is not JSON: {e}") from None
+
+
 def _label_texts(label: np.ndarray) -> list[str]:
     """int labels -> their text form (session.label_to_text), vectorised."""
     uniq, inv = np.unique(np.asarray(label), return_inverse=True)
@@ -878,10 +887,7 @@ class Store:
     def save_calibration(self, session: str, mote: int, cal: dict) -> int:
         """Store a calibration (JSON-able dict) of one mote of a session; returns its id."""
         info = self._require(session)
-        try:
-            text = _dumps(cal)
-        except (TypeError, ValueError) as e:
-            raise UserError(f"calibration for {session!r} mote {mote} is not JSON: {e}") from None
+        text = _document(cal, f"calibration for {session!r} mote {mote}")
         with self._tx() as cur:
             cur.execute(self._b.sql(
                 "INSERT INTO calibrations (session, mote, created, cal) VALUES (?, ?, ?, ?) "
@@ -909,10 +915,7 @@ class Store:
         session with the tool version that made it and the fingerprint of the
         rows it saw; returns its id."""
         info = self._require(session)
-        try:
-            text = _dumps(diagnosis)
-        except (TypeError, ValueError) as e:
-            raise UserError(f"diagnosis for {session!r} mote {mote} is not JSON: {e}") from None
+        text = _document(diagnosis, f"diagnosis for {session!r} mote {mote}")
         with self._tx() as cur:
             cur.execute(self._b.sql(
                 "INSERT INTO diagnoses (session, mote, created, tool, data_key, diagnosis) "

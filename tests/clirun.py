@@ -50,6 +50,16 @@ def make_db(path, *names, **kw) -> str:
     return str(path)
 
 
+def store_db(folder, data: SessionData, name: str = "s") -> str:
+    """A new sqlite store ``folder/t.db`` holding ``data`` as session ``name``."""
+    from motecal.sessions.store import open_store
+    path = Path(folder) / "t.db"
+    data.name = name
+    with open_store(str(path), create=True) as st:
+        st.save_session(data)
+    return str(path)
+
+
 def digest(path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 

@@ -7,20 +7,12 @@ import json
 import numpy as np
 
 import hand as H
+from clirun import store_db
 from motecal.calib.board import calibrate_board
 from motecal.calib.gate import decide
 from motecal.commands.main import main
 from motecal.sessions.importer import read_razor_float
 from motecal.sessions.session import LABEL_ROT
-from motecal.sessions.store import open_store
-
-
-def _db(tmp_path, data, name="s"):
-    path = tmp_path / "t.db"
-    data.name = name
-    with open_store(str(path), create=True) as st:
-        st.save_session(data)
-    return str(path)
 
 
 def test_repeats_are_weighed_and_the_user_sees_it(tmp_path, capsys):
@@ -32,7 +24,7 @@ def test_repeats_are_weighed_and_the_user_sees_it(tmp_path, capsys):
     plants = [H.P.Plant("stale_samples", "mag", "static80", 0.2,
                         {"term": "stale_samples", "update_hz": 100.0})]
     ses = H.P.simulate(plants, "static80", 7, n_poses=30)
-    db = _db(tmp_path, ses)
+    db = store_db(tmp_path, ses)
     dj = tmp_path / "d.json"
     assert main(["diagnose", "--db", db, "--session", "s", "--no-sim", "--json", str(dj),
                  "--no-keep"]) == 0
@@ -60,7 +52,7 @@ def test_repeats_are_weighed_and_the_user_sees_it(tmp_path, capsys):
 
 
 def test_bad_diagnosis_file_is_one_line_exit_2(tmp_path, capsys):
-    db = _db(tmp_path, H.P.simulate([], "idle", 3))
+    db = store_db(tmp_path, H.P.simulate([], "idle", 3))
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
     for f in (bad, tmp_path / "missing.json"):
@@ -77,7 +69,7 @@ def test_disturbed_sweep_one_decision(tmp_path, capsys):
     from conftest import MEASURED
     data = read_razor_float(MEASURED / "hmc5843-disturbed-sweep" / "magnetom.float",
                             chip="hmc5843")
-    db = _db(tmp_path, data)
+    db = store_db(tmp_path, data)
     dj = tmp_path / "d.json"
     assert main(["diagnose", "--db", db, "--session", "s", "--no-sim", "--json", str(dj)]) == 0
     fd = next(f for f in json.loads(dj.read_text())["findings"]

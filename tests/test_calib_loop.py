@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import plant as P
+from clirun import store_db
 from motecal.calib.board import calibrate_board
 from motecal.calib.loop import calibrate_with_diagnosis
 from motecal.commands.calibrate import TOOL
@@ -25,14 +26,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
 import bench_diagnose_loop as L  # noqa: E402
 
 
-def _db(tmp_path, data, name="s"):
-    path = tmp_path / "t.db"
-    data.name = name
-    with open_store(str(path), create=True) as st:
-        st.save_session(data)
-    return str(path)
-
-
 def _gsens_session(seed):
     rng = np.random.default_rng([seed, 31])
     return P.simulate([P.make_plant("g_sensitivity", "gyro", rng, scale=2.0)], "static80", seed)
@@ -40,7 +33,7 @@ def _gsens_session(seed):
 
 def test_kept_diagnosis_is_used_by_default_and_said(tmp_path, capsys):
     ses = _gsens_session(5)
-    db = _db(tmp_path, ses)
+    db = store_db(tmp_path, ses)
     assert main(["diagnose", "--db", db, "--session", "s", "--no-sim"]) == 0
     out = capsys.readouterr().out
     assert "kept with the session (database diagnosis 1)" in out
@@ -84,7 +77,7 @@ def test_kept_diagnosis_is_used_by_default_and_said(tmp_path, capsys):
 
 def test_diagnosis_of_other_rows_not_used(tmp_path, capsys):
     ses = _gsens_session(7)
-    db = _db(tmp_path, ses)
+    db = store_db(tmp_path, ses)
     with open_store(db) as st:
         st.save_diagnosis("s", 1, {"clean": True, "findings": [], "model": {}},
                           tool=TOOL, data_key=data_key(ses.select(
@@ -97,7 +90,7 @@ def test_diagnosis_of_other_rows_not_used(tmp_path, capsys):
 
 def test_both_flags_and_read_only_database(tmp_path, capsys):
     ses = P.simulate([], "idle", 3)
-    db = _db(tmp_path, ses)
+    db = store_db(tmp_path, ses)
     rc = main(["calibrate", "--db", db, "--session", "s", "--out", str(tmp_path / "c.json"),
                "--diagnosis", "x.json", "--no-diagnosis"])
     err = capsys.readouterr().err
@@ -196,7 +189,7 @@ def test_noise_only_terms_are_not_taken():
     {"sensor": "accel", "cause": "saturation", "evidence": {"limits": [{"axis": "q"}]},
      "params": {"overflow_code": "no"}}])
 def test_malformed_diagnosis_file_is_one_line(tmp_path, capsys, finding):
-    db = _db(tmp_path, P.simulate([], "idle", 3))
+    db = store_db(tmp_path, P.simulate([], "idle", 3))
     f = tmp_path / "d.json"
     f.write_text(json.dumps({"clean": False, "findings": [finding]}))
     rc = main(["calibrate", "--db", db, "--session", "s", "--out", str(tmp_path / "c.json"),

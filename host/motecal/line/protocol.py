@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import binascii
 import itertools
-import operator
 import re
 import struct
 from dataclasses import dataclass, field
@@ -427,7 +426,6 @@ class FrameBlock:
 
 
 _EMPTY = np.zeros(0, np.int64)
-_NO_CRC = operator.itemgetter(slice(None, -2))
 MAX_RUN = 2 * MAX_FRAME + 2        # escaped bytes between flags: longer is garbage
 FEW_FRAMES = 16                     # reads with at most this many runs: one by one
 

@@ -114,6 +114,17 @@ TREMOR_K = 4.0     # the spread limit is at least this many times the quiet rows
 TREMOR_Q = 0.25    # ... lower quartile of the spread (the hand's tremor in its holds)
 
 
+def tremor_limit(lim_deg: float, quiet_spreads: np.ndarray) -> float:
+    """The integrated-rotation limit for a hand that trembles: ``lim_deg``,
+    or ``TREMOR_K`` x the ``TREMOR_Q`` quantile of the spreads seen over quiet
+    rows (the holds' tremor), whichever is larger (``turn_spread_ok``'s rule)."""
+    q = np.asarray(quiet_spreads, float)
+    q = q[np.isfinite(q)]
+    if not len(q):
+        return float(lim_deg)
+    return max(float(lim_deg), TREMOR_K * float(np.quantile(q, TREMOR_Q)))
+
+
 def turn_spread_ok(g_dps: np.ndarray, rate_hz: float, w: int, lim_deg: float,
                    quiet: np.ndarray | None = None) -> np.ndarray:
     """Per row: the rotation the gyroscope integrates (bias removed,
@@ -128,10 +139,7 @@ def turn_spread_ok(g_dps: np.ndarray, rate_hz: float, w: int, lim_deg: float,
     spread = np.full(n, np.inf)
     spread[:max(0, n - half)] = np.nan_to_num(sd[half:], nan=np.inf).max(axis=1)
     q = spread[quiet] if quiet is not None and quiet.any() else spread
-    q = q[np.isfinite(q)]
-    if len(q):
-        lim_deg = max(lim_deg, TREMOR_K * float(np.quantile(q, TREMOR_Q)))
-    return spread < lim_deg
+    return spread < tremor_limit(lim_deg, q)
 
 
 def still_mask(raw: np.ndarray, rate_hz: float, scales: dict | None = None,
@@ -284,33 +292,16 @@ class StillDetector:
         for name, sl, lim in (("accel", slice(0, 3), self.th.accel_g),
                               ("gyro", slice(3, 6), self.th.gyro_dps),
                               ("mag", slice(6, 9), self.th.mag_gauss)):
-            x = x_all[:, sl] / self.scales[name]
-            isnan = np.isnan(x)
-            nans = np.concatenate([[0], np.cumsum(isnan.sum(axis=1))])
-            nans = nans[w:] - nans[:-w]                     # NaN values per window
-            if nans.min() == 3 * w:                         # sensor absent throughout
+            absent, still = _window_ok(x_all[:, sl] / self.scales[name], w, lim)
+            if absent.all():                                # sensor absent throughout
                 continue
-            ref = np.nanmean(x, axis=0) if not isnan.all() else np.zeros(3)
-            x = np.where(isnan, 0.0, x - np.nan_to_num(ref))  # centred: no cancellation
-            sd = _moving_std(x, w)[w - 1:]
-            ok &= (nans == 3 * w) | ((nans == 0) & (sd < lim).all(axis=1))
+            ok &= absent | still
         self._buf = x_all[-w:].copy()
         self._n += n
         return ok
 
 
 TREMOR_LIVE_S = 60.0   # live: the tremor's quartile is taken over the quiet rows of this span
-
-
-def tremor_limit(lim_deg: float, quiet_spreads: np.ndarray) -> float:
-    """The integrated-rotation limit for a hand that trembles: ``lim_deg``,
-    or ``TREMOR_K`` x the ``TREMOR_Q`` quantile of the spreads seen over quiet
-    rows (the holds' tremor), whichever is larger (``turn_spread_ok``'s rule)."""
-    q = np.asarray(quiet_spreads, float)
-    q = q[np.isfinite(q)]
-    if not len(q):
-        return float(lim_deg)
-    return max(float(lim_deg), TREMOR_K * float(np.quantile(q, TREMOR_Q)))
 
 
 def _window_ok(x: np.ndarray, w: int, lim: float | None):

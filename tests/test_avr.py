@@ -129,8 +129,8 @@ def avr_run(tmp_path_factory):
         + _c_array("CAL_TEMP", "int16_t", [t or 0 for t in temps])
         + _c_array("RAW", "int16_t", raw.reshape(-1))
         + _c_array("MSGS", "uint8_t", script))
-    elf = avrsim.build([avrsim.CSRC / "avr_cal_main.c", avrsim.TINYOS / "ninedof_cal.c"],
-                       d / "cal.elf", include=[d])
+    sources = [avrsim.CSRC / "avr_cal_main.c"] + [avrsim.TINYOS / f for f in avrsim.CAL_C]
+    elf = avrsim.build(sources, d / "cal.elf", include=[d])
     text = avrsim.run(elf)
     assert "END" in text, text[-300:]
     tokens = text[:text.index("END")].split(";")[:-1]
@@ -194,7 +194,7 @@ def test_receiver_replies_are_identical_on_the_avr(avr_run):
 # The rest of the firmware's plain C logic, on the host and on the AVR
 # --------------------------------------------------------------------------
 LOGIC_SOURCES = [avrsim.CSRC / "logic_tests.c", avrsim.BASESTATION / "ninedof_bs.c"] + [
-    avrsim.TINYOS / f for f in ("ninedof_board.c", "ninedof_cal.c", "ninedof_sampling.c",
+    avrsim.TINYOS / f for f in ("ninedof_board.c", *avrsim.CAL_C, "ninedof_sampling.c",
                                 "ninedof_clock.c")]
 
 

@@ -5,7 +5,8 @@
  * simavr).
  */
 #include <string.h>
-#include "ninedof_cal.h"
+#include "ninedof_calrx.h"
+#include "ninedof_correct.h"
 
 /* ---------------------------------------------------------------------- */
 /* Upload receiver                                                         */

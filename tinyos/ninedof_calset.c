@@ -10,7 +10,7 @@
  *   - with avr-gcc for the simavr tests and the cycle benchmark.
  */
 #include <string.h>
-#include "ninedof_cal.h"
+#include "ninedof_calset.h"
 #include "ninedof_calshared.h"
 
 /* ---------------------------------------------------------------------- */

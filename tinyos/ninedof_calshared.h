@@ -13,7 +13,7 @@
 #ifndef NINEDOF_CALSHARED_H
 #define NINEDOF_CALSHARED_H
 
-#include "ninedof_cal.h"
+#include "ninedof_calset.h"
 
 #define SENSOR_BITS ((1u << NINEDOF_SENSORS) - 1u)
 #define ROUND_Q14 (1L << (NINEDOF_SHIFT_MAX - 1))

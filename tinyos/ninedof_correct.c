@@ -20,7 +20,7 @@
  * behaviour), which the rounding rule relies on.
  */
 #include <string.h>
-#include "ninedof_cal.h"
+#include "ninedof_correct.h"
 #include "ninedof_calshared.h"
 
 /* ---------------------------------------------------------------------- */
@@ -39,7 +39,7 @@ static int32_t temp_delta(const ninedof_cal_temp_native_t *t, int16_t raw)
   return (int32_t)c - t->t_ref;
 }
 
-/* A residual stored as fb (r mod 2^14, ninedof_cal.h) limited to
+/* A residual stored as fb (r mod 2^14, ninedof_calset.h) limited to
  * [-(2^13 - E), 2^13 - E], E = NINEDOF_TEMP_MARGIN: w = r + 2^13 = fb ^ 0x2000
  * is clamped to [E, 2^14 - E]. */
 static NINEDOF_TEMP_INLINE uint16_t resid_margin(uint16_t fb)
@@ -122,7 +122,7 @@ static NINEDOF_ALWAYS_INLINE void sensor_q14_acc(const ninedof_cal_sensor_native
  * So |y - x| = |r - r'| < 1 LSB on every sample, and the sum of the outputs
  * follows the sum of the exact values within 1 LSB: the mean is unbiased
  * (plain rounding of a still board's samples drops the same fraction every
- * time; ninedof_cal.h).  u = x + 2^13 is the kernel's accumulator, so
+ * time; ninedof_correct.h).  u = x + 2^13 is the kernel's accumulator, so
  * y = (u + r) >> 14 and r' = ((u + r) & 0x3FFF) - 2^13.  A saturated
  * sample does not feed the residual: r' = 0.
  */
@@ -232,7 +232,7 @@ static __attribute__((noinline)) void sensor_other_shift(
 
 /*
  * The gain term of the temperature path, t ~ p G (Q14), with G in Q30
- * (ninedof_cal.h): p = ph 2^16 + pl, G = gh 2^16 + gl (ph, gh signed,
+ * (ninedof_correct.h): p = ph 2^16 + pl, G = gh 2^16 + gl (ph, gh signed,
  * pl, gl unsigned 16 bit) and
  *   t = floor((ph gh 2^16 + ph gl + pl gh) / 2^14)
  * i.e. p G / 2^30 without pl gl / 2^30 (in [0, 4)) and with the floor:
@@ -253,7 +253,7 @@ static NINEDOF_TEMP_INLINE int32_t gain_term(int32_t p, int32_t g)
 
 /* shape_q14 for the gain path: the same rounding with error feedback, the
  * stored residual kept within [-(2^13 - E), 2^13 - E] (resid_margin), so
- * |out - (u - 2^13) / 2^14| <= 1 - E / 2^14 (ninedof_cal.h). */
+ * |out - (u - 2^13) / 2^14| <= 1 - E / 2^14 (ninedof_correct.h). */
 static NINEDOF_TEMP_INLINE int16_t shape_q14_temp(int32_t u, uint16_t *fb)
 {
   uint32_t v = (uint32_t)u + (uint32_t)(*fb ^ 0x2000u) - 0x2000UL;
@@ -267,7 +267,7 @@ static NINEDOF_TEMP_INLINE int16_t shape_q14_temp(int32_t u, uint16_t *fb)
   return (top & 0x80) ? (int16_t)INT16_MIN : (int16_t)INT16_MAX;
 }
 
-/* A sensor with temperature gain terms (shift 14, ninedof_cal.h):
+/* A sensor with temperature gain terms (shift 14, ninedof_correct.h):
  * out = sat((p + t + c + O + 2^13 + r) >> 14), t = gain_term(p, G), with
  * the error feedback of shape_q14_temp, wrapping like int32 hardware (only
  * sets that were never validated can wrap). */

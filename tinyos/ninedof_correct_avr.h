@@ -116,7 +116,7 @@ static NINEDOF_ALWAYS_INLINE void sensor_q14_acc(const ninedof_cal_sensor_native
  * (q14_run), so nothing of the C around it runs per sensor or per record.
  */
 /* acc += fb ^ 0x2000 (= r + 2^13, the residual and the rounding constant:
- * fb = r mod 2^14, ninedof_cal.h) from Z+L, Z+H; %[k20] holds 0x20 */
+ * fb = r mod 2^14, ninedof_calset.h) from Z+L, Z+H; %[k20] holds 0x20 */
 #define Q_FB(L, H)                                                      \
   "ldd  %A[m], Z+" #L "\n\tldd  %B[m], Z+" #H "\n\t"                   \
   "eor  %B[m], %[k20]\n\t"                                              \

@@ -150,7 +150,7 @@ def test_correction_is_bit_identical_on_the_avr(avr_run):
         got = _hex16(tok[5:]).reshape(-1, 9)
         np.testing.assert_array_equal(got, M.correct(cs, raw, t))
     # the temperature terms changed the output, and stay within
-    # TEMP_BOUND_LSB (< 1 LSB, ninedof_cal.h) of the float reference
+    # TEMP_BOUND_LSB (< 1 LSB, ninedof_correct.h) of the float reference
     assert len(calsets[-1]) == P.CALSET_TEMP_SIZE and M.validate(calsets[-1], MOTE) == 0
     assert not np.array_equal(M.correct(calsets[-1], raw, 20000), M.correct(calsets[-1], raw))
     for cs, t in zip(calsets, temps):

@@ -349,7 +349,7 @@ def test_cli_dry_run_and_show_the_temperature_terms(cal_temp):
     assert rc == 0, err
     assert "164 bytes in 9 fragments" in out and "with temperature terms" in out
     assert out.count("temperature: t_ref 25.00 C, clamped to 18.00..41.50 C") == 2
-    assert "the mote's checks (tinyos/ninedof_cal.c): accepted" in out
+    assert "the mote's checks (tinyos/ninedof_calset.c): accepted" in out
     rc, out, err = motecal("upload", cal_temp, "--dry-run", "--no-temp")
     assert rc == 0 and "102 bytes in 6 fragments" in out
     assert "temperature models left out: --no-temp" in out and "t_ref" not in out

@@ -96,3 +96,22 @@ def test_the_link_keeps_the_fault_counters_of_new_and_old_motes():
     link.status(old)                               # an older mote: the rest stays as it was
     assert link.c["mote_late"] == 2 and link.c["status_msgs"] == 2
     assert link.c["mote_bus_resets"] == 5
+
+
+def test_every_status_field_has_its_link_counter():
+    """A status field reaches the database by its name alone
+    (capture.link.status_counter -> a link_stats column): the message and
+    the columns cannot drift apart (docs/CONTRIBUTING.md, "How to add a
+    status field")."""
+    from motecal.capture.link import status_counter
+    from motecal.sessions.store import LINK_COUNTERS
+    names = [status_counter(f.name) for f in P.MOTE_STATUS.fields]
+    assert [n for n in names if n is not None and n not in LINK_COUNTERS] == []
+    assert names.count(None) == 2                                 # seq, reserved
+    link = MoteLink(7)
+    values = {f.name: i + 1 for i, f in enumerate(P.MOTE_STATUS.fields)}
+    link.status(P.decode_message(_am(P.MOTE_STATUS.pack(**values))))
+    for f in P.MOTE_STATUS.fields:
+        n = status_counter(f.name)
+        if n is not None:
+            assert link.c[n] == values[f.name], f.name

@@ -43,6 +43,8 @@ uint8_t ninedof_status_payload(const uint16_t counters[8], const ninedof_calrx_t
   ninedof_fault_counters_t f;
   ninedof_mote_status_msg_t msg;
 
+  memset(&c, 0, sizeof(c));             /* a counter added later and not set here: 0 */
+  memset(&f, 0, sizeof(f));
   c.seq = counters[0];
   c.dropped = counters[1];
   c.send_fail = counters[2];

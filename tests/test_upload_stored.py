@@ -373,3 +373,26 @@ def test_the_eeprom_file_is_written_before_the_set_is_reported_stored(tmp_path, 
     assert seen == [0] and res.stored.reported
     saved = json.loads(ee.read_text())["motes"]["1"]
     assert _rebooted(ee).version == 1 and len(saved) == 2 * 4096
+
+
+def test_show_of_a_mote_that_never_stored_a_set():
+    """A fresh mote: raw output, version 0, nothing stored; a reset gives the
+    same, so --show has nothing to say about its EEPROM.  After an upload
+    whose write has not completed yet, it says what a reset brings back."""
+    w = World(motes=1, session="idle", seed=12, duration=3600.0)
+    port = WorldPort(w)
+    w.run_until(0.5)
+    up = U.Uploader(U.Link(port), 1)
+    inf = up.read_set()
+    assert (inf.version, inf.stored_version, inf.stored_crc) == (0, 0, 0) and inf.stored
+    assert not any("stored in its EEPROM" in ln for ln in U.show_lines(inf))
+    from motecal.firmware import fixedpoint as FP
+    calset = FP.pack_calset(1, 1, {"gyro": FP.FixedSensor(np.eye(3, dtype=int) << 14,
+                                                         np.array([100, -100, 7]), 14)})
+    up.stage(calset)
+    up.apply(1, P.crc16(calset))
+    inf = up.read_set()
+    assert inf.version == 1 and not inf.stored and inf.store == P.STORE_WRITING
+    assert U.show_lines(inf)[1] == ("  stored in its EEPROM: no set, not the set in force "
+                                    "(version 1 is being written): after a reset the mote has "
+                                    "raw output, version 0")

@@ -133,9 +133,14 @@ class InForce:
 
     @property
     def stored(self) -> bool:
-        """The set in force is the set stored: a reset keeps it."""
-        return self.reports_stored and (self.stored_version, self.stored_crc) == \
-            (self.version, self.crc)
+        """The set in force is the set stored: a reset keeps it.  Raw output,
+        version 0 (what a mote has at boot with no valid set) needs nothing
+        stored: a reset gives it again."""
+        if not self.reports_stored:
+            return False
+        if self.version == 0 and self.stored_version == 0:
+            return True
+        return (self.stored_version, self.stored_crc) == (self.version, self.crc)
 
 
 def stored_text(version: int | None) -> str:

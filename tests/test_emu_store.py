@@ -3,8 +3,6 @@ through the BaseStation image.  `motecal upload` says "stored" only when the
 image reports the set stored in its EEPROM; a reset the moment it says so
 keeps the new set (plain, then with temperature terms); a reset while the
 image writes the set makes the upload fail, and the previous set comes back.
-(main's image and uploader, reset the same way at their "verified" line,
-came back with the set before in 1 of 4 runs with temperature sets.)
 
 Needs the nesC build (a TinyOS tree in TINYOS_ROOT_DIR, nesC >= 1.4.0 on
 PATH): skipped with one line otherwise, as in CI, which cannot build nesC.

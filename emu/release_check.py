@@ -220,7 +220,7 @@ def main(argv=None) -> int:
                     help="poses logged after the reset (default 10)")
     ap.add_argument("--loss", type=float, default=0.0, help="radio loss rate")
     ap.add_argument("--out", help="folder for everything (default: a temp folder)")
-    ap.add_argument("--timeout", type=float, default=1500,
+    ap.add_argument("--timeout", type=float, default=3600,
                     help="wall seconds each logging step may take")
     a = ap.parse_args(argv)
     try:

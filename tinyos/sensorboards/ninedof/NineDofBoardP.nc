@@ -14,8 +14,16 @@
  * Faults (decisions in ninedof_fault.c, see ninedof_fault.h):
  *  - Health.tick, once per sampling period, runs the watchdog: an
  *    operation that has run NINEDOF_I2C_TIMEOUT_MS (16 binary ms of the
- *    crystal, LocalTime<TMilli>) at a tick is aborted through Recover (bus clear, TWI re-initialised, the master
- *    ends the transfer with an error) and ends with that error.
+ *    crystal, LocalTime<TMilli>) at a tick is aborted through Recover (bus
+ *    clear, TWI re-initialised, the master ends the transfer with an
+ *    error) and ends with that error.
+ *  - The bus clear's result decides what follows (ninedof_fault_cleared):
+ *    a line still low puts the bus down.  While it is down no operation
+ *    begins (read, start and stop return FAIL at once), and the tick
+ *    clears the bus again once every NINEDOF_BUSDOWN_RETRY_MS (and aborts
+ *    an operation the master could not end on that schedule, not every
+ *    16 ms); the first clear that finds both lines high brings the bus up
+ *    and every chip is checked with the next reads.
  *  - After the nine axes of a sample, one chip's witness register may be
  *    read back (on a schedule, and for every chip after a failure); a chip
  *    found with its reset value gets its register table written again, in
@@ -76,11 +84,17 @@ implementation
 
   /* ---- the watchdog ---- */
   async command void Health.tick() {
-    uint8_t act;
+    uint8_t act, result;
     uint16_t t = now();
     atomic act = ninedof_fault_tick(&fault, t);
-    if (act == NINEDOF_FAULT_ABORT)
-      call Recover.recover();             /* the operation's done event follows */
+    if (act == NINEDOF_FAULT_NONE)
+      return;
+    /* ABORT: the bus clear, and the operation's done event follows (if the
+     * master can end it); CLEAR: the bus is down and idle, the lines are
+     * tried again (this board is the bus's only client and begins nothing
+     * while it is down) */
+    result = call Recover.recover();
+    atomic ninedof_fault_cleared(&fault, result);
   }
 
   async command ninedof_fault_counters_t Health.counters() {
@@ -154,6 +168,8 @@ implementation
         return EALREADY;
       if (power != from || reading)
         return EBUSY;
+      if (ninedof_fault_bus_down(&fault))
+        return FAIL;             /* a line is stuck low: nothing can begin */
       power = to;
       ninedof_fault_begin(&fault, t);
     }
@@ -190,17 +206,22 @@ implementation
       reading = FALSE;
       ninedof_fault_end(&fault, outcome(err));
     }
+    NINEDOF_SPAN_MARK(ninedof_span_readdone);   /* the signal (emulator's --span) */
     signal ReadNow.readDone(err, done);
   }
 
   async command error_t ReadNow.read() {
     error_t err;
-    uint16_t t = now();
+    uint16_t t;
+    NINEDOF_SPAN_MARK(ninedof_span_read);   /* the read's entry (emulator's --span) */
+    t = now();
     atomic {
       if (power != B_ON)
         return power == B_OFF ? EOFF : EBUSY;
       if (reading)
         return EBUSY;
+      if (ninedof_fault_bus_down(&fault))
+        return FAIL;                     /* a line is stuck low: refused at once */
       reading = TRUE;
       ninedof_fault_begin(&fault, t);
     }

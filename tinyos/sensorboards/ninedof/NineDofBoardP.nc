@@ -24,10 +24,13 @@
  *    an operation the master could not end on that schedule, not every
  *    16 ms); the first clear that finds both lines high brings the bus up
  *    and every chip is checked with the next reads.
- *  - After the nine axes of a sample, one chip's witness register may be
- *    read back (on a schedule, and for every chip after a failure); a chip
+ *  - After a sample has been reported, one chip's witness register may be
+ *    read back (on a schedule, and for every chip after a failure), as an
+ *    operation of its own (a bus grant, the watchdog, no event); a chip
  *    found with its reset value gets its register table written again, in
- *    the same bus grant.  The sample is reported as read either way.
+ *    the same grant.  A read asked for meanwhile is refused (EBUSY), as
+ *    during any operation.  So the check (about 0.2 ms once a second) is
+ *    not part of a read's time from read() to readDone.
  *  - NACKs, watchdog aborts and re-initialisations are counted
  *    (Health.counters).
  *
@@ -192,6 +195,8 @@ implementation
   }
 
   /* ---- one sample: accel, gyro, mag back to back, on the held bus ---- */
+  void checkStart();
+
   /* End of a sample: release the bus, then report. */
   void readEnd(error_t err) {
     ninedof_raw_t done = sample;
@@ -208,6 +213,8 @@ implementation
     }
     NINEDOF_SPAN_MARK(ninedof_span_readdone);   /* the signal (emulator's --span) */
     signal ReadNow.readDone(err, done);
+    if (err == SUCCESS)
+      checkStart();
   }
 
   async command error_t ReadNow.read() {
@@ -260,19 +267,39 @@ implementation
       readEnd(err);
   }
 
-  /* The nine axes are in: a witness to read back, or the end. */
-  void check() {
+  /* ---- the configuration check: one witness read back, after a sample ---- */
+  void checkEnd(bool held) {
+    if (held)
+      call Bus.release();
+    atomic {
+      reading = FALSE;
+      ninedof_fault_end(&fault, NINEDOF_OP_OK);   /* counted by check_done / reinit_done */
+    }
+  }
+
+  void checkStart() {
     uint8_t chip;
+    uint16_t t;
     const ninedof_chip_t *d;
-    atomic chip = ninedof_fault_check_pick(&fault);
-    if (chip == NINEDOF_CHECK_NONE) {
-      readEnd(SUCCESS);
+    atomic {
+      if (reading || power != B_ON)
+        return;                          /* a read began from readDone: next time */
+      chip = ninedof_fault_check_pick(&fault);
+      if (chip == NINEDOF_CHECK_NONE)
+        return;                          /* the common case */
+      reading = TRUE;                    /* a read now is refused (EBUSY) */
+    }
+    t = now();
+    atomic ninedof_fault_begin(&fault, t);
+    if (call Bus.immediateRequest() != SUCCESS) {
+      atomic ninedof_fault_check_done(&fault, chip, NINEDOF_OP_FAIL, 0);   /* due again */
+      checkEnd(FALSE);
       return;
     }
     d = &NINEDOF_CHIP[chip];
     if (call Registers.readRegister[chip](d->config[d->witness].reg) != SUCCESS) {
       atomic ninedof_fault_check_done(&fault, chip, NINEDOF_OP_FAIL, 0);
-      readEnd(SUCCESS);
+      checkEnd(TRUE);
     }
   }
 
@@ -284,7 +311,7 @@ implementation
       if (chip == NINEDOF_CHIP_GYRO)
         sample.temp = v.temp;
       if (chip + 1 == NINEDOF_CHIPS) {
-        check();
+        readEnd(SUCCESS);
         return;
       }
       err = call Chip.read[chip + 1]();
@@ -300,13 +327,13 @@ implementation
     if (reinit && call Registers.configure[chip]() != SUCCESS)
       atomic ninedof_fault_reinit_done(&fault, chip, NINEDOF_OP_FAIL);
     else if (reinit)
-      return;                            /* configureDone ends the sample */
-    readEnd(SUCCESS);
+      return;                            /* configureDone ends the check */
+    checkEnd(TRUE);
   }
 
   async event void Registers.configureDone[uint8_t chip](error_t err) {
     atomic ninedof_fault_reinit_done(&fault, chip, outcome(err));
-    readEnd(SUCCESS);
+    checkEnd(TRUE);
   }
 
   default command error_t ChipControl.start[uint8_t chip]() { return FAIL; }

@@ -95,12 +95,13 @@ def run_harness(exe: Path, args: list[str], echo=None) -> dict:
 
 
 def measure(out: Path, *, motes: int = 1, seconds: float = 20, settle: float = 5,
-            mhz=(8.0,), lean: bool = False, base: bool = True, serial: str = "null",
+            mhz=(8.0,), lean: bool = False, base: bool | Path = True, serial: str = "null",
             faults=(), boards=(), echo=None, mote: Path | None = None, xtal_ppm=(0.0,),
             temp_c=()) -> dict:
-    """Build both images (the mote's unless given) and the harness into out,
-    run; the report.  mhz: one clock per mote (cycled); temp_c: each mote's
-    board temperature in C (cycled; none: the board's own)."""
+    """Build both images (the mote's unless given; base: True to build the
+    BaseStation's, a Path to use that image, False for none) and the harness
+    into out, run; the report.  mhz: one clock per mote (cycled); temp_c:
+    each mote's board temperature in C (cycled; none: the board's own)."""
     if mote is None:
         mote = build_image("tinyos", out / ("mote-lean.elf" if lean else "mote.elf"), lean=lean)
     exe = build_harness(out / "emu-build")
@@ -115,7 +116,7 @@ def measure(out: Path, *, motes: int = 1, seconds: float = 20, settle: float = 5
             spec += f",temp={temp_c[i % len(temp_c)]}"
         args += ["--mote", spec]
     if base:
-        bs = build_image("basestation", out / "basestation.elf")
+        bs = base if isinstance(base, Path) else build_image("basestation", out / "basestation.elf")
         args += ["--base", f"{bs},id=0", "--serial", serial]
     args += ["--seconds", str(seconds), "--settle", str(settle)]
     for f in faults:

@@ -175,20 +175,15 @@ def motecal(args: list[str], log: Path, timeout: float) -> tuple[int, str, float
 
 
 def pose_magnitudes(db: Path, session: str) -> dict:
-    """Per mote: poses, |accel| (g) and |mag| (gauss) of each pose's mean at
-    the nominal scales, flags of every sample, link statistics."""
+    """Per mote: SessionData.pose_magnitudes (poses, |accel| and |mag| of the
+    pose means, flags), the samples and the link statistics."""
     from motecal.sessions.store import open_store
     with open_store(str(db)) as st:
         data = st.load_session(session)
         links = st.link_stats(session)
-    out = {}
-    for m in data.motes:
-        d = data.for_mote(m)
-        out[m] = {"poses": len(d.poses()),
-                  "acc": np.linalg.norm(d.pose_means("accel"), axis=1),
-                  "mag": np.linalg.norm(d.pose_means("mag"), axis=1),
-                  "flags": np.asarray(d.flags), "samples": len(d.flags),
-                  "link": links["motes"].get(m, {})}
+    out = data.pose_magnitudes()
+    for m, v in out.items():
+        v.update(samples=len(v["flags"]), link=links["motes"].get(m, {}))
     return out
 
 

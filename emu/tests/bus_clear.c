@@ -24,17 +24,10 @@
 
 #include "ninedof_board.h"
 #include "ninedof_fault.h"
-#include "ninedof_twi.h"
 #include "test_out.h"
+#include "twi_ops.h"
 
-enum { SCL = 1 << 0, SDA = 1 << 1, HUNG = 255 };
-
-static ninedof_twi_t twi;
-
-ISR(TWI_vect)
-{
-  (void)ninedof_twi_interrupt(&twi, &TWSR, &TWDR, &TWCR);
-}
+enum { SCL = 1 << 0, SDA = 1 << 1, HUNG = TWI_OP_HUNG };
 
 static void twi_on(void)
 {
@@ -43,38 +36,6 @@ static void twi_on(void)
   TWBR = NINEDOF_TWBR(F_CPU, NINEDOF_I2C_HZ);
   TWSR = 0;
   TWCR = _BV(TWEN);
-}
-
-/* one operation, waited for at most 5 ms */
-static uint8_t op(uint8_t read, uint8_t flags, uint8_t addr, uint8_t len, uint8_t *buf)
-{
-  uint16_t n;
-  uint8_t cmd;
-  cli();
-  cmd = ninedof_twi_begin(&twi, read, flags, addr, len, buf);
-  TWDR = twi.out;
-  TWCR = cmd;
-  sei();
-  for (n = 0; *(volatile uint8_t *)&twi.state != NINEDOF_TWI_DONE; n++) {
-    if (n == 500) {
-      cli();
-      (void)ninedof_twi_abort(&twi);
-      sei();
-      return HUNG;
-    }
-    _delay_us(10);
-  }
-  for (n = 0; (TWCR & _BV(TWSTO)) && n < 500; n++)
-    _delay_us(10);
-  return twi.result;
-}
-
-static uint8_t read_regs(uint8_t addr, uint8_t reg, uint8_t len, uint8_t *buf)
-{
-  uint8_t r = op(0, NINEDOF_I2C_START, addr, 1, &reg);
-  if (r)
-    return r;
-  return op(1, NINEDOF_I2C_START | NINEDOF_I2C_STOP, addr, len, buf);
 }
 
 /* NineDofBusClearP's drive(): a line released (input, pulled up) or low */
@@ -123,6 +84,7 @@ int main(void)
   uint8_t g[8], i, r;
   out_init();
   ninedof_twi_init(&twi);
+  twi_op_limit = 500;                   /* 5 ms */
   /* the wires with the TWI off: released, SDA low, SCL low, both low */
   out_s("PINS");
   out_pins(NINEDOF_BC_SCL | NINEDOF_BC_SDA);

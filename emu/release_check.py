@@ -105,7 +105,8 @@ class Harness:
         self.lines: queue.Queue = queue.Queue()
         self.report: list[str] = []
         self.t_start = time.monotonic()
-        threading.Thread(target=self._read, daemon=True).start()
+        self.reader = threading.Thread(target=self._read, daemon=True)
+        self.reader.start()
 
     def _read(self):
         for line in self.proc.stdout:
@@ -147,7 +148,7 @@ class Harness:
             except (BrokenPipeError, subprocess.TimeoutExpired):
                 self.proc.kill()
                 self.proc.wait()
-        time.sleep(0.2)
+        self.reader.join(30)             # every line of the report read
         self.err.close()
         try:
             return json.loads("".join(self.report)) if self.report else None

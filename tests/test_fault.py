@@ -75,19 +75,20 @@ def test_scenario_keeps_sampling_and_counts_every_event(outputs):
 
 def test_a_failed_bus_clear_puts_the_bus_down_until_a_clear_works(outputs):
     """SDA shorted to ground from period 200 to 600 (8 ms each, 1200 in all):
-    the watchdog's clear at 16 ms fails, the bus goes down, reads are refused
-    at once (lean: the aborted read ends) or the read under way stays late
-    (stock: it cannot be aborted), the bus is cleared once a second (128
-    periods), not every 16 ms, and the first clear after the short brings it
-    up; sampling goes on with the next period."""
+    the watchdog's clear at 16 ms (period 202) fails, the bus goes down,
+    reads are refused at once (lean: the aborted read ends) or the read under
+    way stays late (stock: it cannot be aborted), the bus is cleared every
+    256 ms (32 periods), not every 16 ms, and the first clear after the short
+    (202 + 13 * 32 = 618) brings it up; sampling goes on with that period."""
     _, _, short, _ = _parse(outputs[0])
     assert set(short) == {"lean", "stock"}
+    retry, up_at = 32, 202 + 13 * 32
     for master, w in short.items():
         good, refused, bad, late, resets, clears_down, apart, up, first_good, reinits = w
         assert good + refused + bad + late == 1200, master
-        assert good == 1200 - 400 - 114, master          # 400 shorted + up to the clear
-        assert apart == 128 and up == 114 and first_good == 114, master
-        # one clear finds the short, three fail while it lasts, one brings the bus up
-        assert resets == 5 and clears_down == 4 and bad == 1 and reinits == 0, master
-    assert short["lean"][1:4] == [400 - 2 + 114, 1, 1]   # refused, ended, late
-    assert short["stock"][1:4] == [114, 1, 399]
+        assert good == 1200 - 400 - (up_at - 600), master
+        assert apart == retry and up == first_good == up_at - 600, master
+        # one clear finds the short, 12 fail while it lasts, one brings the bus up
+        assert resets == 14 and clears_down == 13 and bad == 1 and reinits == 0, master
+    assert short["lean"][1:4] == [up_at - 202, 1, 1]      # refused, ended, late
+    assert short["stock"][1:4] == [up_at - 600, 1, 399]

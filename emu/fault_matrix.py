@@ -299,6 +299,9 @@ def run_case(exe: Path, mote: Path, base: Path, name: str, faults: list[str], *,
             time.sleep(0.3)
         data = reader.close()
     rep = h.stop()
+    if rep is None:
+        print(f"  (the harness's report could not be read: exit {h.proc.returncode}, "
+              f"{len(h.report)} report lines; stderr in {h.err.name})", flush=True)
     node = next(n for n in rep["nodes"] if n["role"] == "mote") if rep else {}
     res = analyse(data, fault_at, node.get("first_sample_s", 1.0)) if upload_loss is None \
         else {"upload": up, **analyse(data, 0, node.get("first_sample_s", 1.0))}

@@ -30,6 +30,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <poll.h>
+#include <signal.h>
 #include <unistd.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -340,6 +341,10 @@ int main(int argc, char **argv)
     }
     if (settle < 0)
         settle = seconds >= 10 ? 5.0 : 0.0;
+    /* a TCP client of a serial port that goes away must not end the run:
+     * write() then fails with EPIPE, which uart.c handles (the default
+     * SIGPIPE would kill the harness before it reports) */
+    signal(SIGPIPE, SIG_IGN);
 
     FILE *log = NULL;
     if (twi_log && !(log = fopen(twi_log, "w"))) {

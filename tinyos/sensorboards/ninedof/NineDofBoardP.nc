@@ -282,8 +282,8 @@ implementation
     uint16_t t;
     const ninedof_chip_t *d;
     atomic {
-      if (reading || power != B_ON)
-        return;                          /* a read began from readDone: next time */
+      if (reading || power != B_ON || ninedof_fault_bus_down(&fault))
+        return;                          /* a read began from readDone, or the bus is down: next time */
       chip = ninedof_fault_check_pick(&fault);
       if (chip == NINEDOF_CHECK_NONE)
         return;                          /* the common case */

@@ -22,7 +22,7 @@ struct emu_twi;        /* twi.h */
 struct emu_board;      /* board.h */
 
 typedef struct emu_node {
-    /* ---- contract (emu-api.md) ---- */
+    /* ---- contract: the fields the radio and UART models use ---- */
     avr_t   *avr;
     int      index;        /* 0 = first node on the command line */
     uint16_t am_addr;      /* TOS_NODE_ID (patched into the ELF's .data image) */

@@ -10,15 +10,12 @@
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 from scipy import stats
 
 from ..calib.content import describe
 from ..calib.gate import field_plausibility, residual_reason
 from ..errors import QualityError, UserError
-from ..jsonable import finite, jsonable
 from ..maths.sphere import angle_deg, unit
 from ..sessions.session import SessionData
 from . import causes as C
@@ -29,74 +26,11 @@ from . import screens as SC
 from . import structure as ST
 from . import thermal as TH
 from .prepare import SensorObs, all_obs, sensor_obs, session_still
+from .result import Diagnosis, Finding, num as _num
 from .turns import turn_corrected
 from .regimes import (MIN_SWEEP_ROWS, accel_for_blocks, regime, shared_rows, sweep_reasons,
                       sweep_surrounds)
 
-
-
-@dataclass
-class Finding:
-    sensor: str
-    cause: str
-    summary: str
-    evidence: dict
-    params: dict
-    gain: float | None
-
-    def to_json(self) -> dict:
-        return {"sensor": self.sensor, "cause": self.cause, "summary": self.summary,
-                "evidence": _jsonable(self.evidence), "params": _jsonable(self.params),
-                "gain": None if self.gain is None else _num(self.gain)}
-
-
-@dataclass
-class Diagnosis:
-    session: str
-    mote: int
-    kind: str
-    findings: list
-    tests: list                    # every test: sensor, cause, p, level, kept
-    alpha: float
-    n_tests: int
-    model: dict                    # the extended simulator model
-    start_model: dict              # the paper model fitted to the session
-    structures: dict               # sensor -> structure.Structure
-    screens: list
-    obs: dict
-    comparison: dict = field(default_factory=dict)
-    notes: list = field(default_factory=list)
-    temperature: dict = field(default_factory=dict)   # sensor -> thermal.TempTest
-
-    @property
-    def clean(self) -> bool:
-        return not self.findings
-
-    def to_json(self) -> dict:
-        """Exactly the issue's form: clean, findings, model."""
-        return {"clean": self.clean, "findings": [f.to_json() for f in self.findings],
-                "model": self.model}
-
-    def details_json(self) -> dict:
-        """Everything else (the --report directory's diagnosis.json)."""
-        return _jsonable({"session": self.session, "mote": self.mote, "kind": self.kind,
-                          "alpha": self.alpha, "n_tests": self.n_tests,
-                          "per_test_alpha": G.per_test_alpha(self.alpha, self.n_tests),
-                          "tests": self.tests, "comparison": self.comparison,
-                          "notes": self.notes, "start_model": self.start_model})
-
-    def causes(self) -> set:
-        return {(f.sensor, f.cause) for f in self.findings}
-
-
-def _num(x):
-    """A JSON number rounded to 6 significant digits (None for NaN/inf)."""
-    x = finite(x)
-    return None if x is None else float(f"{x:.6g}")
-
-
-def _jsonable(x):
-    return jsonable(x, _num)
 
 
 # ---------------------------------------------------------------------------

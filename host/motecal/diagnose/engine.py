@@ -22,6 +22,7 @@ from . import causes as C
 from . import extend as X
 from . import fitting as F
 from . import gain as G
+from . import randomwalk as RW
 from . import screens as SC
 from . import structure as ST
 from . import thermal as TH
@@ -188,7 +189,7 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
         structures[s] = st
         if "bias_drift" in st.causes and not isinstance(st.fit, F.MagnitudeFit):
             st.random_walk = ST.random_walk(st, o)
-            _krige_drift_gain(st, o)
+            RW.krige_drift_gain(st, o)
         for t in st.tests:
             record(s, t.cause, t.p, False, F=t.F, q=t.q, dof=t.dof, dbic=t.dbic, round=t.round)
         for c in st.causes:
@@ -448,27 +449,6 @@ def _structure_finding(s, c, st: ST.Structure, o: SensorObs, g, before, after) -
     return Finding(s, c, summ, ev, params, g)
 
 
-def _krige_drift_gain(st: ST.Structure, o: SensorObs):
-    """A random walk finer than the drift's basis is predicted on held-out
-    blocks by its conditional mean given the other blocks (kriging with the
-    restricted-likelihood intensity): the drift's held-out "after" is the
-    better of the smooth basis alone and the basis + walk."""
-    rw = getattr(st, "random_walk", None)
-    if rw is None or not np.any(np.asarray(rw["sigma_counts_per_sqrt_s"]) > 0):
-        return
-    kr = ST.heldout_random_walk(st, o, rw["sigma_counts_per_sqrt_s"])
-    before, after = st.heldout["bias_drift"]
-    if kr is None or not kr[0] < after:
-        return
-    item = next(c for c in st.accepted if ST.cause_of(c) == "bias_drift")
-    without = getattr(st, "fold_ms", {}).get(frozenset(st.accepted) - {item})
-    st.heldout["bias_drift"] = (before, kr[0])
-    if without is not None:
-        st.fold_wins["bias_drift"] = int(np.sum(kr[1] < without))
-    st.heldout_total = (st.heldout_total[0], kr[0])
-    st.kriged = True
-
-
 def _drift_params_for(curve_sim, tt, J):
     dp, _ = X.drift_params(tt - tt[0], curve_sim, J > F.DRIFT_J, J)
     return dp
@@ -564,7 +544,7 @@ def _excess_finding(s, st: ST.Structure, o, sobs, structures, a_test, record, mo
         record(s, "excess", p, False, ratio=ratio)
         return None
     if force is None and not isinstance(fit, F.MagnitudeFit) and "bias_drift" not in st.causes:
-        fd = _random_walk_finding(s, st, o, a_test)
+        fd = RW.random_walk_finding(s, st, o, a_test)
         if fd is not None:
             record(s, "excess", p, True, ratio=ratio,
                    note="a random walk of the bias (restricted likelihood ratio "
@@ -685,42 +665,6 @@ def _sweep_leftover(s, st: ST.Structure, o: SensorObs, a_test, record, force=Non
           "largest_outlier_rel": float(np.abs(ra[out] - med).max() / H) if len(out) else 0.0,
           "structure": "; ".join(parts) + (" (after the kept field wander)" if wander else "")}
     return Finding(s, "unexplained", C.summary(s, "unexplained", ev, {}, None), ev, {}, 1.0)
-
-
-def _random_walk_finding(s, st: ST.Structure, o: SensorObs, a_test) -> Finding | None:
-    """Block means that scatter beyond their noise with no smooth drift: a
-    bias random walk (restricted likelihood ratio against no walk) that
-    predicts held-out blocks from their neighbours (kriging) better than the
-    model without it, overall and in MIN_FOLD_WINS folds, is a bias_drift."""
-    rw = ST.random_walk(st, o)
-    if rw is None or not rw["lr_p"] < a_test:
-        return None
-    sig = np.asarray(rw["sigma_counts_per_sqrt_s"], float)
-    kr = ST.heldout_random_walk(st, o, sig)
-    base = getattr(st, "fold_ms", {}).get(frozenset(st.accepted))
-    if kr is None or base is None or st.heldout_total is None:
-        return None
-    before, after = st.heldout_total[1], kr[0]
-    g = before / after if after > 0 else None
-    wins = int(np.sum(kr[1] < base))
-    if not G.accepted(rw["lr_p"], a_test, g, True, wins):
-        return None
-    span = float(np.ptp(st.points["T"]))
-    ev = {"p": rw["lr_p"], "level": a_test, "likelihood_ratio": rw["lr"], "regime": st.regime,
-          "heldout_rms_before": before, "heldout_rms_after": after, "unit": st.unit,
-          "noise_floor": st.noise_floor, "points": int(len(st.points["Y"])),
-          "random_walk_sigma_counts_per_sqrt_s": sig,
-          "drift_range": float(sig.max() * np.sqrt(span) / o.K),
-          "basis": "a random walk (restricted likelihood)",
-          "gain_basis": "held-out rms of block means (interleaved time blocks), the walk "
-                        "predicted from the neighbouring blocks (kriging)"}
-    params = {"amplitude": [0.0, 0.0, 0.0], "tau_s": 300.0, "slope": [0.0, 0.0, 0.0],
-              "sigma": X._r(sig * X.sim_scale(s, o.K))}
-    summ = (f"The {s} bias wanders as a random walk: {X._r(sig)} counts/sqrt(s) per axis "
-            f"(restricted likelihood ratio {rw['lr']:.1f}, p = {rw['lr_p']:.2g}), about "
-            f"{C._fmt(ev['drift_range'], st.unit)} over the session. Gain on held-out data: "
-            f"{g:.3g}x (rms {C._fmt(before, st.unit)} -> {C._fmt(after, st.unit)}).")
-    return Finding(s, "bias_drift", summ, ev, params, g)
 
 
 def _dip_test(st: ST.Structure, sobs, structures) -> dict | None:

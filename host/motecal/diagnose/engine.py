@@ -28,37 +28,10 @@ from . import terms as TM
 from . import thermal as TH
 from . import tilt as TL
 from .prepare import all_obs, sensor_obs, session_still
+from .regimes import (CANDIDATES, MIN_SWEEP_ROWS, accel_for_blocks, plan_tests, regime,
+                      sweep_reasons)
 from .result import Diagnosis, Finding, num as _num
 from .turns import turn_corrected
-from .regimes import MIN_SWEEP_ROWS, accel_for_blocks, regime, shared_rows, sweep_reasons
-
-
-
-# ---------------------------------------------------------------------------
-# regimes and plan
-# ---------------------------------------------------------------------------
-CANDIDATES = {
-    "poses": ["cross_axis", "nonlinearity", "bias_drift"],
-    "sweep": ["cross_axis", "field_disturbance"],
-    "single": ["bias_drift"],
-    "still": ["g_sensitivity", "bias_drift"],
-}
-
-
-def _plan(obs: dict) -> list:
-    plan = []
-    for s, o in obs.items():
-        plan += [(s, "stale_samples"), (s, "saturation")]
-        r = regime(o)
-        if r:
-            cands = list(CANDIDATES[r])
-            if s == "gyro" and "accel" not in obs:
-                cands.remove("g_sensitivity")
-            plan += [(s, c) for c in cands]
-            plan.append((s, "excess"))
-    if shared_rows(obs.get("accel"), obs.get("gyro")) and obs["accel"].segs is not None:
-        plan.append(("accel", "motion"))
-    return plan
 
 
 # ---------------------------------------------------------------------------
@@ -80,7 +53,7 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
     obs = all_obs(data, still=still)
     if not obs:
         raise QualityError(f"session {data.name}: no sensor readings to diagnose")
-    plan = _plan(obs)
+    plan = plan_tests(obs)
     plan += [(s, "temperature") for s, o in obs.items()           # issue 16
              if TH.testable(data, o, regime(o))]
     n_tests = len(plan)

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..errors import UserError
 from .session import NOMINAL_CHIPS, NOMINAL_SCALES, SessionData, label_from_text, label_to_text
+from .store_backend import Backend, StoreBusy, StoreError, store_fault  # noqa: F401
 from .store_schema import (APPLICATION_ID, LINE_COUNTERS, LINK_COUNTERS, MIGRATIONS,  # noqa: F401
                            SAMPLE_COLUMNS, SCHEMA_VERSION, SIGNATURE, SIGNATURE_SINCE)
 from .temperature import rows_from_readings
@@ -46,32 +47,6 @@ _NULL = 1 << 40                    # a stored NULL, when samples are compared
 # buffering samples meanwhile, before it gives up (SessionWriter.commit).
 LOCK_TIMEOUT_S = 60.0
 LOCK_BUFFER_SAMPLES = 2_000_000     # ~0.3 GB of queued samples at most
-
-
-class StoreError(UserError):
-    """The database failed under a command: disk full, I/O error, a lock held
-    too long.  One line on stderr; exit status 1 (the user's input was fine)."""
-
-    exit_code = 1
-
-
-class StoreBusy(StoreError):
-    """Another process holds the database's write lock."""
-
-
-def store_fault(target: str, e: Exception) -> StoreError:
-    """A database driver's error as one line (StoreBusy for a held lock)."""
-    text = " ".join(str(e).split()) or type(e).__name__
-    low = text.lower()
-    if "locked" in low or "busy" in low or "lock timeout" in low:
-        return StoreBusy(f"{target}: the database is locked by another process")
-    if "full" in low or "no space" in low or "diskfull" in low:
-        return StoreError(f"{target}: the database or its disk is full")
-    if "i/o" in low or "ioerr" in low:
-        return StoreError(f"{target}: disk I/O error")
-    if "readonly" in low or "read-only" in low or "read only" in low:
-        return StoreError(f"{target}: the database is read-only")
-    return StoreError(f"{target}: database error: {text[:200]}")
 
 
 def check_session_name(name) -> str:
@@ -87,7 +62,7 @@ def check_session_name(name) -> str:
 # --------------------------------------------------------------------------
 # Backends
 # --------------------------------------------------------------------------
-class _SqliteBackend:
+class _SqliteBackend(Backend):
     """A sqlite file: WAL journal, synchronous=NORMAL (a crash loses no
     committed transaction; power loss at most the last ones, never consistency)."""
 
@@ -201,7 +176,7 @@ class _SqliteBackend:
         self.conn.close()
 
 
-class _PostgresBackend:
+class _PostgresBackend(Backend):
     """A PostgreSQL server (psycopg 3), for labs where several base stations log
     into one database.  ``create`` is implied: the database must exist, the
     motecal tables are made in it when it has none."""

@@ -38,6 +38,7 @@ import re
 import urllib.parse
 
 from ..errors import UserError
+from .store_backend import Backend
 
 SCHEMES = ("mysql://", "mariadb://")
 DEFAULT_SOCKET = "/run/mysqld/mysqld.sock"
@@ -195,7 +196,7 @@ class _Cursor:
         self._c.close()
 
 
-class MysqlBackend:
+class MysqlBackend(Backend):
     """A MySQL or MariaDB server (PyMySQL).  ``create`` is implied: the
     database must exist, the motecal tables are made in it when it has none."""
 

@@ -21,6 +21,7 @@ from motecal.commands.main import main
 from motecal.sessions import store as store_mod
 from motecal.sessions.fingerprint import data_key
 from motecal.sessions.store import open_store
+from motecal.sessions.store_sqlite import SqliteBackend
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
 import bench_diagnose_loop as L  # noqa: E402
@@ -106,7 +107,7 @@ def test_schema_6_gains_the_diagnoses_table(tmp_path):
     con = sqlite3.connect(v6)
     for v in range(1, 7):
         for stmt in store_mod.MIGRATIONS[v]:
-            con.execute(stmt.format(**store_mod._SqliteBackend.types))
+            con.execute(stmt.format(**SqliteBackend.types))
     con.execute("INSERT INTO schema_version VALUES (6)")
     con.execute("INSERT INTO sessions (name, kind, started, scales, chips, meta) VALUES "
                 "('six', 'free', 0, '{}', '{}', '{}')")

@@ -11,6 +11,7 @@ from motecal.capture.logger import Logger
 from motecal.line import sources as S
 from motecal.sessions import store as store_mod
 from motecal.sessions.store import SCHEMA_VERSION, open_store
+from motecal.sessions.store_sqlite import SqliteBackend
 from test_logger_streams import sample_frames
 
 N = 2000
@@ -115,7 +116,7 @@ def test_case6_the_summary_says_so(tmp_path):
 def test_schema_5_migrates_a_version_4_database(tmp_path):
     v4 = str(tmp_path / "v4.db")
     con = sqlite3.connect(v4)
-    b = store_mod._SqliteBackend.types
+    b = SqliteBackend.types
     for v in (1, 2, 3, 4):
         for stmt in store_mod.MIGRATIONS[v]:
             con.execute(stmt.format(**b))

@@ -14,6 +14,7 @@ from motecal.errors import UserError
 from motecal.sessions import store as store_mod
 from motecal.sessions.session import LABEL_ROT, SessionData
 from motecal.sessions.store import SCHEMA_VERSION, open_store
+from motecal.sessions.store_sqlite import SqliteBackend
 
 
 def _session(name="s1", n=12, motes=(1, 2), seed=0):
@@ -186,7 +187,7 @@ def test_newer_schema_refused_and_old_schema_migrated(tmp_path):
     # a database made by schema version 1 (no link statistics yet) is migrated
     old = str(tmp_path / "old.db")
     con = sqlite3.connect(old)
-    b = store_mod._SqliteBackend.types
+    b = SqliteBackend.types
     for stmt in store_mod.MIGRATIONS[1]:
         con.execute(stmt.format(**b))
     con.execute("INSERT INTO schema_version VALUES (1)")
@@ -243,7 +244,7 @@ def _old_db(path, version: int):
     con = sqlite3.connect(path)
     for v in range(1, version + 1):
         for stmt in store_mod.MIGRATIONS[v]:
-            con.execute(stmt.format(**store_mod._SqliteBackend.types))
+            con.execute(stmt.format(**SqliteBackend.types))
     con.execute("INSERT INTO schema_version VALUES (?)", (version,))
     con.execute("INSERT INTO sessions (name, kind, started, scales, chips, meta) VALUES "
                 "('five', 'free', 0, '{}', '{}', '{}')")

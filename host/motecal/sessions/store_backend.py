@@ -114,6 +114,15 @@ class Backend(abc.ABC):
     def close(self) -> None: ...
 
 
+def shown_url(url: str) -> str:
+    """A server URL as shown to the user: its password replaced by ``***``."""
+    head, sep, tail = url.partition("://")
+    cred, at, rest = tail.rpartition("@")
+    if at and ":" in cred:
+        return f"{head}{sep}{cred.split(':', 1)[0]}:***@{rest}"
+    return url
+
+
 class StoreError(UserError):
     """The database failed under a command: disk full, I/O error, a lock held
     too long.  One line on stderr; exit status 1 (the user's input was fine)."""

@@ -11,7 +11,7 @@ read-only session for commands that only read.
 from __future__ import annotations
 
 from ..errors import UserError
-from .store_backend import Backend
+from .store_backend import Backend, shown_url
 
 
 class PostgresBackend(Backend):
@@ -32,7 +32,7 @@ class PostgresBackend(Backend):
                             "(pip install './host[postgres]')") from None
         self.psycopg = psycopg
         self.errors = (psycopg.Error,)
-        self.display = _hide_password(url)
+        self.display = shown_url(url)
         try:
             self.conn = psycopg.connect(url, autocommit=True, connect_timeout=10)
             if readonly:
@@ -90,11 +90,3 @@ class PostgresBackend(Backend):
 
     def close(self):
         self.conn.close()
-
-
-def _hide_password(url: str) -> str:
-    head, sep, tail = url.partition("://")
-    cred, at, rest = tail.rpartition("@")
-    if at and ":" in cred:
-        return f"{head}{sep}{cred.split(':', 1)[0]}:***@{rest}"
-    return url

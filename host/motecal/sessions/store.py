@@ -19,7 +19,6 @@ leaves a consistent database that lacks at most the uncommitted batch.
 from __future__ import annotations
 
 import contextlib
-import datetime as _dt
 import itertools
 import json
 import time
@@ -28,11 +27,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import UserError
-from .session import NOMINAL_CHIPS, NOMINAL_SCALES, SessionData, label_from_text, label_to_text
+from .session import NOMINAL_CHIPS, NOMINAL_SCALES, SessionData
 from .store_backend import Backend, StoreBusy, StoreError, store_fault
 from .store_schema import (APPLICATION_ID, LINE_COUNTERS, LINK_COUNTERS, MIGRATIONS,
                            SAMPLE_COLUMNS, SCHEMA_VERSION, SIGNATURE, SIGNATURE_SINCE)
 from .store_sqlite import SqliteBackend
+from .store_values import document, dumps, from_iso, iso, label_texts, labels_from_texts
 from .store_writer import INSERT_TEMPS, LOCK_BUFFER_SAMPLES, LOCK_TIMEOUT_S, SessionWriter
 from .temperature import rows_from_readings
 
@@ -54,84 +54,6 @@ def check_session_name(name) -> str:
         raise UserError(f"session name {name!r}: a session needs a name that is not "
                         "empty or blank")
     return name
-
-
-
-# --------------------------------------------------------------------------
-# Backends
-# --------------------------------------------------------------------------
-def _backend_for(target: str, create: bool, readonly: bool = False) -> Backend:
-    if target.startswith(("postgresql://", "postgres://")):
-        from .store_postgres import PostgresBackend  # its driver only when asked for
-        return PostgresBackend(target, create, readonly)
-    if target.startswith(("mysql://", "mariadb://")):
-        from .store_mysql import MysqlBackend        # its driver only when asked for
-        return MysqlBackend(target, create, readonly)
-    if target.startswith("sqlite:///"):
-        target = target[len("sqlite:///") - 1:] if target.startswith("sqlite:////") \
-            else target[len("sqlite:///"):]
-    elif "://" in target:
-        raise UserError(f"unsupported database URL {target} (use a sqlite file path, "
-                        "postgresql://... or mysql://...)")
-    return SqliteBackend(target, create, readonly)
-
-
-# --------------------------------------------------------------------------
-# Helpers
-# --------------------------------------------------------------------------
-def _iso(ts: float | None) -> str | None:
-    if ts is None:
-        return None
-    return _dt.datetime.fromtimestamp(ts, _dt.timezone.utc).isoformat(timespec="milliseconds") \
-        .replace("+00:00", "Z")
-
-
-def _from_iso(value) -> float | None:
-    if value is None or value == "":
-        return None
-    if isinstance(value, (int, float)):
-        return float(value)
-    try:
-        d = _dt.datetime.fromisoformat(str(value).replace("Z", "+00:00"))
-    except ValueError:
-        raise UserError(f"bad time {value!r} in session metadata (want ISO 8601)") from None
-    if d.tzinfo is None:
-        d = d.replace(tzinfo=_dt.timezone.utc)
-    return d.timestamp()
-
-
-def _json_default(o):
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    raise TypeError(f"{type(o).__name__} is not JSON serialisable")
-
-
-def _dumps(obj) -> str:
-    return json.dumps(obj, default=_json_default, sort_keys=True)
-
-
-def _document(obj, what: str) -> str:
-    """``obj`` as stored JSON text; one line (UserError) naming ``what`` when
-    it is not JSON-able."""
-    try:
-        return _dumps(obj)
-    except (TypeError, ValueError) as e:
-        raise UserError(f"{what} is not JSON: {e}") from None
-
-
-def _label_texts(label: np.ndarray) -> list[str]:
-    """int labels -> their text form (session.label_to_text), vectorised."""
-    uniq, inv = np.unique(np.asarray(label), return_inverse=True)
-    texts = np.array([label_to_text(int(u)) for u in uniq], dtype=object)
-    return texts[inv].tolist()
-
-
-def _labels_from_texts(texts: list[str]) -> np.ndarray:
-    uniq, inv = np.unique(np.asarray(texts, dtype=object).astype(str), return_inverse=True)
-    vals = np.array([label_from_text(u) for u in uniq], dtype=np.int32)
-    return vals[inv] if len(texts) else np.zeros(0, np.int32)
 
 
 _META_COLUMNS = ("source", "rate_hz", "notes")
@@ -317,7 +239,7 @@ class Store:
                 "SELECT id, name, kind, started, ended, source, rate_hz, notes "
                 "FROM sessions ORDER BY id"):
             c = counts.get(sid, {"samples": 0, "motes": [], "poses": 0})
-            out.append(dict(name=name, kind=kind, started=_iso(started), ended=_iso(ended),
+            out.append(dict(name=name, kind=kind, started=iso(started), ended=iso(ended),
                             source=source, rate_hz=rate, notes=notes, **c))
         return out
 
@@ -326,14 +248,14 @@ class Store:
 
     def _meta_row(self, name, kind, scales, chips, meta):
         meta = dict(meta or {})
-        started = _from_iso(meta.pop("started", None)) or time.time()
-        ended = _from_iso(meta.pop("ended", None))
+        started = from_iso(meta.pop("started", None)) or time.time()
+        ended = from_iso(meta.pop("ended", None))
         cols = {k: meta.pop(k, None) for k in _META_COLUMNS}
         if cols["rate_hz"] is not None:
             cols["rate_hz"] = float(cols["rate_hz"])
         return (name, kind, started, ended, cols["source"], cols["rate_hz"], cols["notes"],
-                _dumps(dict(scales or NOMINAL_SCALES)), _dumps(dict(chips or NOMINAL_CHIPS)),
-                _dumps(meta))
+                dumps(dict(scales or NOMINAL_SCALES)), dumps(dict(chips or NOMINAL_CHIPS)),
+                dumps(meta))
 
     def _insert_session(self, cur, row) -> int:
         cur.execute(self._b.sql(
@@ -382,7 +304,7 @@ class Store:
             sid = self._insert_session(cur, row)
             n = len(data)
             step = 100_000
-            labels = _label_texts(data.label)
+            labels = label_texts(data.label)
             int_rows = np.where(finite, raw, 0).astype(np.int64)
             for a in range(0, n, step):
                 sl = slice(a, a + step)
@@ -424,16 +346,16 @@ class Store:
                             + (f" (motes: {', '.join(map(str, motes))})" if motes else ""))
         if rows:
             num = np.array([r[:13] for r in rows], dtype=float)
-            labels = _labels_from_texts([r[13] for r in rows])
+            labels = labels_from_texts([r[13] for r in rows])
         else:
             num = np.zeros((0, 13))
             labels = np.zeros(0, np.int32)
         meta = json.loads(meta)
         meta.update({k: v for k, v in (("source", source), ("rate_hz", rate), ("notes", notes))
                      if v is not None})
-        meta["started"] = _iso(started)
+        meta["started"] = iso(started)
         if ended is not None:
-            meta["ended"] = _iso(ended)
+            meta["ended"] = iso(ended)
         data = SessionData(name=name, raw=num[:, 4:13], mote=num[:, 0].astype(np.int32),
                            seq=num[:, 1].astype(np.int64), t=num[:, 2], label=labels,
                            flags=num[:, 3].astype(np.uint8), kind=kind,
@@ -471,7 +393,7 @@ class Store:
     def save_calibration(self, session: str, mote: int, cal: dict) -> int:
         """Store a calibration (JSON-able dict) of one mote of a session; returns its id."""
         info = self._require(session)
-        text = _document(cal, f"calibration for {session!r} mote {mote}")
+        text = document(cal, f"calibration for {session!r} mote {mote}")
         with self._tx() as cur:
             cur.execute(self._b.sql(
                 "INSERT INTO calibrations (session, mote, created, cal) VALUES (?, ?, ?, ?) "
@@ -499,7 +421,7 @@ class Store:
         session with the tool version that made it and the fingerprint of the
         rows it saw; returns its id."""
         info = self._require(session)
-        text = _document(diagnosis, f"diagnosis for {session!r} mote {mote}")
+        text = document(diagnosis, f"diagnosis for {session!r} mote {mote}")
         with self._tx() as cur:
             cur.execute(self._b.sql(
                 "INSERT INTO diagnoses (session, mote, created, tool, data_key, diagnosis) "
@@ -524,7 +446,7 @@ class Store:
             d = json.loads(text)
         except (TypeError, ValueError):
             d = None
-        return {"id": int(i), "created": _iso(created), "tool": tool, "data_key": key,
+        return {"id": int(i), "created": iso(created), "tool": tool, "data_key": key,
                 "diagnosis": d}
 
     # -- link statistics and events ------------------------------------------------
@@ -593,7 +515,7 @@ class Store:
         info = self._require(session)
         if "writers" not in self._tables:
             return []                            # an older schema, opened read-only
-        return [dict(writer=w, source=src, started=_iso(a), ended=_iso(e), stored=int(n),
+        return [dict(writer=w, source=src, started=iso(a), ended=iso(e), stored=int(n),
                      duplicates=int(d), conflicts=int(c)) for w, src, a, e, n, d, c in self._query(
             "SELECT writer, source, started, ended, stored, duplicates, conflicts FROM writers "
             "WHERE session = ? ORDER BY started, writer", (info.id,))]
@@ -616,6 +538,25 @@ class Store:
         info = self._require(session)
         return {int(m): int(s) for m, s in self._query(
             "SELECT mote, MAX(seq) FROM samples WHERE session = ? GROUP BY mote", (info.id,))}
+
+
+def _backend_for(target: str, create: bool, readonly: bool = False) -> Backend:
+    """The backend a target names: ``postgresql://`` (or ``postgres://``),
+    ``mysql://`` (or ``mariadb://``), else a sqlite file (``sqlite:///path`` or
+    a path)."""
+    if target.startswith(("postgresql://", "postgres://")):
+        from .store_postgres import PostgresBackend  # its driver only when asked for
+        return PostgresBackend(target, create, readonly)
+    if target.startswith(("mysql://", "mariadb://")):
+        from .store_mysql import MysqlBackend        # its driver only when asked for
+        return MysqlBackend(target, create, readonly)
+    if target.startswith("sqlite:///"):
+        target = target[len("sqlite:///") - 1:] if target.startswith("sqlite:////") \
+            else target[len("sqlite:///"):]
+    elif "://" in target:
+        raise UserError(f"unsupported database URL {target} (use a sqlite file path, "
+                        "postgresql://... or mysql://...)")
+    return SqliteBackend(target, create, readonly)
 
 
 def open_store(target: str, *, create: bool = False, readonly: bool = False) -> Store:

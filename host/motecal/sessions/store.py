@@ -2,8 +2,18 @@
 
 ``open_store(target)`` opens a sqlite file (the default) or, with a
 ``postgresql://`` URL, a PostgreSQL server, or with a ``mysql://`` URL a MySQL
-or MariaDB server (store_mysql.py).  All hold the same schema, versioned in
-the ``schema_version`` table and migrated forward on open (store_schema.py).
+or MariaDB server.  All hold the same schema, versioned in the
+``schema_version`` table and migrated forward on open.  The parts:
+
+* store.py          -- ``Store`` (sessions in and out, calibrations, diagnoses,
+                       counters, the schema check and migration), ``open_store``;
+* store_backend.py  -- the one interface a backend implements, the store's errors;
+* store_sqlite.py, store_postgres.py, store_mysql.py -- the backends;
+* store_schema.py   -- schema version, migrations, link and line counters;
+* store_writer.py   -- ``SessionWriter``, a live session's batched writer;
+* store_values.py   -- times, JSON documents and labels as stored.
+
+Other modules import all of it from here (``__all__``).
 
 Samples are one row each: session, mote, unwrapped sequence number, host time
 ``t`` (seconds since the session started, NULL if unknown), label (text as in

@@ -1,7 +1,7 @@
 """The store's MySQL / MariaDB backend (PyMySQL, pure Python): the seed paper's
 database.  Same schema, same migrations and the same ``Store`` on top as the
-sqlite and PostgreSQL backends (sessions/store.py); this module only speaks
-the dialect.
+sqlite and PostgreSQL backends, behind the same interface (store_backend.py);
+this module only speaks the dialect.
 
 URLs::
 

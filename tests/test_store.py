@@ -1,10 +1,14 @@
 """The motecal database: schema and migrations, sessions in and out, atomic
 imports, calibrations, the live writer, CSV export, and one-line errors."""
 import csv
+import hashlib
 import os
+import re
 import sqlite3
 import subprocess
 import sys
+import types
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +16,7 @@ import pytest
 from motecal.commands.export import CSV_HEADER, export_csv
 from motecal.errors import UserError
 from motecal.sessions import store as store_mod
+from motecal.sessions import store_schema
 from motecal.sessions.session import LABEL_ROT, SessionData
 from motecal.sessions.store import SCHEMA_VERSION, open_store
 from motecal.sessions.store_sqlite import SqliteBackend
@@ -35,6 +40,60 @@ def _session(name="s1", n=12, motes=(1, 2), seed=0):
                        chips={"accel": "ADXL345", "gyro": "ITG3200", "mag": "HMC5843"},
                        meta={"source": "unit test", "rate_hz": 125, "notes": "n",
                              "boards": {"1": "B7"}, "started": "2024-05-01T10:00:00Z"})
+
+
+# --------------------------------------------------------------------------
+# Every backend: sqlite, and real PostgreSQL and MariaDB servers (Debian's
+# packages, started once per run in a temporary folder, reached through their
+# unix sockets: fixtures pg_url and mariadb, conftest.py / dbservers.py).
+# --------------------------------------------------------------------------
+BACKENDS = ("sqlite", "postgresql", "mariadb")
+
+
+@pytest.fixture(params=BACKENDS)
+def new_db(request, tmp_path):
+    """On each backend in turn, a maker of empty databases of their own:
+    ``new_db(name)`` -> the ``--db`` target (a sqlite file in the test's
+    folder, or a new database on the run's server); ``new_db.kind`` names
+    the backend."""
+    kind = request.param
+    tag = (re.sub(r"\W", "_", request.node.name.lower())[:30] + "_"
+           + hashlib.sha1(request.node.nodeid.encode()).hexdigest()[:8])
+    server = None if kind == "sqlite" else request.getfixturevalue(
+        "pg_url" if kind == "postgresql" else "mariadb")
+
+    def make(name: str = "db") -> str:
+        if kind == "sqlite":
+            return str(tmp_path / f"{name}.db")
+        db = f"t_{tag}_{name[:12]}"
+        if kind == "postgresql":
+            import psycopg
+            with psycopg.connect(server, autocommit=True) as con:
+                con.execute(f'DROP DATABASE IF EXISTS "{db}"')
+                con.execute(f'CREATE DATABASE "{db}"')
+            return server.replace("/motecal?", f"/{db}?")
+        import dbservers
+        return dbservers.new_database(server, db)
+
+    make.kind = kind
+    return make
+
+
+def _old_db(target: str, version: int, *rows: tuple) -> None:
+    """A database made by the migrations up to ``version`` (as released), then
+    the statements ``rows`` ((sql, params) in the store's SQL), through the
+    backend itself: the same on every backend."""
+    b = store_mod._backend_for(target, True)
+    try:
+        cur = b.cursor()
+        for v in range(1, version + 1):
+            for stmt in store_schema.MIGRATIONS[v]:
+                cur.execute(b.sql(stmt.format(**b.types)))
+        cur.execute(b.sql("INSERT INTO schema_version (version) VALUES (?)"), (version,))
+        for sql, params in rows:
+            cur.execute(b.sql(sql), params)
+    finally:
+        b.close()
 
 
 def _same(a: SessionData, b: SessionData):
@@ -286,6 +345,57 @@ def test_schema_5_migrates_with_the_temperature_table(tmp_path):
     cols = [r[1] for r in con.execute("PRAGMA table_info(temps)")]
     assert cols == ["session", "mote", "seq", "t", "temp_c", "count"]
     con.close()
+
+
+def _schema_with_a_counter(name: str) -> types.ModuleType:
+    """store_schema as a developer would leave it after adding one link
+    counter the way docs/CONTRIBUTING.md says (a line in LINK_COUNTERS, a new
+    migration adding its column, SCHEMA_VERSION bumped): its source changed
+    so, and run as a module of its own."""
+    src = Path(store_schema.__file__).read_text()
+    v = store_schema.SCHEMA_VERSION + 1
+    head, sep, rest = src.partition("LINK_COUNTERS = {\n")
+    body, end, tail = rest.partition("\n}\n")
+    src = head + sep + body + f'\n    "{name}": "a counter a later version adds",' + end + tail
+    src = src.replace(f"SCHEMA_VERSION = {v - 1}\n", f"SCHEMA_VERSION = {v}\n", 1)
+    src += (f"\nMIGRATIONS[{v}] = ['ALTER TABLE link_stats ADD COLUMN {name} "
+            "BIGINT NOT NULL DEFAULT 0']\n")
+    mod = types.ModuleType("motecal.sessions.store_schema_next")
+    mod.__package__ = "motecal.sessions"
+    exec(compile(src, "store_schema_next.py", "exec"), mod.__dict__)
+    assert mod.SCHEMA_VERSION == v and name in mod.LINK_COUNTERS
+    return mod
+
+
+def test_a_counter_added_by_a_new_migration(new_db, monkeypatch):
+    """Issue 24 item 5: the released migrations are literals, so a counter
+    added with a new migration leaves them as they were: a fresh database is
+    made (no "duplicate column name"), and a database of the released
+    version gains the column, its rows reading 0; on every backend."""
+    name = "mote_new_counter"
+    nxt = _schema_with_a_counter(name)
+    released = store_schema.MIGRATIONS
+    assert {k: nxt.MIGRATIONS[k] for k in released} == released
+    old = new_db("old")
+    with open_store(old, create=True) as st:                    # the released version
+        w = st.open_session("before", kind="free")
+        w.set_link_stats(2, {"frames": 5, "lost": 1})
+        w.end()
+    monkeypatch.setattr(store_mod, "SCHEMA_VERSION", nxt.SCHEMA_VERSION)
+    monkeypatch.setattr(store_mod, "MIGRATIONS", nxt.MIGRATIONS)
+    monkeypatch.setitem(store_schema.LINK_COUNTERS, name, nxt.LINK_COUNTERS[name])
+    fresh = new_db("fresh")
+    for target in (fresh, old):
+        with open_store(target, create=True) as st:
+            assert st.schema_version == nxt.SCHEMA_VERSION
+            w = st.open_session("after", kind="free")
+            w.set_link_stats(3, {"frames": 9, name: 7})
+            w.end()
+            motes = st.link_stats("after")["motes"]
+            assert (motes[3]["frames"], motes[3][name], motes[3]["lost"]) == (9, 7, 0)
+    with open_store(old) as st:
+        mote = st.link_stats("before")["motes"][2]
+        assert (mote["frames"], mote["lost"], mote[name]) == (5, 1, 0)
 
 
 def test_live_writer_batches_labels_stats_and_end(tmp_path):

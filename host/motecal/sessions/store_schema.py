@@ -74,17 +74,13 @@ SIGNATURE_SINCE = {2: ("link_stats", "line_stats", "events"), 5: ("writers", "sa
 
 # --------------------------------------------------------------------------
 # Schema and migrations.  Each migration is a list of statements; {int16},
-# {real}, {id_pk}, {wr} are filled in per backend.  Never edit a released
-# migration: add the next one and bump SCHEMA_VERSION.
+# {real}, {id_pk}, {wr} are filled in per backend (Backend.types).  A released
+# migration is never edited and is written out literally, never built from
+# LINK_COUNTERS or LINE_COUNTERS: those grow, and a migration that follows
+# them would make a later migration's column twice on a fresh database.  To
+# change the schema add the next migration and bump SCHEMA_VERSION
+# (docs/CONTRIBUTING.md, "A store counter").
 # --------------------------------------------------------------------------
-def _counter_cols(names, real=("gap_s",)):
-    return ", ".join(f"{n} {{real}} NOT NULL DEFAULT 0" if n in real
-                     else f"{n} BIGINT NOT NULL DEFAULT 0" for n in names)
-
-
-_LINE_COUNTERS_V3 = ("cut_off",)      # line counters that schema version 3 added
-_LINK_COUNTERS_V4 = ("mote_i2c_nacks", "mote_bus_resets", "mote_chip_reinits")  # version 4
-
 MIGRATIONS = {
     1: [
         "CREATE TABLE schema_version (version INTEGER NOT NULL)",
@@ -120,16 +116,46 @@ MIGRATIONS = {
         "CREATE INDEX calibrations_session ON calibrations (session, mote, id)",
     ],
     2: [
-        f"""CREATE TABLE link_stats (
+        """CREATE TABLE link_stats (
              session BIGINT NOT NULL,
              mote INTEGER NOT NULL,
-             {_counter_cols(k for k in LINK_COUNTERS if k not in _LINK_COUNTERS_V4)},
-             updated {{real}},
+             frames BIGINT NOT NULL DEFAULT 0,
+             samples BIGINT NOT NULL DEFAULT 0,
+             lost BIGINT NOT NULL DEFAULT 0,
+             duplicates BIGINT NOT NULL DEFAULT 0,
+             reordered BIGINT NOT NULL DEFAULT 0,
+             restarts BIGINT NOT NULL DEFAULT 0,
+             rejected BIGINT NOT NULL DEFAULT 0,
+             first_seq BIGINT NOT NULL DEFAULT 0,
+             last_seq BIGINT NOT NULL DEFAULT 0,
+             status_msgs BIGINT NOT NULL DEFAULT 0,
+             mote_dropped BIGINT NOT NULL DEFAULT 0,
+             mote_send_fail BIGINT NOT NULL DEFAULT 0,
+             mote_i2c_errors BIGINT NOT NULL DEFAULT 0,
+             mote_late BIGINT NOT NULL DEFAULT 0,
+             cal_version BIGINT NOT NULL DEFAULT 0,
+             cal_sensors BIGINT NOT NULL DEFAULT 0,
+             updated {real},
              PRIMARY KEY (session, mote))""",
-        f"""CREATE TABLE line_stats (
+        """CREATE TABLE line_stats (
              session BIGINT PRIMARY KEY,
-             {_counter_cols(k for k in LINE_COUNTERS if k not in _LINE_COUNTERS_V3)},
-             updated {{real}})""",
+             frames BIGINT NOT NULL DEFAULT 0,
+             crc_errors BIGINT NOT NULL DEFAULT 0,
+             bad_frames BIGINT NOT NULL DEFAULT 0,
+             garbage_bytes BIGINT NOT NULL DEFAULT 0,
+             unknown_msgs BIGINT NOT NULL DEFAULT 0,
+             bad_msgs BIGINT NOT NULL DEFAULT 0,
+             acks BIGINT NOT NULL DEFAULT 0,
+             disconnects BIGINT NOT NULL DEFAULT 0,
+             gap_s {real} NOT NULL DEFAULT 0,
+             bs_status_msgs BIGINT NOT NULL DEFAULT 0,
+             bs_radio_rx BIGINT NOT NULL DEFAULT 0,
+             bs_radio_drops BIGINT NOT NULL DEFAULT 0,
+             bs_serial_rx BIGINT NOT NULL DEFAULT 0,
+             bs_serial_drops BIGINT NOT NULL DEFAULT 0,
+             bs_radio_fail BIGINT NOT NULL DEFAULT 0,
+             bs_serial_fail BIGINT NOT NULL DEFAULT 0,
+             updated {real})""",
         """CREATE TABLE events (
              session BIGINT NOT NULL,
              t {real} NOT NULL,
@@ -138,8 +164,12 @@ MIGRATIONS = {
              detail TEXT NOT NULL DEFAULT '')""",
         "CREATE INDEX events_session ON events (session, t)",
     ],
-    3: [f"ALTER TABLE line_stats ADD COLUMN {_counter_cols([k])}" for k in _LINE_COUNTERS_V3],
-    4: [f"ALTER TABLE link_stats ADD COLUMN {_counter_cols([k])}" for k in _LINK_COUNTERS_V4],
+    # 3: frames cut short by the end of the line
+    3: ["ALTER TABLE line_stats ADD COLUMN cut_off BIGINT NOT NULL DEFAULT 0"],
+    # 4: the mote's I2C fault counters
+    4: ["ALTER TABLE link_stats ADD COLUMN mote_i2c_nacks BIGINT NOT NULL DEFAULT 0",
+        "ALTER TABLE link_stats ADD COLUMN mote_bus_resets BIGINT NOT NULL DEFAULT 0",
+        "ALTER TABLE link_stats ADD COLUMN mote_chip_reinits BIGINT NOT NULL DEFAULT 0"],
     # 5: several writers to one session (docs/guarantees.md, "several writers"):
     # each live writer's own row of counts, and every sample a writer received
     # under a key already stored with other values, kept whole

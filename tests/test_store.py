@@ -106,6 +106,25 @@ def _same(a: SessionData, b: SessionData):
     np.testing.assert_array_equal(b.flags, a.flags[order])
 
 
+def test_every_backend_implements_the_interface():
+    """One module, one class per backend, each all of store_backend.Backend
+    (no method left abstract), with its types for the schema's statements."""
+    from motecal.sessions.store_backend import Backend, shown_url
+    from motecal.sessions.store_mysql import MysqlBackend
+    from motecal.sessions.store_postgres import PostgresBackend
+    from motecal.sessions.store_sqlite import SqliteBackend
+    classes = (SqliteBackend, PostgresBackend, MysqlBackend)
+    for cls in classes:
+        assert issubclass(cls, Backend) and not cls.__abstractmethods__, cls
+        assert set(cls.types) == {"int16", "real", "id_pk", "wr"}, cls
+        for stmts in store_schema.MIGRATIONS.values():
+            for stmt in stmts:
+                assert "{" not in stmt.format(**cls.types)
+    assert [c.name for c in classes] == ["sqlite", "postgresql", "mysql"]
+    assert shown_url("postgresql://lab:s3cret@db:5432/m") == "postgresql://lab:***@db:5432/m"
+    assert shown_url("postgresql://lab@/m?host=/run/pg") == "postgresql://lab@/m?host=/run/pg"
+
+
 def test_empty_or_blank_session_names_are_refused(tmp_path):
     with open_store(str(tmp_path / "m.db"), create=True) as st:
         for name in ("", "   ", "\t\n"):

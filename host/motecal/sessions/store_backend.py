@@ -1,7 +1,8 @@
 """The one interface between ``Store`` (store.py) and a database: what the
 store needs of a backend, and the errors it raises when a database fails.
 
-A backend is one module, one class (``Backend`` below):
+Each backend is one class, in a module of its own, derived from ``Backend``
+below:
 
 * ``store_sqlite.SqliteBackend``     -- a sqlite file (the default)
 * ``store_postgres.PostgresBackend`` -- ``postgresql://`` (psycopg 3)

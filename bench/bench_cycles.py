@@ -23,7 +23,7 @@ import avrsim  # noqa: E402
 from results import record  # noqa: E402
 
 SOURCES = [avrsim.CSRC / "avr_bench.c"] + [
-    avrsim.TINYOS / f for f in ("ninedof_board.c", "ninedof_cal.c", "ninedof_sampling.c",
+    avrsim.TINYOS / f for f in ("ninedof_board.c", *avrsim.CAL_C, "ninedof_sampling.c",
                                 "ninedof_clock.c")]
 MHZ = avrsim.F_CPU / 1e6
 BATCH = 5

@@ -69,7 +69,7 @@ def main():
 
 
 def temperature_error(seeds: int) -> None:
-    """The on-mote correction with temperature terms (tinyos/ninedof_cal.c
+    """The on-mote correction with temperature terms (tinyos/ninedof_correct.c
     through mote_c) against the float reference (fixedpoint.reference_correct,
     the stored coefficients applied exactly): the largest difference in LSB
     over random valid sets, temperatures inside and beyond the calibrated
@@ -105,13 +105,13 @@ def temperature_error(seeds: int) -> None:
             n += raw.size
     print(f"on-mote temperature correction vs the float reference: {sets} random valid sets, "
           f"{n} values, largest difference {worst:.4f} LSB (proven bound "
-          f"{FP.TEMP_BOUND_LSB:.5f}, ninedof_cal.h; goal <= 1 LSB)")
+          f"{FP.TEMP_BOUND_LSB:.5f}, ninedof_correct.h; goal <= 1 LSB)")
     record("on-mote temperature correction, largest error against the float reference",
            "<= 1 LSB (#16)", worst, "LSB", worst <= 1.0, digits=4,
            note=f"{sets} random valid sets (all three sensors with temperature terms), "
                 f"{n} corrected values over the whole int16 range, temperatures inside and "
-                "beyond the calibrated range; tinyos/ninedof_cal.c through mote_c; proven "
-                f"bound 1 - 2^-11 = {FP.TEMP_BOUND_LSB:.5f} LSB (ninedof_cal.h)")
+                "beyond the calibrated range; tinyos/ninedof_correct.c through mote_c; proven "
+                f"bound 1 - 2^-11 = {FP.TEMP_BOUND_LSB:.5f} LSB (ninedof_correct.h)")
 
 
 if __name__ == "__main__":

@@ -16,6 +16,8 @@ REPO = Path(__file__).resolve().parent.parent
 TINYOS = REPO / "tinyos"
 BASESTATION = REPO / "basestation"
 CSRC = REPO / "tests" / "c"
+# the calibration C code: the set, the correction, the upload receiver
+CAL_C = ("ninedof_calset.c", "ninedof_correct.c", "ninedof_calrx.c")
 MCU = "atmega1281"
 F_CPU = 8_000_000
 AVR_CFLAGS = ["-mmcu=" + MCU, "-std=gnu99", "-Wall", "-Wextra", "-Werror",

@@ -129,8 +129,8 @@ def avr_run(tmp_path_factory):
         + _c_array("CAL_TEMP", "int16_t", [t or 0 for t in temps])
         + _c_array("RAW", "int16_t", raw.reshape(-1))
         + _c_array("MSGS", "uint8_t", script))
-    elf = avrsim.build([avrsim.CSRC / "avr_cal_main.c", avrsim.TINYOS / "ninedof_cal.c"],
-                       d / "cal.elf", include=[d])
+    sources = [avrsim.CSRC / "avr_cal_main.c"] + [avrsim.TINYOS / f for f in avrsim.CAL_C]
+    elf = avrsim.build(sources, d / "cal.elf", include=[d])
     text = avrsim.run(elf)
     assert "END" in text, text[-300:]
     tokens = text[:text.index("END")].split(";")[:-1]
@@ -150,7 +150,7 @@ def test_correction_is_bit_identical_on_the_avr(avr_run):
         got = _hex16(tok[5:]).reshape(-1, 9)
         np.testing.assert_array_equal(got, M.correct(cs, raw, t))
     # the temperature terms changed the output, and stay within
-    # TEMP_BOUND_LSB (< 1 LSB, ninedof_cal.h) of the float reference
+    # TEMP_BOUND_LSB (< 1 LSB, ninedof_correct.h) of the float reference
     assert len(calsets[-1]) == P.CALSET_TEMP_SIZE and M.validate(calsets[-1], MOTE) == 0
     assert not np.array_equal(M.correct(calsets[-1], raw, 20000), M.correct(calsets[-1], raw))
     for cs, t in zip(calsets, temps):
@@ -194,7 +194,7 @@ def test_receiver_replies_are_identical_on_the_avr(avr_run):
 # The rest of the firmware's plain C logic, on the host and on the AVR
 # --------------------------------------------------------------------------
 LOGIC_SOURCES = [avrsim.CSRC / "logic_tests.c", avrsim.BASESTATION / "ninedof_bs.c"] + [
-    avrsim.TINYOS / f for f in ("ninedof_board.c", "ninedof_cal.c", "ninedof_sampling.c",
+    avrsim.TINYOS / f for f in ("ninedof_board.c", *avrsim.CAL_C, "ninedof_sampling.c",
                                 "ninedof_clock.c")]
 
 

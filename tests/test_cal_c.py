@@ -1,4 +1,5 @@
-"""The mote's calibration C code (tinyos/ninedof_cal.c) on the host, via mote_c.
+"""The mote's calibration C code (tinyos/ninedof_calset.c, ninedof_correct.c,
+ninedof_calrx.c) on the host, via mote_c.
 
 Checked against the numpy float64 reference (fixedpoint.reference_correct) and
 an exact int64 evaluation of the header's formula with its error-feedback

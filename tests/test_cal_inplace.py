@@ -1,6 +1,7 @@
-"""The correction kernel of tinyos/ninedof_cal.c (sensor_q14, inline AVR
-assembly) run in place, in one translation unit, as the nesC image runs it
-(NineDofAppP's flush -> ninedof_batch_pack corrects its batch in place).
+"""The correction kernel (sensor_q14, inline AVR assembly, now in
+tinyos/ninedof_correct_avr.h) run in place, in one translation unit, as the
+nesC image runs it (NineDofAppP's flush -> ninedof_batch_pack corrects its
+batch in place).
 
 Found by the release check (docs/emulation.md, End to end and Faults): with
 in == out visible to the compiler, avr-gcc gives the asm's `out` operand the
@@ -8,10 +9,11 @@ register of its `p` operand (X), so `movw r26, %[out]` becomes `movw r26,
 r26`, the results are stored 6 bytes late and the last record's
 magnetometer 6 bytes past the batch (in the image: NineDofAppP__heartbeat,
 SchedulerBasicP__m_tail, SoftwareAckLayerC__0__txMsg).  The image built by
-`make iris` had that instruction three times.  Fixed in tinyos/ninedof_cal.c:
-ninedof_correct_block is never inlined on the AVR, so raw and out are two
-parameters the compiler cannot prove equal.  The program calls it the way
-the image does, inlined whole (flatten); without the fix this test fails."""
+`make iris` had that instruction three times.  Fixed in the correction (now
+tinyos/ninedof_correct.c and ninedof_correct_avr.h): ninedof_correct_block
+is never inlined on the AVR, so raw and out are two parameters the compiler
+cannot prove equal.  The program calls it the way the image does, inlined
+whole (flatten); without the fix this test fails."""
 import pytest
 
 import avrsim

@@ -1,4 +1,4 @@
-"""On-mote temperature correction (calset format 1, tinyos/ninedof_cal.c).
+"""On-mote temperature correction (calset format 1, tinyos/ninedof_correct.c).
 
 The C correction with temperature terms against the float reference
 (fixedpoint.reference_correct) over random valid sets and temperatures: within
@@ -61,7 +61,7 @@ def raw_records(rng, n):
 def test_within_one_lsb_of_the_float_reference(seed):
     """Random valid sets with temperature terms on random sensors, at random
     temperatures inside and outside the range: |C - reference| below
-    fixedpoint.TEMP_BOUND_LSB (1 - 2^-11, ninedof_cal.h), and the C output
+    fixedpoint.TEMP_BOUND_LSB (1 - 2^-11, ninedof_correct.h), and the C output
     is the integer model's (fixedpoint.feedback_correct) bit for bit."""
     rng = np.random.default_rng(seed)
     sensors = {n: random_fixed(rng) for n in P.SENSORS}
@@ -349,7 +349,7 @@ def test_cli_dry_run_and_show_the_temperature_terms(cal_temp):
     assert rc == 0, err
     assert "164 bytes in 9 fragments" in out and "with temperature terms" in out
     assert out.count("temperature: t_ref 25.00 C, clamped to 18.00..41.50 C") == 2
-    assert "the mote's checks (tinyos/ninedof_cal.c): accepted" in out
+    assert "the mote's checks (tinyos/ninedof_calset.c): accepted" in out
     rc, out, err = motecal("upload", cal_temp, "--dry-run", "--no-temp")
     assert rc == 0 and "102 bytes in 6 fragments" in out
     assert "temperature models left out: --no-temp" in out and "t_ref" not in out

@@ -1,6 +1,6 @@
 """The on-mote temperature correction is within 1 LSB of the float reference.
 
-tinyos/ninedof_cal.h proves |out - reference| < 1 - 2^-11 LSB
+tinyos/ninedof_correct.h proves |out - reference| < 1 - 2^-11 LSB
 (fixedpoint.TEMP_BOUND_LSB) for every valid set with temperature terms, any
 temperature and any input; here, over random sets and the worst cases the
 proof has to cover: gains at the |g dT| = 1/8 limit (exactly, with gshift
@@ -166,7 +166,7 @@ def test_first_sample_on_the_gain_path_after_a_full_residual():
 def test_mean_of_still_samples_is_unbiased():
     """N still samples (constant, or with +-1 count of noise) on the gain
     path: the mean of the outputs is within 1/N + d of the exact mean
-    (ninedof_cal.h; d < 6.25 / 2^14) on >= 95 % of the boards, and within
+    (ninedof_correct.h; d < 6.25 / 2^14) on >= 95 % of the boards, and within
     1/N + e + d on all (e = 2^-10, the clamp's worst)."""
     N = 1500
     d = 6.25 / 2**14

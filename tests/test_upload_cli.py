@@ -61,7 +61,7 @@ def test_dry_run_prints_the_fixed_point_values_and_their_error(cal_path):
     assert lines[1] == (f"set for mote 1, version 7: 102 bytes in 6 fragments, "
                         f"CRC 0x{P.crc16(calset):04x}")
     assert lines[2:8] == FP.format_report(report)
-    assert lines[8] == "the mote's checks (tinyos/ninedof_cal.c): accepted"
+    assert lines[8] == "the mote's checks (tinyos/ninedof_calset.c): accepted"
     # the numbers are the set's: shift, A_q and c_q per sensor, as the mote will hold them
     cs = FP.unpack_calset(calset)
     a = cs.sensors["accel"]

@@ -12,7 +12,9 @@
 #include "ninedof_cal.h"
 #include "ninedof_sampling.h"
 #include "ninedof_clock.h"
-#include "ninedof_cal.c"
+#include "ninedof_calset.c"
+#include "ninedof_correct.c"
+#include "ninedof_calrx.c"
 #include "ninedof_sampling.c"
 #include "ninedof_clock.c"
 

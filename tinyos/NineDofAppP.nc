@@ -14,7 +14,7 @@
  * crystal time (LocalTime<TMilli>) and keeps the long-run rate at 125.000
  * Hz of the crystal, periods differing by at most one tick.  Records of
  * consecutive periods are batched NINEDOF_BATCH to a message, corrected with the
- * calibration in force and flagged (ninedof_sampling.c, ninedof_cal.c) and
+ * calibration in force and flagged (ninedof_sampling.c, ninedof_correct.c) and
  * sent to the BaseStation (address 0) through a queue of NINEDOF_SEND_QUEUE
  * messages; when the queue is full the batch is dropped and counted.  A
  * ninedof_mote_status_msg goes out every 2 s from its own buffer, without

@@ -81,7 +81,7 @@ typedef nx_struct ninedof_samples_msg {
 /* Calibration set: what is uploaded, CRC-checked, stored and applied.     */
 /* For each sensor: out = sat16((A_q * raw + c_q + 2^(shift-1)) >> shift), */
 /* in the sensor's nominal counts.  A_q = round(A * 2^shift) row-major,    */
-/* c_q = round(c_counts * 2^shift).  See tinyos/ninedof_cal.h.             */
+/* c_q = round(c_counts * 2^shift).  See tinyos/ninedof_correct.h.         */
 /* ---------------------------------------------------------------------- */
 enum {
   NINEDOF_SENSOR_ACCEL = 0,
@@ -118,7 +118,7 @@ typedef nx_struct ninedof_calset {
 /*   out_i = sat(((1 + g_i dT / 2^gshift) (A_q raw)_i + c_q,i) / 2^shift   */
 /*               + o_i dT / 2^oshift)                                      */
 /* (the calibration's TempModel in counts: scale_per_c and offset_per_c    */
-/* per TEMP_OUT count).  See tinyos/ninedof_cal.h.                         */
+/* per TEMP_OUT count).  See tinyos/ninedof_correct.h.                     */
 /* ---------------------------------------------------------------------- */
 enum {
   NINEDOF_CALSET_PLAIN = 0,     /* ninedof_calset_t, 102 bytes */

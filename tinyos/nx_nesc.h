@@ -1,7 +1,8 @@
 /*
  * nx_nesc.h -- the nxp_* accessors of nx_plain.h for nesC, where network
- * types are built in: the plain C logic (ninedof_cal.c, ninedof_sampling.c)
- * reads and writes message fields through these in both worlds.
+ * types are built in: the plain C logic (ninedof_calset.c, ninedof_calrx.c,
+ * ninedof_sampling.c) reads and writes message fields through these in both
+ * worlds.
  */
 #ifndef NX_NESC_H
 #define NX_NESC_H

@@ -10,7 +10,9 @@
 #include <stdint.h>
 #include <string.h>
 #include "test_out.h"
-#include "ninedof_cal.c"
+#include "ninedof_calset.c"
+#include "ninedof_correct.c"
+#include "ninedof_calrx.c"
 static struct { int16_t rec[5][9]; int16_t canary[9]; } buf;
 static ninedof_cal_t cal;
 /* the mote's call (ninedof_batch_pack -> ninedof_calrx_correct_block ->

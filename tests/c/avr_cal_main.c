@@ -1,5 +1,6 @@
 /*
- * avr_cal_main.c -- runs tinyos/ninedof_cal.c on the ATmega1281 in simavr.
+ * avr_cal_main.c -- runs the calibration C code (tinyos/ninedof_calset.c,
+ * ninedof_correct.c, ninedof_calrx.c) on the ATmega1281 in simavr.
  *
  * tests/test_avr.py generates "vectors.h" (calibration sets, raw records and
  * a script of upload messages, all in flash), builds this file with avr-gcc

@@ -11,7 +11,7 @@ fractional bits (the largest of 8..14 that fits int16 / int32) into the
     out = sat((a_q @ raw + c_q + r + 2**(shift-1)) >> shift)
 
 with error feedback: per axis, r is what the last rounding dropped
-(``tinyos/ninedof_cal.c``), so each output is within 1 LSB of the exact
+(``tinyos/ninedof_correct.c``), so each output is within 1 LSB of the exact
 value and the mean over a run follows the exact mean (``feedback_round``,
 ``feedback_correct``: the same rule in integers, with the state carried
 from block to block).  ``reference_correct`` is the arithmetic in float64
@@ -47,7 +47,7 @@ MAG_LIMIT = 4095                    # corrected magnetometer saturates at +-4095
 INPUT_RANGE = {"accel": 4096, "gyro": 32768, "mag": 2048}
 
 
-OSHIFT_MIN, OSHIFT_MAX = 14, 40      # ninedof_cal.h: NINEDOF_OSHIFT_MIN/MAX
+OSHIFT_MIN, OSHIFT_MAX = 14, 40      # ninedof_calset.h: NINEDOF_OSHIFT_MIN/MAX
 GSHIFT_MIN, GSHIFT_MAX = 16, 46      # NINEDOF_GSHIFT_MIN/MAX
 GAIN_LIMIT_Q30 = 1 << 27             # |g dT| <= 1/8 over the range (NINEDOF_LIMIT_GAIN_Q30)
 INT16_MIN = -32768
@@ -321,7 +321,7 @@ def reference_correct(calset, raw, temp_raw=None) -> np.ndarray:
     TEMP_OUT, one value or one per row; None: each sensor at its t_ref):
     ``(1 + g dT) (matrix @ raw) + offset + o dT`` with the stored
     coefficients exactly; the mote is within ``TEMP_BOUND_LSB`` (< 1 LSB)
-    of it (ninedof_cal.h).
+    of it (ninedof_correct.h).
     """
     cs = unpack_calset(calset) if isinstance(calset, (bytes, bytearray)) else calset
     raw = np.asarray(raw, np.float64).reshape(-1, 9)
@@ -346,19 +346,19 @@ def reference_correct(calset, raw, temp_raw=None) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------
-# The mote's rounding: half up with error feedback (ninedof_cal.c shape_q14)
+# The mote's rounding: half up with error feedback (ninedof_correct.c shape_q14)
 # --------------------------------------------------------------------------
 Q14 = 14
 OUTPUT_ROUNDING_LSB = 1.0           # |output - exact| < 1 with error feedback
 
 
-# The temperature path (ninedof_cal.h): G = g dT / 2^gshift in Q30, O in Q14,
+# The temperature path (ninedof_correct.h): G = g dT / 2^gshift in Q30, O in Q14,
 # the gain term t = floor((ph gh 2^16 + ph gl + pl gh) / 2^14), and on the
 # gain path the residual kept within 1/2 - e, e = TEMP_MARGIN / 2^14 LSB.
 TEMP_MARGIN = 16                    # NINEDOF_TEMP_MARGIN, Q14 units: e = 2^-10 LSB
 GAIN_SAT_Q30 = 1 << 28              # G saturates here (sets that fail validation only)
 # The mote's output against reference_correct for any valid set with
-# temperature terms, any temperature and input (ninedof_cal.h proves it):
+# temperature terms, any temperature and input (ninedof_correct.h proves it):
 # |out - ref| <= 1 - e + d with d < 6.25 / 2^14 (the gain and offset terms'
 # own rounding), so strictly below this:
 TEMP_BOUND_LSB = 1.0 - 2.0**-11
@@ -390,7 +390,7 @@ def temp_terms(ft: FixedTemp, temp_raw) -> tuple[np.ndarray, np.ndarray]:
 def gain_term(p, G) -> np.ndarray:
     """The mote's t ~ p G / 2^30 (Q14) for p = A raw (int, Q14) and G (Q30):
     floor((ph gh 2^16 + ph gl + pl gh) / 2^14), the halves of p and G as
-    16-bit words (ninedof_cal.c gain_term); p G / 2^30 - 5 < t <= p G / 2^30."""
+    16-bit words (ninedof_correct.c gain_term); p G / 2^30 - 5 < t <= p G / 2^30."""
     p = np.asarray(p, np.int64)
     G = np.asarray(G, np.int64)
     ph, pl = p >> 16, p & 0xFFFF

@@ -216,7 +216,7 @@ def correct(calset: bytes, raw, temp_raw: int | None = None) -> np.ndarray:
     for a set with temperature terms; None: no temperature yet (each sensor
     at its reference temperature).  The records are one run in sampling
     order from a freshly applied set: the rounding's residuals (error
-    feedback, ``ninedof_cal.h``) start at 0 each call (``Corrector`` carries
+    feedback, ``ninedof_correct.h``) start at 0 each call (``Corrector`` carries
     them from call to call).
     """
     code, buf = _decode(calset)
@@ -229,7 +229,7 @@ def correct(calset: bytes, raw, temp_raw: int | None = None) -> np.ndarray:
 
 class Corrector:
     """One decoded set that corrects block after block as the mote does:
-    its rounding residuals (error feedback, ``ninedof_cal.h``) carry on from
+    its rounding residuals (error feedback, ``ninedof_correct.h``) carry on from
     one call to the next and across temperature changes; ``correct`` on
     module level starts from a freshly applied set each call."""
 

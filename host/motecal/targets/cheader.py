@@ -28,7 +28,7 @@ def write(board) -> Export:
     g = f"MOTECAL_CAL_MOTE{board.mote}_H"
     lines = [f"/* motecal calibration for mote {board.mote}, session '{board.session}' "
              f"({board.created}).",
-             " * Fixed point as the IRIS firmware applies it (tinyos/ninedof_cal.c):",
+             " * Fixed point as the IRIS firmware applies it (tinyos/ninedof_correct.c):",
              " *   out = sat((a * raw + c + 2^(shift-1)) >> shift), in nominal counts",
              " *   (256 LSB/g, 14.375 LSB/(deg/s), 1090 LSB/gauss). */",
              f"#ifndef {g}", f"#define {g}", "#include <stdint.h>", "",

@@ -153,7 +153,7 @@ def build_set(cal: CalFile, mote: int, version: int,
 
 
 def mote_check(calset: bytes, mote: int) -> int | None:
-    """The reason code the mote's own validation gives (tinyos/ninedof_cal.c
+    """The reason code the mote's own validation gives (tinyos/ninedof_calset.c
     through ctypes), None when the C code cannot be built here."""
     try:
         from ..firmware import mote_c

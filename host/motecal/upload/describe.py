@@ -67,10 +67,10 @@ def dry_run_lines(cal: CalFile, mote: int, version: int | None,
     lines += FP.format_report(report)
     code = mote_check(calset, mote)
     if code is None:
-        lines.append("the mote's checks: not run (no C compiler for tinyos/ninedof_cal.c)")
+        lines.append("the mote's checks: not run (no C compiler for tinyos/ninedof_calset.c)")
     elif code == P.CAL_OK:
-        lines.append("the mote's checks (tinyos/ninedof_cal.c): accepted")
+        lines.append("the mote's checks (tinyos/ninedof_calset.c): accepted")
     else:
-        lines.append(f"the mote's checks (tinyos/ninedof_cal.c): would reject: "
+        lines.append(f"the mote's checks (tinyos/ninedof_calset.c): would reject: "
                      f"{P.cal_reason(code)}")
     return lines

@@ -1,6 +1,6 @@
 /*
  * NineDofCalibration -- the calibration set in force, as the sampling app
- * needs it: the receiver state of ninedof_cal.h, for ninedof_batch_pack
+ * needs it: the receiver state of ninedof_calrx.h, for ninedof_batch_pack
  * (correction and flags of a sample message; the correction updates the
  * set's rounding residuals, nothing else) and
  * ninedof_status_pack (version and sensors of the status message).  Read

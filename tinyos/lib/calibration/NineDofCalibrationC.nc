@@ -1,7 +1,7 @@
 /*
  * NineDofCalibrationC -- the mote's side of the calibration upload, on its
  * own: receives fragments, commits and queries (ninedof_calrx_handle,
- * ninedof_cal.c), answers each from a reply buffer of its own, keeps the
+ * ninedof_calrx.c), answers each from a reply buffer of its own, keeps the
  * set in force (NineDofCalibration) and writes each accepted set to the
  * internal EEPROM in the background; at boot it restores the newest valid
  * EEPROM image.  See NineDofCalibrationP.

@@ -3,7 +3,7 @@
  * force, and its EEPROM image.
  *
  * Every calibration message (fragment, commit, query) goes to the shared
- * receiver (ninedof_calrx_handle, ninedof_cal.c: the same C the host's
+ * receiver (ninedof_calrx_handle, ninedof_calrx.c: the same C the host's
  * simulator runs).  It never puts a partial or invalid set in force: a
  * commit is applied only when every byte of the staged set arrived, its CRC
  * matches, and it validates; otherwise the set in force stays.  The reply

@@ -17,14 +17,17 @@ STAMP := $(VENV)/.installed-$(shell cat $(REQUIREMENTS) | md5sum | cut -c1-8)
 # temporary folder: the server core packages, so no system service is set up
 # or started), and Chromium (the browser view's test, headless).  Installed
 # with apt-get when missing.
+# The emulator's commands (make emulate, fault-matrix, release-check) need
+# only the harness's packages (EMU_PACKAGES); nesC and the TinyOS tree are
+# the user's (docs/toolchain.md).
 DEMO_PACKAGES := gcc libc6-dev
-TEST_PACKAGES := $(DEMO_PACKAGES) gcc-avr avr-libc simavr libsimavr-dev libelf-dev pkg-config \
-  postgresql mariadb-server-core mariadb-client-core chromium
+EMU_PACKAGES := $(DEMO_PACKAGES) gcc-avr avr-libc simavr libsimavr-dev libelf-dev pkg-config
+TEST_PACKAGES := $(EMU_PACKAGES) postgresql mariadb-server-core mariadb-client-core chromium
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 DEMO_DIR ?= demo-out
 
-.PHONY: all venv sysdeps demodeps test demo bench emulate release-check fault-matrix clean
+.PHONY: all venv sysdeps demodeps emudeps test demo bench emulate release-check fault-matrix clean
 
 all: test
 
@@ -50,6 +53,9 @@ sysdeps:
 demodeps:
 	@$(if $(call missing,$(DEMO_PACKAGES)),$(call apt_install,$(call missing,$(DEMO_PACKAGES))),true)
 
+emudeps:
+	@$(if $(call missing,$(EMU_PACKAGES)),$(call apt_install,$(call missing,$(EMU_PACKAGES))),true)
+
 # --- the two commands -----------------------------------------------------
 test: venv sysdeps
 	$(PY) -m pytest -q -p no:cacheprovider $(PYTEST_ARGS) tests
@@ -68,19 +74,20 @@ bench: venv sysdeps
 	$(PY) bench/goals_table.py
 
 # N sensor motes + BaseStation in the emulator harness (needs a TinyOS tree and
-# nesC >= 1.4.0: make emulate TINYOS_ROOT_DIR=... EMULATE_ARGS="--motes 3"; docs/emulation.md)
+# nesC >= 1.4.0, docs/toolchain.md: make emulate TINYOS_ROOT_DIR=...
+# EMULATE_ARGS="--motes 3"; docs/emulation.md)
 EMULATE_ARGS ?=
-emulate: venv sysdeps
+emulate: venv emudeps
 	TINYOS_ROOT_DIR="$(TINYOS_ROOT_DIR)" $(PY) emu/emulate.py $(EMULATE_ARGS)
 
 # the release check (outside CI): 3 motes + BaseStation emulated, guided static80 log,
 # calibrate --upload, reset, corrected samples; and the fault cases (docs/emulation.md)
 RELEASE_ARGS ?=
-release-check: venv sysdeps
+release-check: venv emudeps
 	TINYOS_ROOT_DIR="$(TINYOS_ROOT_DIR)" $(PY) emu/release_check.py $(RELEASE_ARGS)
 
 FAULT_ARGS ?=
-fault-matrix: venv sysdeps
+fault-matrix: venv emudeps
 	TINYOS_ROOT_DIR="$(TINYOS_ROOT_DIR)" $(PY) emu/fault_matrix.py $(FAULT_ARGS)
 
 clean:

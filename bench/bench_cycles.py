@@ -48,12 +48,17 @@ def measure(defines=()) -> dict:
 GOAL = ("all three sensors read, per sample", "<= 1.2 ms (#5)")
 TEMP_GOAL = ("I2C time added by the ITG-3200 temperature (8-byte burst from 0x1B)",
              "measured (#16)")
+MASTERS = ((False, "stock Atm128I2CMasterC"), (True, "lean NineDofTwiMasterC (NINEDOF_LEAN_I2C=1)"))
+CLOCKS = (7.84, 8.0, 8.16)
 
 
 def emulated_i2c(tmp: Path) -> None:
-    """read() -> readDone and I2C time per sample of the real images, both
-    masters, three RC clocks, from the emulator harness (emu/emulate.py):
-    only with a TinyOS tree (TINYOS_ROOT_DIR) and nesC >= 1.4.0."""
+    """read() -> readDone of the real images, both masters, three RC clocks,
+    from the emulator harness (emu/emulate.py): mean, 99th percentile and
+    maximum per clock, from the entry of the board's read to its readDone
+    signal (the two labels the board marks, NINEDOF_SPAN_MARK); the goal is
+    judged on the maximum of the worst clock.  Only with a TinyOS tree
+    (TINYOS_ROOT_DIR) and nesC >= 1.4.0."""
     sys.path.insert(0, str(avrsim.REPO / "emu"))
     import emulate  # noqa: E402
     try:
@@ -66,49 +71,50 @@ def emulated_i2c(tmp: Path) -> None:
         record(*TEMP_GOAL, None, note=f"not measured: needs the nesC build in the emulator "
                f"harness ({e}); make bench with TINYOS_ROOT_DIR (docs/emulation.md)")
         return
-    print("I2C per sample of the nesC build, measured on the emulated bus (ninedof-emu, "
-          "1 mote, 12 s emulated, counted from 4 s; goal <= 1200 us read() to readDone)")
+    print("read() -> readDone of the nesC build (entry of the board's read to its readDone "
+          "signal), measured in the emulator harness (ninedof-emu: 1 mote + the BaseStation, "
+          "12 s emulated, counted from 4 s; goal <= 1200 us for every sample)")
     got = {}
-    for lean, name in ((False, "stock Atm128I2CMasterC"),
-                       (True, "lean NineDofTwiMasterC (NINEDOF_LEAN_I2C=1)")):
+    base = emulate.build_image("basestation", tmp / "basestation.elf")
+    for lean, name in MASTERS:
         elf = emulate.build_image("tinyos", tmp / f"mote-{int(lean)}.elf", lean=lean)
-        for mhz in (7.84, 8.0, 8.16):
+        for mhz in CLOCKS:
             n = emulate.measure(tmp, motes=1, seconds=12, settle=4, mhz=(mhz,), lean=lean,
-                                base=False, mote=elf)["nodes"][0]
+                                base=base, mote=elf)["nodes"][0]
             if not n["samples"]:
-                print(f"  {name} at {mhz:.2f} MHz: no reads"
-                      + ("" if n["radio"] else " (no RF230 model in this harness: the app "
-                         "starts sampling only once its radio has started)"))
+                print(f"  {name} at {mhz:.2f} MHz: no reads")
                 continue
             sp = n.get("span")
-            if sp:
-                got[lean, mhz] = sp["us_mean"]
-                print(f"  {name} at {mhz:.2f} MHz: read() -> readDone {sp['us_mean']:.1f} us "
-                      f"(min {sp['us_min']:.1f}, max {sp['us_max']:.1f}; goal <= 1200 us)")
+            if sp and sp["n"]:
+                got[lean, mhz] = sp
+                print(f"  {name} at {mhz:.2f} MHz: read() -> readDone mean {sp['us_mean']:.1f} "
+                      f"us, p99 {sp['us_p99']:.1f}, max {sp['us_max']:.1f} (min "
+                      f"{sp['us_min']:.1f}; {sp['n']} reads)")
             print(f"  {name} at {mhz:.2f} MHz: first START -> last STOP {n['i2c_us_mean']:.1f} us "
                   f"(min {n['i2c_us_min']:.1f}, max {n['i2c_us_max']:.1f}), of which on the wire "
                   f"{n['wire_us_mean']:.1f} us and SCL held for the CPU {n['held_us_mean']:.1f} us; "
                   f"{n['reads_per_s']:.3f} reads/s, {n['missing_periods']} periods without a read, "
                   f"CPU load {100 * n['cpu_load']:.1f} %, ROM {n['rom']} B / RAM {n['ram']} B")
-    temperature_burst(tmp, emulate, got)
-    if (False, 8.0) not in got:
-        record(*GOAL, None, note="the emulated mote did not sample (no RF230 model in this "
-               "harness, or no read() -> readDone in the image)")
-        return
-    stock = got[False, 8.0] / 1000
-    rng = ", ".join(f"{got[False, m]:.0f}" for m in (7.84, 8.16) if (False, m) in got)
-    record(*GOAL, stock, "ms", stock <= 1.2,
-           note=f"read() -> readDone, TinyOS's Atm128I2CMasterC, 8.00 MHz, emulated "
-                f"(ninedof-emu); {rng} us at 7.84 / 8.16 MHz")
-    if (True, 8.0) in got:
-        lean = got[True, 8.0] / 1000
-        rng = ", ".join(f"{got[True, m]:.0f}" for m in (7.84, 8.16) if (True, m) in got)
-        record("the same with the lean TWI master (NINEDOF_LEAN_I2C=1)", GOAL[1], lean, "ms",
-               lean <= 1.2, note=f"read() -> readDone, 8.00 MHz, emulated (ninedof-emu); "
-                                 f"{rng} us at 7.84 / 8.16 MHz")
+    temperature_burst(tmp, emulate, base)
+    for lean, name in MASTERS:
+        spans = {m: got[lean, m] for m in CLOCKS if (lean, m) in got}
+        label = GOAL[0] if not lean else "the same with the lean TWI master (NINEDOF_LEAN_I2C=1)"
+        if not spans:
+            record(label, GOAL[1], None, note="the emulated mote did not sample, or its image "
+                   "has no span labels")
+            continue
+        worst = max(spans, key=lambda m: spans[m]["us_max"])
+        per = "; ".join(f"{m:.2f} MHz {sp['us_mean']:.0f} / {sp['us_p99']:.0f} / "
+                        f"{sp['us_max']:.0f}" for m, sp in spans.items())
+        top = spans[worst]["us_max"] / 1000
+        record(label, GOAL[1], top, "ms", top <= 1.2,
+               note=f"the longest read() -> readDone, worst clock {worst:.2f} MHz; "
+                    f"{name.split(' (')[0]}; mean / p99 / max us per clock: {per} (entry of the "
+                    "board's read to its readDone signal; emulated, ninedof-emu, 1 mote + "
+                    "BaseStation, 12 s)")
 
 
-def temperature_burst(tmp: Path, emulate, got: dict) -> None:
+def temperature_burst(tmp: Path, emulate, base: Path) -> None:
     """The I2C time per sample before (ITG-3200 rates alone, 6 bytes from
     0x1D: the comparison build NINEDOF_ITG_RATES_ONLY=1) and after (8 bytes
     from 0x1B: temperature and rates), both masters, 8.00 MHz, and the
@@ -122,7 +128,7 @@ def temperature_burst(tmp: Path, emulate, got: dict) -> None:
                                       lean=lean,
                                       make_vars=["NINEDOF_ITG_RATES_ONLY=1"] if before else [])
             n = emulate.measure(tmp, motes=1, seconds=12, settle=4, mhz=(8.0,), lean=lean,
-                                base=False, mote=elf, temp_c=(31.5,))["nodes"][0]
+                                base=base, mote=elf, temp_c=(31.5,))["nodes"][0]
             sp = n.get("span")
             if not n["samples"] or not sp:
                 print(f"  {name} {'before' if before else 'after'}: no reads")

@@ -14,6 +14,15 @@ header then names the benches rerun and when.
 ``met`` is True / False, or None for a figure that is not measured here
 (``measured`` None) or that has no goal of its own (context).  Outside
 ``make bench`` (no $MOTECAL_BENCH_RESULTS) record() only prints its line.
+
+A figure that depends on the world the fit assumes (an accuracy, a rate of
+findings, a promise) is measured twice by the same bench: on simulated boards
+whose physics has exactly the form the fit assumes (``world="matching"``) and
+on the mismatch suite, worlds the fit does not model (``world="mismatch"``),
+under the same name.  RESULTS.md shows the two side by side in one row and
+judges the goal on the worse of the two; a ``matching`` figure without its
+``mismatch`` twin says that it holds on the matching model only.  Figures
+the world cannot change (cycles, throughput) leave ``world`` out.
 """
 from __future__ import annotations
 
@@ -21,6 +30,7 @@ import datetime
 import json
 import os
 import platform
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -61,18 +71,25 @@ def verdict(met) -> str:
     return {True: "met", False: "**not met**", None: "-"}.get(met, str(met))
 
 
+WORLDS = (None, "matching", "mismatch")
+
+
 def record(name: str, goal: str, measured, unit: str = "", met=None, note: str = "",
-           digits: int = 3, bench: str | None = None) -> dict:
+           digits: int = 3, bench: str | None = None, world: str | None = None) -> dict:
     """Print one figure next to its goal and, under `make bench`, keep it for
     RESULTS.md.  `measured`: a number (shown with `digits` significant
-    digits), a string, or None (not measured here)."""
+    digits), a string, or None (not measured here).  `world`: "matching" or
+    "mismatch" for a figure measured on both kinds of simulated world (module
+    doc), None for one the world cannot change."""
+    if world not in WORLDS:
+        raise ValueError(f"record: world must be one of {WORLDS}, not {world!r}")
     bench = bench or Path(sys.argv[0]).name
     shown = fmt(measured, digits) + (f" {unit}" if unit and measured is not None else "")
     met = None if measured is None or met is None else bool(met)
     row = dict(name=name, goal=goal, measured=shown, met=met,
-               note=note, bench=f"bench/{bench}")
-    print(f"RESULT {name}: {shown}  (goal {goal or '-'}) -> {verdict(row['met'])}"
-          + (f"  [{note}]" if note else ""), flush=True)
+               note=note, bench=f"bench/{bench}", world=world)
+    print(f"RESULT {name}{f' [{world}]' if world else ''}: {shown}  (goal {goal or '-'}) -> "
+          f"{verdict(row['met'])}" + (f"  [{note}]" if note else ""), flush=True)
     path = os.environ.get(ENV)
     if path:
         with open(path, "a") as f:
@@ -111,15 +128,61 @@ def cell(text: str) -> str:
     return str(text).replace("|", "\\|").replace("\n", " ")
 
 
-def table(rows: list[dict]) -> list[str]:
-    out = ["| figure | goal (issue) | measured | met | bench | note |",
-           "| --- | --- | --- | --- | --- | --- |"]
+HEADER = ("figure", "goal (issue)", "measured", "on the mismatch suite", "met", "bench",
+          "note")
+NO_WORLD = "-"                    # the world cannot change this figure
+MATCHING_ONLY = "not measured (matching model only)"
+
+
+def paired(rows: list[dict]) -> list[dict]:
+    """One row per figure: a "matching" row and the "mismatch" row of the
+    same name (and bench) become one, judged on the worse of the two; rows
+    keep their first place."""
+    out, at = [], {}
     for r in rows:
+        world = r.get("world")
+        key = (r["name"], r["bench"])
+        if world in ("matching", "mismatch") and key in at:
+            other = out[at[key]]
+            m, x = (other, r) if world == "mismatch" else (r, other)
+            out[at[key]] = _pair(m, x)
+            continue
+        if world in ("matching", "mismatch"):
+            at[key] = len(out)
+            r = _pair(r, None) if world == "matching" else _pair(None, r)
+        else:
+            r = dict(r, mismatch=r.get("mismatch", NO_WORLD))
+        out.append(r)
+    return out
+
+
+def _pair(m: dict | None, x: dict | None) -> dict:
+    base = dict(m or x)
+    base.pop("met_note", None)
+    base["world"] = "paired"
+    base["measured"] = m["measured"] if m else "not measured"
+    base["mismatch"] = x["measured"] if x else MATCHING_ONLY
+    mets = [r["met"] for r in (m, x) if r is not None]
+    base["met"] = (None if any(v is None for v in mets) else all(mets))
+    if m is None or x is None:
+        base["met_note"] = "matching model only" if x is None else "mismatch suite only"
+    notes = [r["note"] for r in (m, x) if r is not None and r["note"]]
+    if m is not None and x is not None and len(notes) == 2:
+        notes = [f"matching: {notes[0]}", f"mismatch suite: {notes[1]}"]
+    base["note"] = "; ".join(notes)
+    return base
+
+
+def table(rows: list[dict]) -> list[str]:
+    out = ["| " + " | ".join(HEADER) + " |", "|" + " --- |" * len(HEADER)]
+    for r in paired(rows):
+        met = ("not measured" if r["measured"].startswith("not measured")
+               else verdict(r["met"]))
+        if r.get("met_note") and r["met"] is not None:
+            met += f" ({r['met_note']})"
         out.append("| " + " | ".join(cell(x) for x in (
-            r["name"], r["goal"] or "-", r["measured"],
-            "not measured" if r["measured"].startswith("not measured") else verdict(r["met"]),
-            f"`{r['bench']}`",
-            r["note"])) + " |")
+            r["name"], r["goal"] or "-", r["measured"], r.get("mismatch", NO_WORLD), met,
+            f"`{r['bench']}`", r["note"])) + " |")
     return out
 
 
@@ -145,23 +208,38 @@ def write(rows: list[dict], out: Path) -> None:
     tmp.replace(out)
 
 
+def _cells(line: str) -> list[str]:
+    return [c.strip() for c in re.split(r"(?<!\\)\|", line)[1:-1]]
+
+
 def merge(rows: list[dict], out: Path) -> None:
     """RESULTS.md with the rows of the benches in ``rows`` replaced (at the
-    place of their first old row, or at the end) and every other line kept."""
+    place of their first old row, or at the end) and every other line kept
+    (rows written before the mismatch column get "-" there)."""
     if not out.is_file():
         return write(rows, out)
     benches = {r["bench"] for r in rows}
     new = table(rows)[2:]
-    lines, placed = [], False
+    lines, placed, head = [], False, None
     for line in out.read_text().splitlines():
-        b = line.split(" | ")[4].strip() if line.startswith("| ") and line.count(" | ") >= 5 \
-            else None
-        if b and b.strip("`") in benches:
+        if not line.startswith("| "):
+            lines.append(line)
+            continue
+        cells = _cells(line)
+        if head is None:                                 # the header, then the separator
+            head = cells
+            lines += table([])[:2]
+            continue
+        if set("".join(cells)) <= set("- "):
+            continue
+        row = dict(zip(head, cells))
+        if row.get("bench", "").strip("`") in benches:
             if not placed:
                 lines += new
                 placed = True
             continue
-        lines.append(line)
+        row.setdefault("on the mismatch suite", NO_WORLD)
+        lines.append("| " + " | ".join(row.get(h, "") for h in HEADER) + " |")
     if not placed:
         end = max(i for i, x in enumerate(lines) if x.startswith("| ")) + 1
         lines[end:end] = new

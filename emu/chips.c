@@ -360,3 +360,13 @@ int chip_stop(emu_chip_t *c, uint64_t now)
     c->temp_hi = 0;
     return done ? 1 << c->kind : 0;
 }
+
+unsigned chip_stuck(emu_chip_t *c, uint64_t now)
+{
+    /* a slave that missed a clock edge in the last data byte: it thinks
+     * it is still sending, with 0 bits, when the master NACKs and stops */
+    if (!c->stuck_pulses || c->stuck_done || !c->reading || now < c->stuck_at)
+        return 0;
+    c->stuck_done = 1;
+    return c->stuck_pulses;
+}

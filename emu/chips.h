@@ -38,6 +38,12 @@ typedef struct emu_chip {
     uint64_t nack_from, nack_until;
     uint64_t off_from, off_until;
     int off_pending_reset;  /* 1: the power-loss window is over and handled */
+    /* stuck mid-byte (--fault stuck): the first read transaction from
+     * stuck_at on ends with the chip one clock behind, holding SDA low for
+     * stuck_pulses more SCL pulses (bus.h); 0: off */
+    uint64_t stuck_at;
+    unsigned stuck_pulses;
+    int stuck_done;
     /* counters for the report */
     uint32_t nacked, resets, data_reads;
     uint32_t stale_reads;   /* data reads that got the same sample as the read before */
@@ -59,5 +65,9 @@ uint8_t chip_read(emu_chip_t *c, uint64_t now_ns);
 /* STOP (or the transfer aborted): returns a bit mask, 1 << kind, if this
  * transaction read the chip's six data bytes */
 int chip_stop(emu_chip_t *c, uint64_t now_ns);
+/* At the STOP of a transaction: the SCL pulses the chip will hold SDA low
+ * for if it gets stuck now (the read transaction the fault waits for), 0
+ * otherwise.  It gets stuck once. */
+unsigned chip_stuck(emu_chip_t *c, uint64_t now_ns);
 
 #endif

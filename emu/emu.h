@@ -22,7 +22,7 @@ struct emu_twi;        /* twi.h */
 struct emu_board;      /* board.h */
 
 typedef struct emu_node {
-    /* ---- contract (emu-api.md) ---- */
+    /* ---- contract: the fields the radio and UART models use ---- */
     avr_t   *avr;
     int      index;        /* 0 = first node on the command line */
     uint16_t am_addr;      /* TOS_NODE_ID (patched into the ELF's .data image) */
@@ -39,12 +39,18 @@ typedef struct emu_node {
     uint32_t rom_bytes, ram_bytes;  /* text+data, data+bss of the image */
     void   **symbols;      /* the image's symbols (avr_symbol_t *), for --span */
     uint32_t nsymbols;
-    /* --span FROM:TO: entry of function FROM to the next entry of TO */
+    /* --span FROM:TO: from reaching code address FROM (a function or a
+     * global label) to the next time TO is reached */
     uint32_t span_from, span_to;   /* byte addresses; 0: off */
-    uint64_t span_open;            /* cycle FROM was entered, 0: none */
-    uint64_t span_n, span_settle_cycle;
-    double   span_sum, span_min, span_max;   /* us */
+    int      span_is_open;
+    uint64_t span_open;            /* cycle FROM was reached */
+    uint64_t span_settle_cycle;
+    double  *span_us;              /* every span closed after settle, us */
+    uint64_t span_n, span_cap;
     uint32_t resets;       /* node_reset calls */
+    /* what else is reset with the MCU (the TWI model: twi_attach sets it) */
+    void   (*reset_hook)(void *param);
+    void    *reset_param;
 } emu_node_t;
 
 /* emulated time of a node in nanoseconds: avr->cycle * 1e9 / avr->frequency */

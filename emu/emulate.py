@@ -25,12 +25,11 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 EMU = REPO / "emu"
 MHZ_DEFAULT = "8.0"
-# read() to readDone in the firmware: the entry of the board's bus request
-# (the first call in NineDofBoardP's ReadNow.read) to the entry of the board's
-# readEnd, which releases the bus and signals ReadNow.readDone (nesC's C names
-# of the two functions; the app's Board.readDone is inlined since the driver
-# became sensorboards/ninedof, so it has no symbol of its own)
-SPAN = "NineDofBusP__Share__immediateRequest:NineDofBoardP__readEnd"
+# read() to readDone in the firmware: two global labels the board puts in its
+# code (NINEDOF_SPAN_MARK in sensorboards/ninedof/NineDofBoard.h), no
+# instruction of their own: the entry of NineDofBoardP's ReadNow.read and the
+# point where readEnd signals ReadNow.readDone (after the bus release)
+SPAN = "ninedof_span_read:ninedof_span_readdone"
 
 
 class Unavailable(Exception):
@@ -96,12 +95,13 @@ def run_harness(exe: Path, args: list[str], echo=None) -> dict:
 
 
 def measure(out: Path, *, motes: int = 1, seconds: float = 20, settle: float = 5,
-            mhz=(8.0,), lean: bool = False, base: bool = True, serial: str = "null",
+            mhz=(8.0,), lean: bool = False, base: bool | Path = True, serial: str = "null",
             faults=(), boards=(), echo=None, mote: Path | None = None, xtal_ppm=(0.0,),
             temp_c=()) -> dict:
-    """Build both images (the mote's unless given) and the harness into out,
-    run; the report.  mhz: one clock per mote (cycled); temp_c: each mote's
-    board temperature in C (cycled; none: the board's own)."""
+    """Build both images (the mote's unless given; base: True to build the
+    BaseStation's, a Path to use that image, False for none) and the harness
+    into out, run; the report.  mhz: one clock per mote (cycled); temp_c:
+    each mote's board temperature in C (cycled; none: the board's own)."""
     if mote is None:
         mote = build_image("tinyos", out / ("mote-lean.elf" if lean else "mote.elf"), lean=lean)
     exe = build_harness(out / "emu-build")
@@ -116,7 +116,7 @@ def measure(out: Path, *, motes: int = 1, seconds: float = 20, settle: float = 5
             spec += f",temp={temp_c[i % len(temp_c)]}"
         args += ["--mote", spec]
     if base:
-        bs = build_image("basestation", out / "basestation.elf")
+        bs = base if isinstance(base, Path) else build_image("basestation", out / "basestation.elf")
         args += ["--base", f"{bs},id=0", "--serial", serial]
     args += ["--seconds", str(seconds), "--settle", str(settle)]
     for f in faults:
@@ -149,13 +149,14 @@ def print_report(rep: dict, master: str) -> None:
                   + (" ..." if len(ps) > 12 else ""))
         if n.get("span"):
             sp = n["span"]
-            print(f"  read() -> readDone ({sp['n']} reads): mean {sp['us_mean']:.1f} us "
-                  f"(min {sp['us_min']:.1f}, max {sp['us_max']:.1f})")
+            print(f"  read() -> readDone ({sp['n']} reads): mean {sp['us_mean']:.1f} us, "
+                  f"p99 {sp['us_p99']:.1f}, max {sp['us_max']:.1f} (min {sp['us_min']:.1f})")
         print(f"  I2C per sample ({master}, SCL {n['scl_hz'] / 1e3:.0f} kHz, first START asked "
               f"-> last STOP sent): mean {n['i2c_us_mean']:.1f} us (min {n['i2c_us_min']:.1f}, "
               f"max {n['i2c_us_max']:.1f}); on the wire {n['wire_us_mean']:.1f} us, "
               f"SCL held low for the CPU {n['held_us_mean']:.1f} us")
         bad = {k: n[k] for k in ("addr_nacks", "data_nacks", "arb_lost", "hang_waits") if n[k]}
+        bad.update({k: v for k, v in n.get("wires", {}).items() if v})
         itg = n.get("chips", {}).get("itg3200", {})
         if itg.get("temp_reads"):
             print(f"  ITG-3200 TEMP_OUT read {itg['temp_reads']} times (in the rates' burst), "
@@ -181,7 +182,8 @@ def main(argv=None) -> int:
     ap.add_argument("--serial", default="pty",
                     help="BaseStation UART0: pty (default), tcp:PORT (127.0.0.1) or null")
     ap.add_argument("--fault", action="append", default=[],
-                    help="nack:CHIP:T:D, power:CHIP:T:D or hang:T:D [@NODE] (emu/faults.h)")
+                    help="nack:CHIP:T:D, power:CHIP:T:D, short:sda|scl:T[:D], stuck:CHIP:T[:N] "
+                         "or unread:T:D [@NODE] (emu/faults.h)")
     ap.add_argument("--board", action="append", default=[],
                     help="board table for mote i (i-th use; emu/board.py writes them)")
     ap.add_argument("--session", help="boards from the simulator (emu/board.py): every mote "

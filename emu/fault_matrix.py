@@ -1,27 +1,37 @@
-"""`make fault-matrix TINYOS_ROOT_DIR=...`: the fault cases of issue 12 item 4
-run on the real images in the emulator harness (outside CI), one sensor mote
-(id 1, 8 MHz, the synthetic board) and the BaseStation, the BaseStation's
-serial line read here with the host's decoder (motecal.line.protocol).
+"""`make fault-matrix TINYOS_ROOT_DIR=...`: the fault cases run on the real
+images in the emulator harness (outside CI, which cannot build nesC), one
+sensor mote (id 1, 8 MHz, the synthetic board) and the BaseStation, the
+BaseStation's serial line read here with the host's decoder
+(motecal.line.protocol).  Every case has its expected outcome (EXPECT:
+records missing at most N, recovery within T, the counters that must move
+and by how much); the run exits 1 when any case does not meet it, and says
+which and why.
 
 For every case it prints what the host saw: sample records received, the
 sequence numbers missing (samples lost), stale records (a sensor's three
 values equal to the record before: a chip in standby or not triggered; the
 synthetic board changes every millisecond), the time to recover (from the
 fault's start to the end of the last sequence gap or stale record, in
-sample periods of 8 ms) and the mote's last status counters; and what the
-harness saw on the bus.
+sample periods of 8 ms) and the mote's last status counters; what the
+harness saw on the bus and its wires; and the expectation, met or not.
 
-  none                   no fault
-  nack:itg3200:T:0.5     the gyroscope NACKs its address for 0.5 s
-  hang:T:0.05            SDA held low for 50 ms
-  power:adxl345:T:0.1    the accelerometer loses power for 0.1 s, back with reset registers
-  power:hmc5883l:T:0.1   the magnetometer likewise
-  unread:T:3             the host does not read the serial line for 3 s
-  upload, loss 0.3       `motecal upload` of a calibration with 30 % of the radio frames
-                         lost (the channel's loss rate, both directions), then loss 0
-  upload --reset         the same with `motecal upload --reset` (a commit of the raw set)
+  none                       no fault
+  nack itg3200 0.5 s         the gyroscope NACKs its address for 0.5 s
+  adxl345 power loss 0.1 s   the accelerometer loses power, back with reset registers
+  hmc5883l power loss 0.1 s  the magnetometer likewise
+  itg3200 stuck mid-byte     the gyroscope holds SDA over a STOP until 8 clock
+                             pulses: the bus stays busy until the firmware's bus
+                             clear clocks it free
+  SDA shorted 2 s            SDA to ground: every clear fails, the bus is down
+                             (reads refused, a clear every 256 ms) until it ends
+  SCL shorted 2 s            SCL likewise
+  serial unread 3 s          the host does not read the serial line for 3 s
+  upload, loss 0.3           `motecal upload` of a calibration with 30 % of the radio
+                             frames lost (both directions), then loss 0
+  upload --reset             the same with `motecal upload --reset` (a commit of the raw set)
 
     python3 emu/fault_matrix.py [--src CHECKOUT] [--cflags ...] [--mote-elf E --base-elf E]
+                                [--only NAME] [--expect "NAME:FIELD=VALUE"]
 """
 from __future__ import annotations
 
@@ -34,6 +44,7 @@ import sys
 import tempfile
 import threading
 import time
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -279,15 +290,19 @@ def run_case(exe: Path, mote: Path, base: Path, name: str, faults: list[str], *,
                                   capture_output=True, text=True, timeout=600)
             up["show"] = [ln for ln in (show.stdout + show.stderr).strip().splitlines()
                           if "sending it again" not in ln]
-        reader = LineReader(url)       # the samples after the upload: flagged?
+        reader = LineReader(url)       # the samples after the upload (3 s: a status too)
         t2 = h.now()
-        while h.now() < t2 + 2:
+        while h.now() < t2 + 3:
             time.sleep(0.3)
         data = reader.close()
     rep = h.stop()
+    if rep is None:
+        print(f"  (the harness's report could not be read: exit {h.proc.returncode}, "
+              f"{len(h.report)} report lines; stderr in {h.err.name})", flush=True)
     node = next(n for n in rep["nodes"] if n["role"] == "mote") if rep else {}
     res = analyse(data, fault_at, node.get("first_sample_s", 1.0)) if upload_loss is None \
         else {"upload": up, **analyse(data, 0, node.get("first_sample_s", 1.0))}
+    res["wires"] = node.get("wires", {})
     res["bus"] = {k: node.get(k) for k in ("addr_nacks", "data_nacks", "arb_lost", "hang_waits",
                                            "missing_periods", "reads_per_s")}
     res["chips"] = {c: {k: v[k] for k in ("nacked", "resets", "stale_reads")}
@@ -295,10 +310,123 @@ def run_case(exe: Path, mote: Path, base: Path, name: str, faults: list[str], *,
     return res
 
 
-CASES = [("none", []), ("nack itg3200 0.5 s", ["nack:itg3200:{T}:0.5"]),
-         ("SDA low 50 ms", ["hang:{T}:0.05"]), ("adxl345 power loss 0.1 s", ["power:adxl345:{T}:0.1"]),
-         ("hmc5883l power loss 0.1 s", ["power:hmc5883l:{T}:0.1"]),
-         ("serial unread 3 s", ["unread:{T}:3"])]
+@dataclass(frozen=True)
+class Expect:
+    """What a case must show.  missing: sequence numbers missing from the
+    fault on, at most; recover_s: time to recover, at most; stale: stale
+    records, at most; status: the mote's last status counters, name (or
+    "a+b", a sum) -> (low, high) inclusive; wires: the harness's wire
+    counters likewise; records: records the host got, at least; upload: the
+    uploader's exit status must be 0."""
+    missing: int = 0
+    recover_s: float = 0.0
+    stale: int = 0
+    status: dict = field(default_factory=dict)
+    wires: dict = field(default_factory=dict)
+    records: int = 1
+    upload: bool = False
+
+
+ZERO = (0, 0)
+QUIET = {"i2c_errors": ZERO, "late": ZERO, "i2c_nacks": ZERO, "bus_resets": ZERO,
+         "chip_reinits": ZERO, "dropped": ZERO}
+# a line shorted for 2 s: one watchdog abort finds it (16-24 ms in), then one
+# clear every 256 ms (NINEDOF_BUSDOWN_RETRY_MS) until one finds the line free
+# (the ninth, ~2.02 s in): bus_resets 9 (8-10 with the clears' phase), not one
+# every 16 ms (~125); the periods meanwhile are refused reads (lean master:
+# i2c_errors) or late (stock master: its read cannot be aborted)
+DOWN = 2 * 125 + 256 // 8 + 5
+SHORT = Expect(missing=DOWN, recover_s=2 + 0.3,
+               status={"bus_resets": (8, 10), "i2c_errors+late": (240, DOWN),
+                       "i2c_nacks": ZERO, "chip_reinits": ZERO},
+               wires={"stuck_holds": ZERO, "sda_held_at_end": ZERO})
+# (name, faults, expectation); {T} is the fault's start
+CASES = [
+    ("none", [], Expect(missing=0, recover_s=0, status=QUIET, wires={"gpio_scl_pulses": ZERO})),
+    # 0.5 s of NACKs: 62.5 periods, and the record before each failed read
+    ("nack itg3200 0.5 s", ["nack:itg3200:{T}:0.5"],
+     Expect(missing=66, recover_s=0.52, status={"i2c_nacks": (60, 66), "i2c_errors": (60, 66),
+                                                "bus_resets": ZERO})),
+    ("adxl345 power loss 0.1 s", ["power:adxl345:{T}:0.1"],
+     Expect(missing=16, recover_s=0.12, status={"i2c_nacks": (11, 16), "chip_reinits": (1, 1),
+                                                "bus_resets": ZERO})),
+    ("hmc5883l power loss 0.1 s", ["power:hmc5883l:{T}:0.1"],
+     Expect(missing=16, recover_s=0.12, status={"i2c_nacks": (11, 16), "chip_reinits": (1, 1),
+                                                "bus_resets": ZERO})),
+    # the bus stays busy until 8 SCL pulses: only the firmware's bus clear
+    # gives them (the watchdog's abort 16-24 ms in), then a STOP
+    ("itg3200 stuck mid-byte", ["stuck:itg3200:{T}:8"],
+     Expect(missing=5, recover_s=0.04, status={"bus_resets": (1, 1), "i2c_nacks": ZERO,
+                                               "i2c_errors+late": (1, 4)},
+            wires={"stuck_holds": (1, 1), "stuck_freed": (1, 1), "freed_after_pulses": (8, 8),
+                   "gpio_scl_pulses": (9, 9), "gpio_stops": (1, 1), "sda_held_at_end": ZERO})),
+    ("SDA shorted 2 s", ["short:sda:{T}:2"], SHORT),
+    ("SCL shorted 2 s", ["short:scl:{T}:2"], SHORT),
+    # what the MCU sends in 3 s is dropped (375 samples), nothing else
+    ("serial unread 3 s", ["unread:{T}:3"],
+     Expect(missing=380, recover_s=3.05, status=QUIET)),
+]
+# the upload verified, the samples go on (3 s read after it: 375 records and a
+# status message; a few lost on the air)
+UPLOAD = Expect(missing=10, recover_s=1e9, records=330, upload=True,
+                status={"dropped": ZERO, "i2c_errors": ZERO})
+
+
+def _value(table: dict, key: str):
+    if "+" in key:
+        parts = [table.get(k) for k in key.split("+")]
+        return None if any(v is None for v in parts) else sum(parts)
+    return table.get(key)
+
+
+def check(exp: Expect, res: dict) -> list[str]:
+    """Where `res` (run_case's result) does not meet `exp`: one line each."""
+    bad = []
+    if res.get("records", 0) < exp.records:
+        bad.append(f"records {res.get('records', 0)} < {exp.records}")
+    miss = res.get("missing_after_fault", 0)
+    if miss > exp.missing:
+        bad.append(f"sequence numbers missing {miss} > {exp.missing}")
+    if res.get("stale", 0) > exp.stale:
+        bad.append(f"stale records {res['stale']} > {exp.stale}")
+    if res.get("recover_s", 0) > exp.recover_s:
+        bad.append(f"time to recover {1000 * res['recover_s']:.0f} ms > "
+                   f"{1000 * exp.recover_s:.0f} ms")
+    for what, want in (("status", exp.status), ("wires", exp.wires)):
+        got = res.get(what) or {}
+        for key, (lo, hi) in want.items():
+            v = _value(got, key)
+            if v is None:
+                bad.append(f"{what} {key}: not reported")
+            elif not lo <= v <= hi:
+                bad.append(f"{what} {key} {v}, expected {lo}" + (f"..{hi}" if hi != lo else ""))
+    if exp.upload and (res.get("upload") or {}).get("exit") != 0:
+        bad.append(f"upload exit {(res.get('upload') or {}).get('exit')}, expected 0")
+    return bad
+
+
+def override(expects: dict, spec: str) -> None:
+    """--expect NAME:FIELD=VALUE: change one expectation (NAME a part of a
+    case's name; FIELD missing, recover_s, stale, records, or a status /
+    wires counter as status.KEY=LO..HI)."""
+    m = re.fullmatch(r"(.+?):([a-z_.+]+)=([-0-9.]+?)(?:\.\.([-0-9.]+))?", spec)
+    names = [n for n in expects if m and m.group(1) in n]
+    if not m or not names:
+        raise ValueError(f"--expect {spec!r}: NAME:FIELD=VALUE with NAME part of a case's name")
+    fld, lo, hi = m.group(2), m.group(3), m.group(4) or m.group(3)
+    for n in names:
+        e = expects[n]
+        if fld.startswith(("status.", "wires.")):
+            what, key = fld.split(".", 1)
+            table = dict(getattr(e, what))
+            table[key] = (int(lo), int(hi))
+            expects[n] = replace(e, **{what: table})
+        elif fld in ("missing", "stale", "records"):
+            expects[n] = replace(e, **{fld: int(lo)})
+        elif fld == "recover_s":
+            expects[n] = replace(e, recover_s=float(lo))
+        else:
+            raise ValueError(f"--expect {spec!r}: no field {fld!r}")
 
 
 def main(argv=None) -> int:
@@ -308,17 +436,27 @@ def main(argv=None) -> int:
     ap.add_argument("--cflags", default="")
     ap.add_argument("--mote-elf")
     ap.add_argument("--base-elf")
+    ap.add_argument("--lean", action="store_true",
+                    help="the sensor mote built with the lean TWI master (NINEDOF_LEAN_I2C=1)")
     ap.add_argument("--seconds", type=float, default=14)
     ap.add_argument("--fault-at", type=float, default=6)
     ap.add_argument("--loss", type=float, default=0.3, help="radio loss during the upload")
     ap.add_argument("--only", help="run only the cases whose name contains this")
+    ap.add_argument("--expect", action="append", default=[],
+                    help="change one expectation: NAME:FIELD=VALUE (e.g. 'none:missing=-1', "
+                         "'stuck:status.bus_resets=2')")
     ap.add_argument("--out")
     a = ap.parse_args(argv)
+    expects = {n: e for n, _, e in CASES}
+    expects[f"upload, radio loss {a.loss:g}"] = UPLOAD
+    expects[f"upload --reset (raw set), radio loss {a.loss:g}"] = UPLOAD
     try:
+        for spec in a.expect:
+            override(expects, spec)
         if not (a.mote_elf and a.base_elf):
             emulate.toolchain()
-        if not (2 < a.fault_at < a.seconds - 4):
-            raise ValueError("--fault-at must be > 2 and at least 4 s before --seconds")
+        if not (2 < a.fault_at < a.seconds - 6):
+            raise ValueError("--fault-at must be > 2 and at least 6 s before --seconds")
     except (ValueError, emulate.Unavailable) as e:
         print(f"fault-matrix: {e}", file=sys.stderr)
         return 2
@@ -329,13 +467,17 @@ def main(argv=None) -> int:
         mote, base = Path(a.mote_elf), Path(a.base_elf)
     else:
         mote, base = rc.build_images(Path(a.src), out, a.cflags)
+        if a.lean:
+            mote = emulate.build_image("tinyos", out / "mote-lean.elf", lean=True)
     exe = emulate.build_harness(out / "emu-build")
     T = a.fault_at
-    print(f"one sensor mote (id 1, 8 MHz) + BaseStation, {a.seconds:g} s emulated, fault at "
-          f"{T:g} s; the host reads the BaseStation on TCP (motecal's decoder)", flush=True)
-    cases = [(n, [f.format(T=T) for f in fs], None, False) for n, fs in CASES]
+    print(f"one sensor mote (id 1, 8 MHz, {mote.name}) + BaseStation, {a.seconds:g} s "
+          f"emulated, fault at {T:g} s; the host reads the BaseStation on TCP (motecal's "
+          "decoder)", flush=True)
+    cases = [(n, [f.format(T=T) for f in fs], None, False) for n, fs, _ in CASES]
     cases.append((f"upload, radio loss {a.loss:g}", [], a.loss, False))
     cases.append((f"upload --reset (raw set), radio loss {a.loss:g}", [], a.loss, True))
+    failed, ran = [], 0
     for name, faults, loss, raw in cases:
         if a.only and a.only not in name:
             continue
@@ -359,10 +501,33 @@ def main(argv=None) -> int:
               f"records, CRC errors {r['crc_errors']}; time to recover "
               f"{1000 * r.get('recover_s', 0):.0f} ms from the fault's start")
         print("  mote status: " + (" ".join(f"{k} {v}" for k, v in st.items()) or "none received"))
-        print(f"  bus: {r['bus']}; chips: {r['chips']}", flush=True)
+        print(f"  bus: {r['bus']}; chips: {r['chips']}")
+        print("  wires: " + " ".join(f"{k} {v}" for k, v in r["wires"].items()))
+        bad = check(expects[name], r)
+        ran += 1
+        print("  expected: " + describe(expects[name]))
+        print("  -> " + ("met" if not bad else "NOT MET: " + "; ".join(bad)), flush=True)
+        if bad:
+            failed.append(name)
     if not a.out:
         tmp.cleanup()
-    return 0
+    print(f"\nfault-matrix: {ran} cases, {len(failed)} not as expected"
+          + (": " + ", ".join(failed) if failed else ""))
+    return 1 if failed else 0
+
+
+def describe(e: Expect) -> str:
+    parts = [f"missing <= {e.missing}", f"stale <= {e.stale}"]
+    if e.recover_s < 1e9:
+        parts.append(f"recovered within {1000 * e.recover_s:.0f} ms")
+    if e.records > 1:
+        parts.append(f"records >= {e.records}")
+    if e.upload:
+        parts.append("upload verified (exit 0)")
+    for what, table in (("status", e.status), ("wires", e.wires)):
+        parts += [f"{what} {k} " + (f"{lo}" if lo == hi else f"{lo}..{hi}")
+                  for k, (lo, hi) in table.items()]
+    return ", ".join(parts)
 
 
 if __name__ == "__main__":

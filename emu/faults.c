@@ -31,11 +31,24 @@ int fault_apply(const char *spec, emu_node_t **nodes, int n)
         if (*end || only < 0 || only >= n)
             goto bad;
     }
-    char kind[16] = "", chip[16] = "";
+    char kind[16] = "", chip[16] = "", tail[8] = "";
     double t0, d;
-    int c = -1;
-    if (sscanf(buf, "hang:%lf:%lf", &t0, &d) == 2) {
-        strcpy(kind, "hang");
+    int c = -1, line = -1, got;
+    unsigned pulses = 8;
+    if ((got = sscanf(buf, "short:%15[a-z]:%lf:%lf%1s", chip, &t0, &d, tail)) >= 2 && got <= 3) {
+        strcpy(kind, "short");
+        line = !strcmp(chip, "sda") ? BUS_SDA : !strcmp(chip, "scl") ? BUS_SCL : -1;
+        if (line < 0)
+            goto bad;
+        if (got == 2)
+            d = 1e9;                  /* to the end of the run */
+    } else if ((got = sscanf(buf, "stuck:%15[a-z0-9]:%lf:%u%1s", chip, &t0, &pulses, tail)) >= 2
+               && got <= 3) {
+        strcpy(kind, "stuck");
+        c = chip_index(chip);
+        if (c < 0 || pulses < 1 || pulses > 9)
+            goto bad;
+        d = 1;
     } else if (sscanf(buf, "unread:%lf:%lf", &t0, &d) == 2) {
         strcpy(kind, "unread");
     } else if (sscanf(buf, "%15[a-z]:%15[a-z0-9]:%lf:%lf", kind, chip, &t0, &d) == 4
@@ -66,8 +79,12 @@ int fault_apply(const char *spec, emu_node_t **nodes, int n)
         emu_twi_t *t = nodes[i]->twi;
         if (!t || (only >= 0 && i != only))
             continue;
-        if (!strcmp(kind, "hang")) {
-            t->hang_from = from; t->hang_until = until;
+        if (!strcmp(kind, "short")) {
+            t->bus->short_from[line] = from;
+            t->bus->short_until[line] = d >= 1e9 ? UINT64_MAX : until;
+        } else if (!strcmp(kind, "stuck")) {
+            t->chips[c].stuck_at = from;
+            t->chips[c].stuck_pulses = pulses;
         } else if (!strcmp(kind, "nack")) {
             t->chips[c].nack_from = from; t->chips[c].nack_until = until;
         } else {
@@ -76,7 +93,8 @@ int fault_apply(const char *spec, emu_node_t **nodes, int n)
     }
     return 0;
 bad:
-    fprintf(stderr, "ninedof-emu: bad --fault '%s' (nack:CHIP:T:D, power:CHIP:T:D, hang:T:D or unread:T:D, "
-            "seconds, optional @NODE; CHIP adxl345|itg3200|hmc5883l)\n", spec);
+    fprintf(stderr, "ninedof-emu: bad --fault '%s' (nack:CHIP:T:D, power:CHIP:T:D, short:sda|scl:T[:D], "
+            "stuck:CHIP:T[:N], unread:T:D; seconds, optional @NODE; CHIP adxl345|itg3200|hmc5883l, "
+            "N 1..9)\n", spec);
     return -1;
 }

@@ -9,7 +9,13 @@
  *                     from T for D seconds
  *   power:CHIP:T:D    CHIP loses power at T, back after D with its reset
  *                     register values (NACKs everything meanwhile)
- *   hang:T:D          SDA held low from T for D seconds (bus hang)
+ *   short:LINE:T[:D]  LINE (sda | scl) shorted to ground from T for D
+ *                     seconds (without D: to the end of the run); only its
+ *                     end frees the line, no bus clear can
+ *   stuck:CHIP:T[:N]  CHIP gets stuck in the first read transaction from T
+ *                     on: one clock behind, it holds SDA low over the STOP
+ *                     until N more SCL pulses have come (1..9, default 8):
+ *                     the bus stays busy until something clocks it
  *   unread:T:D        the host does not read the serial line (--serial) from T
  *                     for D seconds: what the MCU sends meanwhile is dropped
  * Returns 0, or -1 with a message on stderr. */

@@ -1,10 +1,17 @@
 /*
  * emu/main.c -- ninedof-emu: N sensor motes (+ a BaseStation) in lockstep.
  *
- *   ninedof-emu --mote ELF[,id=N,mhz=F,xtal_ppm=P,board=FILE,temp=C] ... [--base ELF[,...]]
+ *   ninedof-emu --mote ELF[,id=N,mhz=F,xtal_ppm=P,board=FILE|none,temp=C,console=FILE,
+ *                     serial=SPEC] ... [--base ELF[,...]]
  *               [--serial pty|tcp:PORT|null] [--loss P] [--seed N] [--seconds S]
  *               [--fault SPEC] ... [--settle S] [--twi-log FILE] [--console FILE]
- *               [--reset T[@I]] ... [--control] [--report json|text]
+ *               [--span FROM:TO] [--reset T[@I]] ... [--control] [--realtime]
+ *               [--report json|text]
+ *
+ * A node's board=none: no sensor board (no TWI model); console=FILE: its
+ * UART0 bytes to FILE (--console: the first node's); serial=SPEC: its
+ * UART0 as a port (--serial: the BaseStation's).  --realtime: emulated
+ * time never runs ahead of the wall clock (for a client on a port).
  *
  * --reset T[@I]: reset sensor mote index I (every sensor mote without @I)
  * at T s of emulated time, keeping its EEPROM (node_reset).
@@ -28,14 +35,17 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "emu.h"
 #include "node.h"
 #include "twi.h"
 #include "board.h"
 #include "faults.h"
-#include "radio_api.h"
+#include "report.h"
 #include "channel.h"
+#include "rf230.h"
+#include "uart.h"
 
 #define MAX_NODES 32
 
@@ -49,11 +59,12 @@ uint64_t emu_global_now_ns(void)
 static void usage(void)
 {
     fprintf(stderr,
-            "usage: ninedof-emu --mote ELF[,id=N,mhz=F,xtal_ppm=P,board=FILE,temp=C] ...\n"
-            "       [--base ELF[,id=N,mhz=F,xtal_ppm=P]]\n"
+            "usage: ninedof-emu --mote ELF[,id=N,mhz=F,xtal_ppm=P,board=FILE|none,temp=C,\n"
+            "                          console=FILE,serial=SPEC] ... [--base ELF[,...]]\n"
             "       [--serial pty|tcp:PORT|null] [--loss P] [--seed N] [--seconds S]\n"
             "       [--fault SPEC] ... [--settle S] [--twi-log FILE] [--console FILE]\n"
-            "       [--span FROM:TO] [--reset T[@I]] ... [--control] [--report json|text]\n");
+            "       [--span FROM:TO] [--reset T[@I]] ... [--control] [--realtime]\n"
+            "       [--report json|text]\n");
 }
 
 static int bad(const char *what, const char *arg)
@@ -68,8 +79,11 @@ typedef struct {
     double mhz;
     double xtal_ppm;
     char board[1024];
+    int no_board;
     int temp_set;
     double temp_c;
+    char console[1024];
+    char serial[64];
 } node_spec_t;
 
 static int parse_node(const char *arg, node_spec_t *s, int default_id)
@@ -82,7 +96,10 @@ static int parse_node(const char *arg, node_spec_t *s, int default_id)
     s->mhz = 8.0;
     s->xtal_ppm = 0;
     s->board[0] = 0;
+    s->no_board = 0;
     s->temp_set = 0;
+    s->console[0] = 0;
+    s->serial[0] = 0;
     char *save = NULL;
     char *tok = strtok_r(buf, ",", &save);
     if (!tok || strlen(tok) >= sizeof s->elf)
@@ -111,8 +128,14 @@ static int parse_node(const char *arg, node_spec_t *s, int default_id)
                 return -1;
             s->temp_set = 1;
             s->temp_c = v;
+        } else if (!strcmp(tok, "board=none")) {
+            s->no_board = 1;
         } else if (!strncmp(tok, "board=", 6) && strlen(tok + 6) < sizeof s->board) {
             strcpy(s->board, tok + 6);
+        } else if (!strncmp(tok, "console=", 8) && tok[8] && strlen(tok + 8) < sizeof s->console) {
+            strcpy(s->console, tok + 8);
+        } else if (!strncmp(tok, "serial=", 7) && tok[7] && strlen(tok + 7) < sizeof s->serial) {
+            strcpy(s->serial, tok + 7);
         } else {
             return -1;
         }
@@ -120,13 +143,16 @@ static int parse_node(const char *arg, node_spec_t *s, int default_id)
     return 0;
 }
 
-static const char *state_name(int st)
+/* --realtime: sleep until the wall clock has caught up with emulated time */
+static void wait_for_wall(const struct timespec *t0, uint64_t now_ns)
 {
-    switch (st) {
-    case cpu_Done: return "done";
-    case cpu_Crashed: return "crashed";
-    case cpu_Sleeping: return "sleeping";
-    default: return "running";
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    double wall = (t.tv_sec - t0->tv_sec) * 1e9 + (t.tv_nsec - t0->tv_nsec);
+    if ((double)now_ns > wall) {
+        uint64_t d = (uint64_t)((double)now_ns - wall);
+        struct timespec s = { (time_t)(d / 1000000000u), (long)(d % 1000000000u) };
+        nanosleep(&s, NULL);
     }
 }
 
@@ -222,7 +248,7 @@ int main(int argc, char **argv)
     int nfault = 0;
     double loss = 0, seconds = 10, settle = -1;
     unsigned long seed = 1;
-    int control = 0;
+    int control = 0, realtime = 0;
     const char *reset_args[MAX_RESETS];
     int nreset_args = 0;
 
@@ -236,6 +262,10 @@ int main(int argc, char **argv)
         }
         if (!strcmp(a, "--control")) {
             control = 1;
+            continue;
+        }
+        if (!strcmp(a, "--realtime")) {
+            realtime = 1;
             continue;
         }
         if (!v) {
@@ -307,6 +337,10 @@ int main(int argc, char **argv)
     }
     if (settle < 0)
         settle = seconds >= 10 ? 5.0 : 0.0;
+    /* a TCP client of a serial port that goes away must not end the run:
+     * write() then fails with EPIPE, which uart.c handles (the default
+     * SIGPIPE would kill the harness before it reports) */
+    signal(SIGPIPE, SIG_IGN);
 
     FILE *log = NULL;
     if (twi_log && !(log = fopen(twi_log, "w"))) {
@@ -330,7 +364,7 @@ int main(int argc, char **argv)
             fprintf(stderr, "ninedof-emu: simavr refused the crystal at %g ppm\n", specs[i].xtal_ppm);
             return 2;
         }
-        if (i != base) {
+        if (i != base && !specs[i].no_board) {
             emu_board_t *b = specs[i].board[0] ? board_load(specs[i].board) : board_synthetic();
             if (!b)
                 return 2;
@@ -345,10 +379,19 @@ int main(int argc, char **argv)
         }
         if (ch)
             rf230_attach(nodes[i], ch);
-        if (i == base && serial)
-            uart_attach(nodes[i], serial);
-        else if (i == 0 && con)
+        const char *port = specs[i].serial[0] ? specs[i].serial : i == base ? serial : NULL;
+        if (port && uart_attach(nodes[i], port) < 0)
+            return 2;
+        if (specs[i].console[0]) {
+            FILE *f = !strcmp(specs[i].console, "-") ? stdout : fopen(specs[i].console, "wb");
+            if (!f) {
+                fprintf(stderr, "ninedof-emu: cannot write %s: %s\n", specs[i].console, strerror(errno));
+                return 2;
+            }
+            node_console(nodes[i], f);
+        } else if (i == 0 && con && !port) {
             node_console(nodes[i], con);
+        }
     }
     for (int f = 0; f < nfault; f++)
         if (fault_apply(faults[f], nodes, nspec) < 0)
@@ -379,6 +422,8 @@ int main(int argc, char **argv)
     for (int i = 0; i < nspec; i++)
         state[i] = cpu_Running;
     uint64_t quanta = 0;
+    struct timespec wall0;
+    clock_gettime(CLOCK_MONOTONIC, &wall0);
     while (g_now_ns < end_ns) {
         uint64_t q = g_now_ns + EMU_QUANTUM_NS;
         int live = 0;
@@ -416,6 +461,8 @@ int main(int argc, char **argv)
                         nodes[i]->avr->interrupt_state);
         if (ch)
             channel_step(ch, g_now_ns);
+        if (realtime && g_now_ns % 1000000u == 0)
+            wait_for_wall(&wall0, g_now_ns);
         if (!settled && g_now_ns >= settle_ns) {
             settled = 1;
             for (int i = 0; i < nspec; i++) {
@@ -426,115 +473,16 @@ int main(int argc, char **argv)
         if (!live && !pending_resets() && !stdin_open)
             break;
     }
-    for (int i = 0; i < nspec; i++)
+    for (int i = 0; i < nspec; i++) {
+        uart_poll(nodes[i], g_now_ns + 1000000000u);     /* what is still on the line */
         if (nodes[i]->twi)
             twi_finish(nodes[i]->twi);
+    }
     if (log)
         fclose(log);
     if (con && con != stdout)
         fclose(con);
 
-    int json = !strcmp(report, "json");
-    FILE *out = stdout;
-    if (json)
-        fprintf(out, "{\"seconds\": %.6f, \"settle\": %.3f, \"nodes\": [", g_now_ns / 1e9, settle);
-    int rc = 0;
-    for (int i = 0; i < nspec; i++) {
-        emu_node_t *n = nodes[i];
-        uint64_t cyc = n->avr->cycle - cyc0[i];
-        uint64_t slp = n->sleep_cycles - sleep0[i];
-        double load = cyc ? 1.0 - (double)slp / (double)cyc : 0;
-        if (state[i] == cpu_Crashed)
-            rc = 1;
-        emu_twi_t *t = n->twi;
-        emu_sample_stats_t *s = t ? &t->st : NULL;
-        double win = s && s->n_rate > 1 ? (s->last_ns - s->rate_first_ns) / 1e9 : 0;
-        double rate = win > 0 ? (s->n_rate - 1) / win : 0;
-        if (json) {
-            fprintf(out, "%s\n {\"index\": %d, \"id\": %u, \"role\": \"%s\", \"elf\": \"%s\", "
-                    "\"mhz\": %.4f, \"rom\": %u, \"ram\": %u, \"state\": \"%s\", \"cycles\": %llu, "
-                    "\"cpu_load\": %.5f, \"resets\": %u, \"radio\": %s",
-                    i ? "," : "", i, n->am_addr, n->is_base ? "base" : "mote", n->elf,
-                    n->freq_hz / 1e6, n->rom_bytes, n->ram_bytes, state_name(state[i]),
-                    (unsigned long long)n->avr->cycle, load, n->resets, n->rf ? "true" : "false");
-            if (t) {
-                fprintf(out, ", \"samples\": %llu, \"samples_after_settle\": %llu, "
-                        "\"reads_per_s\": %.4f, \"first_sample_s\": %.6f, "
-                        "\"i2c_us_mean\": %.2f, \"i2c_us_min\": %.2f, \"i2c_us_max\": %.2f, "
-                        "\"wire_us_mean\": %.2f, \"held_us_mean\": %.2f, "
-                        "\"interval_us_min\": %.1f, \"interval_us_max\": %.1f, "
-                        "\"gaps\": %llu, \"missing_periods\": %llu, \"other_bursts\": %llu, "
-                        "\"twbr\": %u, \"scl_hz\": %.0f, "
-                        "\"starts\": %llu, \"bytes\": %llu, \"addr_nacks\": %llu, "
-                        "\"data_nacks\": %llu, \"arb_lost\": %llu, \"hang_waits\": %llu, ",
-                        (unsigned long long)s->n, (unsigned long long)s->n_rate, rate,
-                        s->first_ns / 1e9,
-                        s->n ? s->span_sum / s->n : 0, s->span_min, s->span_max,
-                        s->n ? s->wire_sum / s->n : 0, s->n ? s->held_sum / s->n : 0,
-                        s->int_min, s->int_max,
-                        (unsigned long long)s->gaps, (unsigned long long)s->gap_periods,
-                        (unsigned long long)s->other_bursts,
-                        n->avr->data[0xB8], n->freq_hz / twi_period_cycles(t),
-                        (unsigned long long)t->starts, (unsigned long long)t->bytes,
-                        (unsigned long long)t->addr_nacks, (unsigned long long)t->data_nacks,
-                        (unsigned long long)t->arb_lost, (unsigned long long)t->hang_waits);
-                fprintf(out, "\"per_second\": [");
-                for (uint64_t k = 0; k < EMU_MAX_SECONDS && k < (g_now_ns + 999999999u) / 1000000000u; k++)
-                    fprintf(out, "%s%u", k ? ", " : "", s->per_second[k]);
-                fprintf(out, "], \"chips\": {");
-                for (int c = 0; c < CHIP_COUNT; c++) {
-                    emu_chip_t *cp = &t->chips[c];
-                    fprintf(out, "%s\"%s\": {\"data_reads\": %u, \"nacked\": %u, \"resets\": %u, "
-                            "\"stale_reads\": %u, \"last\": [%d, %d, %d], \"temp_reads\": %u, "
-                            "\"last_temp\": %d}", c ? ", " : "", cp->name,
-                            cp->data_reads, cp->nacked, cp->resets, cp->stale_reads, cp->last_data[0], cp->last_data[1],
-                            cp->last_data[2], cp->temp_reads, cp->last_temp);
-                }
-                fprintf(out, "}");
-                if (n->span_from)
-                    fprintf(out, ", \"span\": {\"from\": \"%s\", \"to\": \"%s\", \"n\": %llu, "
-                            "\"us_mean\": %.2f, \"us_min\": %.2f, \"us_max\": %.2f}",
-                            span_from, span_to, (unsigned long long)n->span_n,
-                            n->span_n ? n->span_sum / n->span_n : 0, n->span_min, n->span_max);
-            }
-            fprintf(out, "}");
-        } else {
-            fprintf(out, "node %d (id %u, %s, %.2f MHz, %s): %s, ROM %u B, RAM %u B, "
-                    "CPU load %.1f %%\n", i, n->am_addr, n->is_base ? "BaseStation" : "sensor mote",
-                    n->freq_hz / 1e6, n->elf, state_name(state[i]), n->rom_bytes, n->ram_bytes,
-                    100 * load);
-            if (t) {
-                fprintf(out, "  samples %llu (%llu after %.1f s): %.3f reads/s, %llu gaps "
-                        "(%llu periods missing), other bursts %llu\n",
-                        (unsigned long long)s->n, (unsigned long long)s->n_rate, settle, rate,
-                        (unsigned long long)s->gaps, (unsigned long long)s->gap_periods,
-                        (unsigned long long)s->other_bursts);
-                fprintf(out, "  I2C per sample (first START asked -> last STOP done): mean %.1f us "
-                        "(min %.1f, max %.1f); on the wire %.1f us, SCL held for the CPU %.1f us; "
-                        "SCL %.0f kHz\n",
-                        s->n ? s->span_sum / s->n : 0, s->span_min, s->span_max,
-                        s->n ? s->wire_sum / s->n : 0, s->n ? s->held_sum / s->n : 0,
-                        n->freq_hz / twi_period_cycles(t) / 1e3);
-                fprintf(out, "  bus: %llu starts, %llu bytes, %llu address NACKs, %llu data NACKs, "
-                        "%llu arbitration lost, %llu waits for a hung bus\n",
-                        (unsigned long long)t->starts, (unsigned long long)t->bytes,
-                        (unsigned long long)t->addr_nacks, (unsigned long long)t->data_nacks,
-                        (unsigned long long)t->arb_lost, (unsigned long long)t->hang_waits);
-                if (n->span_from)
-                    fprintf(out, "  %s -> %s: %llu times, mean %.1f us (min %.1f, max %.1f)\n",
-                            span_from, span_to, (unsigned long long)n->span_n,
-                            n->span_n ? n->span_sum / n->span_n : 0, n->span_min, n->span_max);
-                for (int c = 0; c < CHIP_COUNT; c++)
-                    fprintf(out, "  %-8s data reads %u (%u stale: no new sample since the read "
-                            "before), NACKed %u, power-on resets %u\n",
-                            t->chips[c].name, t->chips[c].data_reads, t->chips[c].stale_reads,
-                            t->chips[c].nacked, t->chips[c].resets);
-            }
-            if (n->rf)
-                rf230_stats(n, out);
-        }
-    }
-    if (json)
-        fprintf(out, "\n]}\n");
-    return rc;
+    return report_write(stdout, !strcmp(report, "json"), nodes, nspec, state, cyc0, sleep0,
+                        settle, g_now_ns, ch, span_from, span_to);
 }

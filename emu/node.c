@@ -13,8 +13,6 @@
 #include "avr_timer.h"
 #include "avr_eeprom.h"
 
-#include "twi.h"
-
 #include "node.h"
 
 uint64_t emu_node_now_ns(const emu_node_t *n)
@@ -47,18 +45,42 @@ static void node_sleep(avr_t *avr, avr_cycle_count_t how_long)
 static void span_check(emu_node_t *n, avr_flashaddr_t pc)
 {
     avr_t *avr = n->avr;
-    if (pc == n->span_from && !n->span_open) {
+    if (pc == n->span_from) {
         n->span_open = avr->cycle;
-    } else if (pc == n->span_to && n->span_open) {
+        n->span_is_open = 1;
+    } else if (pc == n->span_to && n->span_is_open) {
         if (n->span_open >= n->span_settle_cycle) {
-            double us = (avr->cycle - n->span_open) * 1e6 / n->freq_hz;
-            if (!n->span_n || us < n->span_min) n->span_min = us;
-            if (!n->span_n || us > n->span_max) n->span_max = us;
-            n->span_sum += us;
-            n->span_n++;
+            if (n->span_n == n->span_cap) {
+                n->span_cap = n->span_cap ? 2 * n->span_cap : 4096;
+                n->span_us = realloc(n->span_us, n->span_cap * sizeof *n->span_us);
+            }
+            n->span_us[n->span_n++] = (avr->cycle - n->span_open) * 1e6 / n->freq_hz;
         }
-        n->span_open = 0;
+        n->span_is_open = 0;
     }
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+node_span_stats_t node_span_stats(const emu_node_t *n)
+{
+    node_span_stats_t s = { 0, 0, 0, 0, 0 };
+    if (!n->span_n)
+        return s;
+    double *v = malloc(n->span_n * sizeof *v);
+    memcpy(v, n->span_us, n->span_n * sizeof *v);
+    qsort(v, n->span_n, sizeof *v, cmp_double);
+    double sum = 0;
+    for (uint64_t i = 0; i < n->span_n; i++)
+        sum += v[i];
+    uint64_t rank = (uint64_t)((99 * n->span_n + 99) / 100);     /* nearest rank, 1-based */
+    s = (node_span_stats_t){ n->span_n, sum / n->span_n, v[rank - 1], v[0], v[n->span_n - 1] };
+    free(v);
+    return s;
 }
 
 static void node_run_one(avr_t *avr)
@@ -209,7 +231,7 @@ emu_node_t *node_new(const char *elf, int index, uint16_t am_addr, double freq_h
      * lines on stdout): the harness copies bytes where it is asked to */
     uint32_t flags = 0;
     avr_ioctl(avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
-    flags &= ~AVR_UART_FLAG_STDIO;
+    flags &= ~(uint32_t)(AVR_UART_FLAG_STDIO | AVR_UART_FLAG_POLL_SLEEP);   /* no real-time sleeps */
     avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
     return n;
 }
@@ -277,9 +299,9 @@ int node_reset(emu_node_t *n)
         d.ee = ee;
         avr_ioctl(n->avr, AVR_IOCTL_EEPROM_SET, &d);
     }
-    if (n->twi)
-        twi_reset(n->twi);
-    n->span_open = 0;
+    if (n->reset_hook)
+        n->reset_hook(n->reset_param);
+    n->span_is_open = 0;
     n->resets++;
     return saved ? 0 : -1;
 }

@@ -24,17 +24,24 @@ int node_crystal_ppm(emu_node_t *n, double ppm);
 /* byte address of a symbol of the image, 0 if it has none */
 uint32_t node_symbol(const emu_node_t *n, const char *name);
 
-/* Time every run from the entry of function `from` to the next entry of
- * `to` (entries that start after settle_ns count).  0, or -1 with a
- * message when the image lacks one of them. */
+/* Time every run from code address `from` (a function's entry or a global
+ * label, e.g. the firmware's NINEDOF_SPAN_MARK) to the next time `to` is
+ * reached; reaching `from` again first starts the span again (a read that
+ * was refused ends nothing).  Spans that start after settle_ns count.  0,
+ * or -1 with a message when the image lacks one of them. */
 int node_span(emu_node_t *n, const char *from, const char *to, uint64_t settle_ns);
+
+/* The spans so far: count, mean, 99th percentile (nearest rank), min, max
+ * in us (all 0 without any). */
+typedef struct { uint64_t n; double mean, p99, min, max; } node_span_stats_t;
+node_span_stats_t node_span_stats(const emu_node_t *n);
 
 /* Reset the MCU as its RESET pin would (simavr's avr_reset: registers,
  * PC 0, interrupts and cycle timers cleared; RAM as it was; the program's
- * start-up code runs again), keeping its EEPROM and the time.  The TWI
- * model cuts a transfer in progress; the board's chips and the radio
- * (reset by the firmware's RSTN) are not reset.  0, or -1 if the EEPROM
- * could not be saved (it is then what simavr left). */
+ * start-up code runs again), keeping its EEPROM and the time, and calls
+ * n->reset_hook (the TWI model cuts a transfer in progress); the board's
+ * chips and the radio (reset by the firmware's RSTN) are not reset.  0, or
+ * -1 if the EEPROM could not be saved (it is then what simavr left). */
 int node_reset(emu_node_t *n);
 
 /* cycles at the node's clock for a time in ns, and back */

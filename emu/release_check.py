@@ -109,7 +109,8 @@ class Harness:
         self.lines: queue.Queue = queue.Queue()
         self.report: list[str] = []
         self.t_start = time.monotonic()
-        threading.Thread(target=self._read, daemon=True).start()
+        self.reader = threading.Thread(target=self._read, daemon=True)
+        self.reader.start()
 
     def _read(self):
         for line in self.proc.stdout:
@@ -151,7 +152,7 @@ class Harness:
             except (BrokenPipeError, subprocess.TimeoutExpired):
                 self.proc.kill()
                 self.proc.wait()
-        time.sleep(0.2)
+        self.reader.join(30)             # every line of the report read
         self.err.close()
         try:
             return json.loads("".join(self.report)) if self.report else None
@@ -183,20 +184,15 @@ def motecal(args: list[str], log: Path, timeout: float,
 
 
 def pose_magnitudes(db: Path, session: str) -> dict:
-    """Per mote: poses, |accel| (g) and |mag| (gauss) of each pose's mean at
-    the nominal scales, flags of every sample, link statistics."""
+    """Per mote: SessionData.pose_magnitudes (poses, |accel| and |mag| of the
+    pose means, flags), the samples and the link statistics."""
     from motecal.sessions.store import open_store
     with open_store(str(db)) as st:
         data = st.load_session(session)
         links = st.link_stats(session)
-    out = {}
-    for m in data.motes:
-        d = data.for_mote(m)
-        out[m] = {"poses": len(d.poses()),
-                  "acc": np.linalg.norm(d.pose_means("accel"), axis=1),
-                  "mag": np.linalg.norm(d.pose_means("mag"), axis=1),
-                  "flags": np.asarray(d.flags), "samples": len(d.flags),
-                  "link": links["motes"].get(m, {})}
+    out = data.pose_magnitudes()
+    for m, v in out.items():
+        v.update(samples=len(v["flags"]), link=links["motes"].get(m, {}))
     return out
 
 

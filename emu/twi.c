@@ -39,9 +39,10 @@ static void logf_(emu_twi_t *t, const char *fmt, unsigned a, unsigned b)
     fputc('\n', t->log);
 }
 
+/* SDA held low by another driver (a short, a stuck slave) */
 static int hang(const emu_twi_t *t, uint64_t ns)
 {
-    return t->hang_until && ns >= t->hang_from && ns < t->hang_until;
+    return bus_held(t->bus, BUS_SDA, ns);
 }
 
 /* ---- sample accounting ------------------------------------------------ */
@@ -143,19 +144,40 @@ static void want_start(emu_twi_t *t)
             t->burst_mask = 0;
         }
     }
-    if (hang(t, ns) && !t->owner) {
+    uint64_t free_at = t->owner ? ns : bus_free_at(t->bus, ns);
+    if (free_at != ns) {
         /* bus busy: the TWI waits for the bus to be free (a STOP, which
-         * the slave releasing SDA makes) */
+         * the line's release makes); a stuck slave frees it only with clock
+         * pulses, which the TWI, waiting, never gives: it waits until it is
+         * switched off (TWEN) */
         t->hang_waits++;
         logf_(t, "HANG-WAIT", 0, 0);
-        uint64_t wait = node_ns_to_cycles(t->node, t->hang_until - ns);
         t->busy = 1;
         t->ev_kind = EV_START;
+        if (free_at == UINT64_MAX) {
+            t->parked = 1;
+            return;
+        }
+        uint64_t wait = node_ns_to_cycles(t->node, free_at - ns);
         t->ev_start_cycle = t->node->avr->cycle + wait;   /* the wait is not wire time */
         avr_cycle_timer_register(t->node->avr, wait + twi_period_cycles(t), twi_event, t);
         return;
     }
     schedule(t, EV_START, 1, 0);
+}
+
+/* SCL held low by another driver: the event on the wire waits for it */
+static int scl_stalled(emu_twi_t *t, uint64_t ns)
+{
+    if (!bus_held(t->bus, BUS_SCL, ns))
+        return 0;
+    uint64_t end = t->bus->short_until[BUS_SCL];
+    if (end == UINT64_MAX)
+        t->parked = 1;
+    else
+        avr_cycle_timer_register(t->node->avr, node_ns_to_cycles(t->node, end - ns) + 1,
+                                 twi_event, t);
+    return 1;
 }
 
 static avr_cycle_count_t twi_event(avr_t *avr, avr_cycle_count_t when, void *param)
@@ -164,6 +186,13 @@ static avr_cycle_count_t twi_event(avr_t *avr, avr_cycle_count_t when, void *par
     emu_twi_t *t = param;
     uint64_t ns = now_ns(t);
     int kind = t->ev_kind;
+    if (kind == EV_START && !t->owner && bus_free_at(t->bus, ns) != ns) {
+        t->busy = 0;                 /* still busy (a line held again): wait on */
+        want_start(t);
+        return 0;
+    }
+    if (kind != EV_START && scl_stalled(t, ns))
+        return 0;
     t->busy = 0;
     if (t->in_burst)
         t->burst_wire += avr->cycle - t->ev_start_cycle;
@@ -178,16 +207,23 @@ static avr_cycle_count_t twi_event(avr_t *avr, avr_cycle_count_t when, void *par
         set_twint(t, rep ? 0x10 : 0x08);
         break;
     }
-    case EV_STOP:
+    case EV_STOP: {
+        /* a slave stuck mid-byte (--fault stuck) holds SDA low: no STOP on
+         * the wire, although the TWI has done its part (TWSTO cleared) */
+        emu_chip_t *c = t->cur;
+        unsigned stuck = c ? chip_stuck(c, ns) : 0;
         slave_stop(t);
         t->owner = 0;
         t->phase = PH_IDLE;
         avr->data[R_TWCR] &= (uint8_t)~TWSTO;
         t->burst_last_stop = avr->cycle;
-        logf_(t, "P", 0, 0);
+        logf_(t, stuck ? "P (SDA held: no STOP)" : "P", 0, 0);
+        if (stuck)
+            bus_stick(t->bus, c->name, stuck);
         if (t->ev_cmd & TWSTA)       /* STOP then START */
             want_start(t);
         break;
+    }
     case EV_SLA: {
         uint8_t sla = avr->data[R_TWDR];
         int read = sla & 1;
@@ -263,6 +299,7 @@ static void twi_disable(emu_twi_t *t)
     if (t->busy) {
         avr_cycle_timer_cancel(avr, twi_event, t);
         t->busy = 0;
+        t->parked = 0;
     }
     if (t->owner) {                     /* the transfer is cut off; no STOP */
         slave_stop(t);
@@ -292,6 +329,8 @@ static void twcr_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
         t->twint_since = 0;
     }
     avr->data[R_TWCR] = (uint8_t)(flag | (v & (TWEA | TWSTA | TWSTO | TWEN | TWIE)));
+    if ((old ^ v) & TWEN)
+        bus_update(t->bus);             /* the pins go to the TWI or back to the port */
     if (!(v & TWEN)) {
         twi_disable(t);
         return;
@@ -355,12 +394,20 @@ static void plain_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
     avr->data[addr] = v;
 }
 
+static void twi_reset_hook(void *param)
+{
+    twi_reset(param);
+}
+
 emu_twi_t *twi_attach(emu_node_t *n, emu_board_t *board, FILE *log)
 {
     avr_t *avr = n->avr;
     emu_twi_t *t = calloc(1, sizeof *t);
     t->node = n;
     t->log = log;
+    t->bus = bus_attach(n, log);
+    n->reset_hook = twi_reset_hook;
+    n->reset_param = t;
     for (int i = 0; i < CHIP_COUNT; i++)
         chip_init(&t->chips[i], i, board);
     t->vec.vector = TWI_VECTOR;

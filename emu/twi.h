@@ -6,12 +6,16 @@
  * from TWBR and the prescaler: SCL period = 16 + 2 * TWBR * 4^TWPS CPU
  * cycles; a START, a repeated START and a STOP take one period, a byte
  * nine.  Master modes only (the iris is the only master on its bus).
+ * The wires (bus.h) tell it whether another driver holds a line: a START
+ * waits until the bus is free, a 1 bit on a held SDA loses arbitration,
+ * bytes read on it are 0, and a held SCL stalls the transfer on the wire.
  */
 #ifndef EMU_TWI_H
 #define EMU_TWI_H
 
 #include <stdio.h>
 #include "emu.h"
+#include "bus.h"
 #include "chips.h"
 
 /* per-second sample counts are kept for this many seconds */
@@ -48,8 +52,8 @@ typedef struct emu_twi {
     int ev_kind;
     uint8_t ev_cmd;
     uint64_t ev_start_cycle;
-    /* bus hang fault: SDA held low */
-    uint64_t hang_from, hang_until;
+    emu_bus_t *bus;             /* the two wires */
+    int parked;                 /* an event waits for a line only clock pulses free */
     /* burst / sample accounting, in CPU cycles of this node */
     int in_burst;
     uint64_t burst_start, burst_last_stop, burst_wire, burst_held;
@@ -57,7 +61,8 @@ typedef struct emu_twi {
     int burst_mask;
     emu_sample_stats_t st;
     /* counters */
-    uint64_t starts, bytes, addr_nacks, data_nacks, arb_lost, hang_waits;
+    uint64_t starts, bytes, addr_nacks, data_nacks, arb_lost;
+    uint64_t hang_waits;        /* STARTs that waited for the bus (a line held low) */
     FILE *log;                  /* transaction log, or NULL */
 } emu_twi_t;
 

@@ -70,16 +70,13 @@ class Simulator:
 
 def magnitudes(db: Path, session: str) -> dict:
     """Per mote: accel (g) and mag (gauss) magnitude of each static pose's mean,
-    with the nominal datasheet scales (what the mote sends, raw or corrected)."""
+    with the nominal datasheet scales (what the mote sends, raw or corrected),
+    and whether every sample is flagged corrected."""
     from motecal.sessions.store import open_store
     with open_store(str(db)) as st:
         data = st.load_session(session)
-    out = {}
-    for m in data.motes:
-        d = data.for_mote(m)
-        out[m] = (np.linalg.norm(d.pose_means("accel"), axis=1),
-                  np.linalg.norm(d.pose_means("mag"), axis=1), bool(np.all(d.flags & 1)))
-    return out
+    return {m: (v["acc"], v["mag"], bool(np.all(v["flags"] & 1)))
+            for m, v in data.pose_magnitudes().items()}
 
 
 def main() -> int:

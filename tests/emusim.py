@@ -42,6 +42,11 @@ def skip_or_fail(pytest):
 
 _BUILT: list[Path] = []
 
+# the harness's bus from the AVR side: the lean master's state machine in the
+# TWI interrupt (emu/tests/twi_chips.c), test_emu_chips.py and test_emu_cli.py
+TWI_PROGRAM = (EMU / "tests" / "twi_chips.c", avrsim.TINYOS / "ninedof_twi.c",
+               avrsim.TINYOS / "ninedof_board.c")
+
 
 def build_harness(build_dir: Path) -> Path:
     """emu/ built into build_dir (make -C emu BUILD=...): the binary.  Built
@@ -56,6 +61,18 @@ def build_harness(build_dir: Path) -> Path:
         raise RuntimeError(f"building the harness failed:\n{res.stdout}{res.stderr}")
     _BUILT.append(build_dir / "ninedof-emu")
     return _BUILT[0]
+
+
+def built_program(tmp_path_factory, name: str, sources) -> tuple[Path, Path, Path]:
+    """A test module's harness and avr-gcc program (sources: the program and
+    the project's C it runs): (its temp folder, ninedof-emu, the ELF).  Skips
+    with one line when the Debian packages are missing (fails under CI)."""
+    import pytest
+    skip_or_fail(pytest)
+    d = tmp_path_factory.mktemp(name)
+    exe = build_harness(d / "build")
+    elf = avrsim.build(list(sources), d / f"{name}.elf", include=[avrsim.CSRC])
+    return d, exe, elf
 
 
 def run(exe: Path, args: list[str], *, timeout: float = 300) -> dict:

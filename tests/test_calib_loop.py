@@ -18,7 +18,6 @@ from motecal.calib.board import calibrate_board
 from motecal.calib.loop import calibrate_with_diagnosis
 from motecal.commands.calibrate import TOOL
 from motecal.commands.main import main
-from motecal.sessions import store as store_mod
 from motecal.sessions.fingerprint import data_key
 from motecal.sessions.store import open_store
 
@@ -101,29 +100,6 @@ def test_both_flags_and_read_only_database(tmp_path, capsys):
         assert st.load_diagnosis("s", 1) is None
 
 
-def test_schema_6_gains_the_diagnoses_table(tmp_path):
-    v6 = str(tmp_path / "v6.db")
-    con = sqlite3.connect(v6)
-    for v in range(1, 7):
-        for stmt in store_mod.MIGRATIONS[v]:
-            con.execute(stmt.format(**store_mod._SqliteBackend.types))
-    con.execute("INSERT INTO schema_version VALUES (6)")
-    con.execute("INSERT INTO sessions (name, kind, started, scales, chips, meta) VALUES "
-                "('six', 'free', 0, '{}', '{}', '{}')")
-    con.commit()
-    con.close()
-    with open_store(v6, readonly=True) as st:             # read as it is
-        assert st.schema_version == 6 and st.load_diagnosis("six", 1) is None
-    with open_store(v6) as st:
-        assert st.schema_version == store_mod.SCHEMA_VERSION == 7
-        i = st.save_diagnosis("six", 2, {"clean": True, "findings": []}, tool="motecal x",
-                              data_key="3:abc")
-        got = st.load_diagnosis("six", 2)
-        assert got["id"] == i and got["data_key"] == "3:abc" and got["tool"] == "motecal x"
-        assert got["diagnosis"] == {"clean": True, "findings": []}
-        assert got["created"].endswith("Z") and st.load_diagnosis("six", 1) is None
-
-
 def test_data_key_changes_with_the_rows():
     ses = P.simulate([], "idle", 2)
     k = data_key(ses)
@@ -197,36 +173,3 @@ def test_malformed_diagnosis_file_is_one_line(tmp_path, capsys, finding):
     err = capsys.readouterr().err
     assert rc == 2 and len(err.strip().splitlines()) == 1 and "diagnosis" in err, err
     assert not (tmp_path / "c.json").exists()
-
-
-def _diagnoses_roundtrip(url):
-    ses = P.simulate([], "idle", 2)
-    ses.name = "d"
-    with open_store(url, create=True) as st:
-        st.save_session(ses)
-        big = {"clean": False, "findings": [{"sensor": "mag", "cause": "unexplained",
-                                             "evidence": {"outlier_times_s": list(range(5000))}}]}
-        i = st.save_diagnosis("d", 1, big, tool=TOOL, data_key=data_key(ses))
-        j = st.save_diagnosis("d", 1, {"clean": True, "findings": []}, tool=TOOL,
-                              data_key=data_key(ses))
-        got = st.load_diagnosis("d", 1)
-        assert j > i and got["id"] == j and got["diagnosis"]["clean"] is True
-        assert got["data_key"] == data_key(st.load_session("d").for_mote(1))
-        assert st.load_diagnosis("d", 2) is None
-        st.save_session(ses, replace=True)                 # the session again: they go
-        assert st.load_diagnosis("d", 1) is None
-
-
-def test_diagnoses_on_postgres(pg_url):
-    """In a database of its own (the server's 'motecal' database is shared by
-    the store's tests, which count its sessions)."""
-    import psycopg
-    with psycopg.connect(pg_url, autocommit=True) as con:
-        con.execute("DROP DATABASE IF EXISTS t_diagnoses")
-        con.execute("CREATE DATABASE t_diagnoses")
-    _diagnoses_roundtrip(pg_url.replace("/motecal?", "/t_diagnoses?"))
-
-
-def test_diagnoses_on_mariadb(mariadb):
-    import dbservers
-    _diagnoses_roundtrip(dbservers.new_database(mariadb, "t_diagnoses"))

@@ -11,23 +11,14 @@ import sys
 import numpy as np
 import pytest
 
-import avrsim
 import emusim
 
 sys.path.insert(0, str(emusim.EMU))
 import board  # noqa: E402  (emu/board.py)
 
-PROGRAM = [emusim.EMU / "tests" / "twi_chips.c", avrsim.TINYOS / "ninedof_twi.c",
-           avrsim.TINYOS / "ninedof_board.c"]
-
-
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
-    emusim.skip_or_fail(pytest)
-    d = tmp_path_factory.mktemp("emu")
-    exe = emusim.build_harness(d / "build")
-    elf = avrsim.build(PROGRAM, d / "twi_chips.elf", include=[avrsim.CSRC])
-    return d, exe, elf
+    return emusim.built_program(tmp_path_factory, "emu", emusim.TWI_PROGRAM)
 
 
 def run_program(built, name, *args, mhz=8.0, board=None, temp=None):
@@ -224,18 +215,20 @@ def test_power_loss_fault(built, plain):
     assert node["chips"]["adxl345"]["resets"] == 1
 
 
-def test_bus_hang_fault(built, plain):
+def test_sda_short_fault(built, plain):
+    # SDA shorted to ground for 50 ms (the wires, emu/bus.c): STARTs wait
+    # for a free bus, a 1 bit on the held line loses arbitration, nothing
+    # completes on the bus meanwhile, and the waiting START goes first after
     t0 = mark_time(plain[2]) + 50_000_000
     t1 = t0 + 50_000_000
-    node, lines, log = run_program(built, "hang", "--fault", f"hang:{t0 / 1e9}:0.05")
+    node, lines, log = run_program(built, "short", "--fault", f"short:sda:{t0 / 1e9}:0.05")
     f = fault_lines(lines)
     assert len(f) == 40
     # at most the transfer on the wire when SDA went low loses arbitration
     assert sum(x[2] == "3" or x[4] == "3" for x in f) <= 1
     assert all(x[2] in "03" and x[4] in "03" for x in f)
     assert node["hang_waits"] >= 1
-    # nothing completes on the bus while SDA is held low, except bytes lost then
     busy = [(t, ev) for t, _, ev in log if t0 <= t < t1 and ev[0] in "SAWRP" and " L" not in ev]
     assert busy == []
     assert any(ev == "HANG-WAIT" for _, _, ev in log)
-    assert [ev for t, _, ev in log if t >= t1][0] == "S"  # the waiting START goes first
+    assert [ev for t, _, ev in log if t >= t1][0] == "S"

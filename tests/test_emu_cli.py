@@ -10,23 +10,20 @@ import pytest
 import avrsim
 import emusim
 
-PROGRAM = [emusim.EMU / "tests" / "twi_chips.c", avrsim.TINYOS / "ninedof_twi.c",
-           avrsim.TINYOS / "ninedof_board.c"]
-
-
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
-    emusim.skip_or_fail(pytest)
-    d = tmp_path_factory.mktemp("emucli")
-    exe = emusim.build_harness(d / "build")
-    elf = avrsim.build(PROGRAM, d / "twi_chips.elf", include=[avrsim.CSRC])
-    return d, exe, elf
+    return emusim.built_program(tmp_path_factory, "emucli", emusim.TWI_PROGRAM)
 
 
 @pytest.mark.parametrize("args", [
     ["--fault", "nack:gyro:1:1"],
-    ["--fault", "hang:1:-1"],
-    ["--fault", "hang:1:1@5"],
+    ["--fault", "short:sda:1:-1"],
+    ["--fault", "short:sda:1:1@5"],
+    ["--fault", "short:vcc:1:1"],
+    ["--fault", "stuck:itg3200:1:10"],
+    ["--fault", "stuck:itg3200:1:0"],
+    ["--fault", "hang:1:1"],
+    ["--mote", "x.elf,console="],
     ["--seconds", "0"],
     ["--report", "xml"],
     ["--bogus", "1"],

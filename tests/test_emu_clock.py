@@ -5,18 +5,12 @@ emulated time): an avr-gcc program counts CPU cycles over crystal periods
 (emu/tests/clock_crystal.c)."""
 import pytest
 
-import avrsim
 import emusim
 
 
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
-    emusim.skip_or_fail(pytest)
-    d = tmp_path_factory.mktemp("emuclk")
-    exe = emusim.build_harness(d / "build")
-    elf = avrsim.build([emusim.EMU / "tests" / "clock_crystal.c"], d / "clk.elf",
-                       include=[avrsim.CSRC])
-    return d, exe, elf
+    return emusim.built_program(tmp_path_factory, "emuclk", [emusim.EMU / "tests" / "clock_crystal.c"])
 
 
 @pytest.mark.parametrize("mhz", [7.84, 8.0, 8.16])

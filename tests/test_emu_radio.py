@@ -1,14 +1,13 @@
 """The emulator's radio and serial models (emu/rf230.c, emu/channel.c,
 emu/uart.c) against small AVR programs (emu/tests/rf230_node.c) built with
-avr-gcc and run on Debian's libsimavr in the radio's own lockstep harness
-(emu/tests/rf230_test_main.c).  What is planted (frames, sequence numbers,
-loss rate, timing) is the truth; the programs report what the chip did.
+avr-gcc and run on Debian's libsimavr in the harness, ninedof-emu, as nodes
+without a sensor board.  What is planted (frames, sequence numbers, loss
+rate, timing) is the truth; the programs report what the chip did.
 """
 from __future__ import annotations
 
 import os
 import re
-import shutil
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
@@ -16,41 +15,27 @@ from pathlib import Path
 
 import pytest
 
+import emusim
+
 REPO = Path(__file__).resolve().parent.parent
 EMU = REPO / "emu"
 sys.path.insert(0, str(EMU / "tests"))
 import rf230_figures as F  # noqa: E402  (the build/run helpers, one definition)
 
-SIMAVR_H = F.SIMAVR_INC / "sim_avr.h"
-LIBELF_H = Path("/usr/include/libelf.h")
 BYTE_US = F.BYTE_US
 fields, lines = F.fields, F.lines
-
-
-def _missing() -> list[str]:
-    miss = [t for t in ("gcc", "avr-gcc") if shutil.which(t) is None]
-    if not SIMAVR_H.exists():
-        miss.append("libsimavr-dev")
-    if not LIBELF_H.exists():
-        miss.append("libelf-dev")
-    return miss
 
 
 @pytest.fixture(scope="module")
 def build(tmp_path_factory):
     """Build the harness and return a function building AVR programs."""
-    miss = _missing()
-    if miss:
-        msg = f"missing {' '.join(miss)}: run `make sysdeps`"
-        if os.environ.get("CI") == "true":
-            pytest.fail(msg)
-        pytest.skip(msg)
+    emusim.skip_or_fail(pytest)
     d = tmp_path_factory.mktemp("emu-radio")
 
     def elf(name: str, **defines) -> Path:
         return F.build_avr(d, name, **defines)
 
-    elf.exe = F.build_harness(d)
+    elf.exe = emusim.build_harness(d / "build")
     elf.dir = d
     return elf
 
@@ -170,12 +155,15 @@ def test_loss_rate_over_seeds_and_determinism(build):
 
 
 def test_bad_arguments_one_line_exit_2(build):
-    res = subprocess.run([str(build.exe), "--loss", "2", "--node", "x.elf"],
+    res = subprocess.run([str(build.exe), "--loss", "2", "--mote", "x.elf"],
                          capture_output=True, text=True)
     assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1
-    res = subprocess.run([str(build.exe), "--node", str(build.dir / "nope.elf")],
+    res = subprocess.run([str(build.exe), "--mote", str(build.dir / "nope.elf")],
                          capture_output=True, text=True)
     assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1
+    res = subprocess.run([str(build.exe), "--mote", f"{build('tx1', ROLE=1, NFRAMES=0)},"
+                          "board=none,serial=bogus"], capture_output=True, text=True)
+    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1, res.stderr
 
 
 # ------------------------------------------------------------------ UART0
@@ -184,11 +172,12 @@ def uart_elf(build, name: str, **defines) -> Path:
 
 
 def start(build, elf, serial: str, ms: float, *extra: str):
-    """The harness in real time with one node's UART0 on `serial`; returns
-    (process, the address it printed)."""
-    p = subprocess.Popen([str(build.exe), "--realtime", "--stop-when-done", "--ms", str(ms),
-                          "--node", f"{elf},serial={serial}{''.join(extra)}"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    """The harness in real time with one node's UART0 on `serial` (it ends
+    when the program has stopped, or after ms); returns (process, the address
+    it printed).  extra: more harness arguments (e.g. an unread fault)."""
+    p = subprocess.Popen([str(build.exe), "--realtime", "--seconds", str(ms / 1000),
+                          "--report", "text", "--mote", f"{elf},board=none,serial={serial}",
+                          *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     url = p.stdout.readline().strip()
     assert url, p.communicate()[1]
     return p, url
@@ -197,6 +186,13 @@ def start(build, elf, serial: str, ms: float, *extra: str):
 def uart_stat(stats: str) -> dict:
     ln = next(ln for ln in stats.splitlines() if ln.startswith("uart node 0:"))
     return {k: v for k, v in (kv.split("=", 1) for kv in ln.split(":", 1)[1].split())}
+
+
+def report(p) -> str:
+    """The harness's text report (stdout) once it has ended."""
+    out, err = p.communicate(timeout=30)
+    assert p.returncode == 0, err
+    return out
 
 
 def test_uart_tcp_echo_every_byte(build):
@@ -219,7 +215,7 @@ def test_uart_tcp_echo_every_byte(build):
         # "ready\n" too if the client was there before the MCU sent it
         assert got in (data, b"ready\n" + data)
     finally:
-        stats = p.communicate(timeout=30)[1]
+        stats = report(p)
     st = uart_stat(stats)
     assert st["in"] == "2048"
     assert int(st["out"]) in (2048, 2054)
@@ -253,7 +249,7 @@ def test_uart_unread_window_drops_what_the_host_misses(build):
     import socket
     n = 600
     elf = uart_elf(build, "stream", STREAM=n, STREAM_DELAY_MS=300)
-    p, url = start(build, elf, "tcp:0", 3000, ",unread=400:450")
+    p, url = start(build, elf, "tcp:0", 3000, "--fault", "unread:0.4:0.05")
     host, port = url[len("socket://"):].split(":")
     got = b""
     with socket.create_connection((host, int(port)), timeout=5) as s:
@@ -262,7 +258,7 @@ def test_uart_unread_window_drops_what_the_host_misses(build):
             if not chunk:
                 break
             got += chunk
-    stats = p.communicate(timeout=30)[1]
+    stats = report(p)
     st = uart_stat(stats)
     sent = 6 + 7 * n
     assert len(got) + int(st["dropped_unread"]) + int(st["dropped_noclient"]) == sent

@@ -7,18 +7,12 @@ import subprocess
 
 import pytest
 
-import avrsim
 import emusim
 
 
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
-    emusim.skip_or_fail(pytest)
-    d = tmp_path_factory.mktemp("emureset")
-    exe = emusim.build_harness(d / "build")
-    elf = avrsim.build([emusim.EMU / "tests" / "eeprom_reset.c"], d / "ee.elf",
-                       include=[avrsim.CSRC])
-    return d, exe, elf
+    return emusim.built_program(tmp_path_factory, "emureset", [emusim.EMU / "tests" / "eeprom_reset.c"])
 
 
 def boots(text):

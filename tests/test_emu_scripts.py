@@ -30,6 +30,10 @@ def _run(script, *args, env_root=None):
     ("release_check.py", ["--mote-elf", "x", "--base-elf", "y", "--loss", "2"], "--loss"),
     ("fault_matrix.py", [], "TINYOS_ROOT_DIR is not set"),
     ("fault_matrix.py", ["--mote-elf", "x", "--base-elf", "y", "--fault-at", "1"], "--fault-at"),
+    ("fault_matrix.py", ["--mote-elf", "x", "--base-elf", "y", "--expect", "nosuch:missing=1"],
+     "--expect"),
+    ("fault_matrix.py", ["--mote-elf", "x", "--base-elf", "y", "--expect", "none:colour=1"],
+     "--expect"),
 ])
 def test_bad_input_one_line(script, args, needle, tmp_path):
     res = _run(script, *args)
@@ -94,3 +98,53 @@ def test_set_diff_names_the_bytes_that_changed():
                                  bytes.fromhex("00010002116f1414ff") + bytes(19)))
     assert FM.set_diff(frag, rep + old, 3) == ["set byte 24: sent 0x00, read back 0x0a"]
     assert FM.set_diff(frag, old, 3) == []
+
+
+STUCK = next(e for n, _, e in FM.CASES if "stuck" in n)
+
+
+def _stuck_result(**change):
+    """A result that meets the stuck-slave case's expectation exactly."""
+    r = {"records": 1200, "missing_after_fault": 3, "stale": 0, "recover_s": 0.027,
+         "status": {"bus_resets": 1, "i2c_nacks": 0, "i2c_errors": 0, "late": 2},
+         "wires": {"stuck_holds": 1, "stuck_freed": 1, "freed_after_pulses": 8,
+                   "gpio_scl_pulses": 9, "gpio_stops": 1, "sda_held_at_end": 0}}
+    for k, v in change.items():
+        where, _, key = k.partition("__")
+        if key:
+            r[where] = {**r[where], key: v}
+        else:
+            r[where] = v
+    return r
+
+
+def test_every_case_has_an_expectation_that_can_fail():
+    assert FM.check(STUCK, _stuck_result()) == []
+    # each kind of figure, broken on its own, is reported on its own line
+    for change, word in [({"missing_after_fault": 6}, "missing 6 > 5"),
+                         ({"recover_s": 0.2}, "time to recover 200 ms > 40 ms"),
+                         ({"stale": 1}, "stale records 1 > 0"),
+                         ({"records": 0}, "records 0 < 1"),
+                         ({"status__bus_resets": 3}, "status bus_resets 3, expected 1"),
+                         ({"status__late": 9}, "status i2c_errors+late 9, expected 1..4"),
+                         ({"wires__freed_after_pulses": 9}, "wires freed_after_pulses 9"),
+                         ({"wires__sda_held_at_end": 1}, "wires sda_held_at_end 1"),
+                         ({"status": {}}, "status bus_resets: not reported")]:
+        bad = FM.check(STUCK, _stuck_result(**change))
+        assert bad and any(word in b for b in bad), (change, bad)
+    # every case says what it expects of the counters or the wires
+    assert all(e.status or e.wires for _, _, e in FM.CASES)
+    assert FM.check(FM.UPLOAD, {"records": 400, "upload": {"exit": 1}, "status": {
+        "dropped": 0, "i2c_errors": 0}}) == ["upload exit 1, expected 0"]
+
+
+def test_an_expectation_can_be_changed_from_the_command_line():
+    ex = {n: e for n, _, e in FM.CASES}
+    FM.override(ex, "stuck:status.bus_resets=2..3")
+    FM.override(ex, "none:missing=-1")
+    FM.override(ex, "nack:recover_s=0.5")
+    assert ex["itg3200 stuck mid-byte"].status["bus_resets"] == (2, 3)
+    assert ex["none"].missing == -1 and ex["nack itg3200 0.5 s"].recover_s == 0.5
+    assert FM.check(ex["none"], {"records": 10, "missing_after_fault": 0, "status": {
+        k: 0 for k in ex["none"].status}, "wires": {"gpio_scl_pulses": 0}}) == [
+        "sequence numbers missing 0 > -1"]

@@ -19,8 +19,8 @@ from motecal.capture.link import LinkTracker
 from motecal.capture.logger import Logger, NullDisplay
 from motecal.line import sources as S
 from motecal.sessions import importer
-from motecal.sessions import store as store_mod
 from motecal.sessions.store import StoreBusy, open_store
+from motecal.sessions.store_sqlite import SqliteBackend
 from test_logger_streams import sample_frames
 
 N_PER_MOTE = 3000
@@ -38,14 +38,14 @@ def _recording(tmp_path, n=N_PER_MOTE):
 def _limit_pages(monkeypatch, extra_pages):
     """sqlite opened by motecal from now on may grow by ``extra_pages`` only:
     a full disk, as sqlite sees it (SQLITE_FULL, 'database or disk is full')."""
-    orig = store_mod._SqliteBackend.__init__
+    orig = SqliteBackend.__init__
 
     def init(self, path, create, *a, **kw):
         orig(self, path, create, *a, **kw)
         n = self.conn.execute("PRAGMA page_count").fetchone()[0]
         self.conn.execute(f"PRAGMA max_page_count = {n + extra_pages}")
 
-    monkeypatch.setattr(store_mod._SqliteBackend, "__init__", init)
+    monkeypatch.setattr(SqliteBackend, "__init__", init)
 
 
 def _check(db):

@@ -11,6 +11,7 @@ from clirun import digest, make_db, motecal
 from motecal.errors import UserError
 from motecal.sessions import store as store_mod
 from motecal.sessions.store import APPLICATION_ID, SCHEMA_VERSION, open_store
+from motecal.sessions.store_sqlite import SqliteBackend
 
 
 def _foreign(path, statements, app_id=0):
@@ -32,12 +33,12 @@ FOREIGN = {
     # once gave "no such table: line_stats"
     "signature_v2_without_link_tables": [
         "CREATE TABLE schema_version (version INTEGER)", "INSERT INTO schema_version VALUES (3)"]
-        + [m.format(**store_mod._SqliteBackend.types) for m in store_mod.MIGRATIONS[1][1:]],
+        + [m.format(**SqliteBackend.types) for m in store_mod.MIGRATIONS[1][1:]],
     # once gave "invalid literal for int()"
     "text_version": ["CREATE TABLE schema_version (version TEXT)",
                      "INSERT INTO schema_version VALUES ('abc')"]
-        + [m.format(**store_mod._SqliteBackend.types) for m in store_mod.MIGRATIONS[1][1:]],
-    "two_versions": [m.format(**store_mod._SqliteBackend.types) for m in store_mod.MIGRATIONS[1]]
+        + [m.format(**SqliteBackend.types) for m in store_mod.MIGRATIONS[1][1:]],
+    "two_versions": [m.format(**SqliteBackend.types) for m in store_mod.MIGRATIONS[1]]
         + ["INSERT INTO schema_version VALUES (1)", "INSERT INTO schema_version VALUES (1)"],
     "samples_without_our_columns": ["CREATE TABLE schema_version (version INTEGER)",
                                     "INSERT INTO schema_version VALUES (1)",
@@ -101,7 +102,7 @@ def test_case7_an_older_motecal_database_is_recognised_and_marked(tmp_path):
     con = sqlite3.connect(v3)
     for v in (1, 2, 3):
         for stmt in store_mod.MIGRATIONS[v]:
-            con.execute(stmt.format(**store_mod._SqliteBackend.types))
+            con.execute(stmt.format(**SqliteBackend.types))
     con.execute("INSERT INTO schema_version VALUES (3)")
     con.execute("INSERT INTO sessions (name, kind, started, scales, chips, meta) VALUES "
                 "('three', 'free', 0, '{}', '{}', '{}')")

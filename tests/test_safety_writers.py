@@ -1,7 +1,6 @@
 """Issue 15, case 6: two loggers appending to one session (two BaseStations
 hearing the same motes) keep every distinct sample; true duplicates are
 counted, different values under one key are kept aside and counted."""
-import sqlite3
 import threading
 
 import numpy as np
@@ -9,8 +8,7 @@ import numpy as np
 from motecal.capture.link import LinkTracker
 from motecal.capture.logger import Logger
 from motecal.line import sources as S
-from motecal.sessions import store as store_mod
-from motecal.sessions.store import SCHEMA_VERSION, open_store
+from motecal.sessions.store import open_store
 from test_logger_streams import sample_frames
 
 N = 2000
@@ -110,28 +108,3 @@ def test_case6_the_summary_says_so(tmp_path):
     text = "\n".join(lg.summary_lines())
     assert f"{N - len(rows)} samples they had stored already" in text
     assert f"{len(rows)} stored with other values" in text
-
-
-def test_schema_5_migrates_a_version_4_database(tmp_path):
-    v4 = str(tmp_path / "v4.db")
-    con = sqlite3.connect(v4)
-    b = store_mod._SqliteBackend.types
-    for v in (1, 2, 3, 4):
-        for stmt in store_mod.MIGRATIONS[v]:
-            con.execute(stmt.format(**b))
-    con.execute("INSERT INTO schema_version VALUES (4)")
-    con.execute("INSERT INTO sessions (name, kind, started, scales, chips, meta) VALUES "
-                "('four', 'free', 0, '{}', '{}', '{}')")
-    con.execute("INSERT INTO samples (session, mote, seq, ax) VALUES (1, 2, 5, 7)")
-    con.commit()
-    con.close()
-    with open_store(v4) as st:
-        assert st.schema_version == SCHEMA_VERSION >= 5
-        assert st.load_session("four").raw[0, 0] == 7
-        assert st.writers("four") == [] and len(st.conflicts("four")) == 0
-        w = st.open_session("four", kind="free", append=True)
-        w.add_samples(np.array([2, 2]), np.array([5, 6]), np.zeros(2), np.zeros(2, int),
-                      np.array([[7, 0, 0, 0, 0, 0, 0, 0, 0], [1] * 9]))
-        w.end()
-        # seq 5 held NULLs where these are 0: a conflict, kept, not dropped
-        assert len(st.load_session("four")) == 2 and len(st.conflicts("four")) == 1

@@ -60,3 +60,21 @@ def test_pose_means_in_pose_order_at_the_session_scales():
     empty = SessionData("s", raw, np.ones(7), np.arange(7), np.arange(7) / 100.0,
                         np.zeros(7), np.zeros(7), meta={})
     assert empty.pose_means("mag").shape == (0, 3)
+
+
+def test_pose_magnitudes_per_mote():
+    """|accel| and |mag| of each pose's mean per mote, and its samples' flags."""
+    raw = np.zeros((6, 9))
+    raw[:, 0:3] = [3.0, 4.0, 0.0]                 # |a| = 5 counts
+    raw[:, 6:9] = [0.0, 6.0, 8.0]                 # |m| = 10 counts
+    raw[3:, 0:3] *= 2
+    d = SessionData("s", raw, np.array([1, 1, 1, 2, 2, 2]), np.arange(6), np.arange(6) / 100.0,
+                    np.array([1, 1, 2, 1, 1, 0]), np.array([1, 1, 1, 0, 0, 0]), meta={})
+    ka = d.physical("accel")[0, 0] / 3.0
+    km = d.physical("mag")[0, 1] / 6.0
+    got = d.pose_magnitudes()
+    assert sorted(got) == [1, 2]
+    assert got[1]["poses"] == 2 and got[2]["poses"] == 1
+    assert np.allclose(got[1]["acc"], [5 * ka, 5 * ka]) and np.allclose(got[2]["acc"], [10 * ka])
+    assert np.allclose(got[2]["mag"], [10 * km])
+    assert got[1]["flags"].tolist() == [1, 1, 1] and got[2]["flags"].tolist() == [0, 0, 0]

@@ -1,9 +1,11 @@
 """The store on MySQL/MariaDB (sessions/store_mysql.py): URLs and the dialect,
 then a real MariaDB server (Debian's packages, started by the `mariadb`
-fixture in a temporary folder, dbservers.py): the same sessions,
-calibrations, counters and migrations as sqlite; a simulated 3-mote session
-logged into MariaDB and into sqlite exports to the same CSV; two loggers
-writing into one server at once lose nothing.  (~30 s)"""
+fixture in a temporary folder, dbservers.py): connection problems are one
+line; a simulated 3-mote session logged into MariaDB and into sqlite exports
+to the same CSV; two loggers writing into one server at once lose nothing.
+The sessions, calibrations, counters and migrations every backend keeps alike
+are tested on all three in test_store.py (test_roundtrip_on_every_backend,
+test_older_schemas_migrate_and_a_newer_is_refused).  (~30 s)"""
 import subprocess
 import sys
 import threading
@@ -17,7 +19,6 @@ from motecal.sessions import store_mysql as M
 from motecal.sessions.store import SCHEMA_VERSION, open_store
 from motecal.sim.serve import serve_in_thread, write_file
 from motecal.sim.world import World
-from test_store import _same, _session, check_temperature_roundtrip
 
 
 def _motecal(*args, timeout=180):
@@ -98,47 +99,6 @@ def fresh_db(mariadb, request):
                                   .replace("]", "_").replace("-", "_"))
 
 
-def test_sessions_calibrations_like_sqlite(fresh_db, tmp_path, monkeypatch):
-    data = _session("m1", n=3000, motes=(1, 2, 3))
-    with open_store(str(tmp_path / "ref.db"), create=True) as ref:
-        ref.save_session(data)
-        listing = ref.sessions()
-    with open_store(fresh_db) as st:
-        assert st.schema_version == SCHEMA_VERSION
-        st.save_session(data)
-        _same(data, st.load_session("m1"))           # NaN (missing sensor, t) kept
-        assert st.sessions() == listing
-        a = st.save_calibration("m1", 2, {"mag": {"A": np.eye(3)}})
-        b = st.save_calibration("m1", 1, {"v": 2})
-        assert b > a >= 1
-        assert st.load_calibration("m1") == {"v": 2}
-        assert st.load_calibration("m1", 2) == {"mag": {"A": np.eye(3).tolist()}}
-        # an import is all or nothing
-        real = st._b_insert
-
-        def failing(cur, rows):
-            real(cur, rows)
-            raise RuntimeError("connection lost")
-
-        monkeypatch.setattr(st, "_b_insert", failing)
-        with pytest.raises(RuntimeError):
-            st.save_session(_session("m2"))
-        monkeypatch.undo()
-        assert [s["name"] for s in st.sessions()] == ["m1"]
-        with pytest.raises(UserError, match="already exists"):
-            st.save_session(_session("m1", seed=4))
-        st.save_session(_session("m1", seed=4), replace=True)
-        _same(_session("m1", seed=4), st.load_session("m1"))
-        with pytest.raises(UserError, match="no calibration"):
-            st.load_calibration("m1")
-        # names compare exactly, as in sqlite: case, trailing blanks, accents count
-        for name in ("M1", "m1 ", "m\u00ef", "m" * 700):
-            st.save_session(_session(name))
-        assert [s["name"] for s in st.sessions()] == ["m1", "M1", "m1 ", "m\u00ef", "m" * 700]
-        with pytest.raises(UserError, match=r"unknown session 'm2'.*known: m1, M1"):
-            st.load_session("m2")
-
-
 def test_connection_problems_are_one_line(mariadb, fresh_db):
     import dbservers
     bad = [(mariadb.url.replace(dbservers.MARIADB_PASSWORD, "wrong"), "Access denied"),
@@ -162,78 +122,6 @@ def test_connection_problems_are_one_line(mariadb, fresh_db):
         open_store(fresh_db)
     r = _motecal("sessions", "--db", fresh_db)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
-
-
-def test_temperature_roundtrip(fresh_db):
-    check_temperature_roundtrip(fresh_db)
-
-
-def test_schema_5_migrates_to_the_latest(fresh_db):
-    b = M.MysqlBackend(fresh_db, True)
-    cur = b.cursor()
-    for v in range(1, 6):
-        for stmt in store_mod.MIGRATIONS[v]:
-            cur.execute(stmt.format(**b.types))
-    cur.execute("INSERT INTO schema_version VALUES (?)", (5,))
-    cur.execute("INSERT INTO sessions (name, kind, started, scales, chips, meta) VALUES "
-                "('five', 'free', 0, '{}', '{}', '{}')")
-    b.close()
-    with open_store(fresh_db) as st:
-        assert st.schema_version == SCHEMA_VERSION == 7
-        assert "temps" in st._tables and st.load_session("five").temp is None
-    check_temperature_roundtrip(fresh_db)
-
-
-def test_old_schema_migrated_newer_refused(fresh_db):
-    b = M.MysqlBackend(fresh_db, True)
-    cur = b.cursor()
-    for stmt in store_mod.MIGRATIONS[1] + store_mod.MIGRATIONS[2]:
-        cur.execute(stmt.format(**b.types))
-    cur.execute("INSERT INTO schema_version VALUES (?)", (2,))
-    cur.execute("INSERT INTO sessions (name, kind, started, scales, chips, meta) VALUES "
-                "('two', 'free', 0, '{}', '{}', '{}')")
-    cur.execute("INSERT INTO line_stats (session, frames, crc_errors) VALUES (1, 7, 1)")
-    b.close()
-    with open_store(fresh_db) as st:
-        assert st.schema_version == SCHEMA_VERSION >= 3
-        line = st.link_stats("two")["line"]
-        assert (line["frames"], line["crc_errors"], line["cut_off"]) == (7, 1, 0)
-        st._query("UPDATE schema_version SET version = ?", (SCHEMA_VERSION + 1,))
-    with pytest.raises(UserError, match="newer than this motecal"):
-        open_store(fresh_db)
-
-
-def test_live_writer_batches_labels_stats_and_end(fresh_db):
-    with open_store(fresh_db) as st:
-        w = st.open_session("run", kind="free", meta={"source": "loop://", "notes": None})
-        raw = np.arange(40 * 9).reshape(40, 9) - 100
-        w.add_samples(np.full(40, 3), np.arange(65530, 65570), np.full(40, 0.5),
-                      np.zeros(40, int), raw)
-        w.set_label(3, 65540, 65549, 12)
-        w.add_event("disconnect", "it's a \"quote\", a back\\slash and None")
-        w.set_link_stats(3, {"frames": 8, "samples": 40, "lost": 2})
-        w.set_line_stats({"crc_errors": 5, "gap_s": 0.25})
-        w.commit()
-        # a replay after reconnecting: stored rows are kept, new ones added;
-        # counters are set to their latest values
-        w.add_samples(np.full(2, 3), np.array([65530, 65570]), np.array([np.nan, 1.0]),
-                      np.zeros(2, int), np.ones((2, 9), int))
-        w.set_link_stats(3, {"frames": 9, "samples": 41})
-        w.end()
-        d = st.load_session("run")
-        assert len(d) == 41 and d.raw[0].tolist() == list(range(-100, -91))
-        assert d.raw[40].tolist() == [1] * 9 and d.t[40] == 1.0
-        assert (np.flatnonzero(d.label == 12) == np.arange(10, 20)).all()
-        stats = st.link_stats("run")
-        assert (stats["motes"][3]["frames"], stats["motes"][3]["samples"],
-                stats["motes"][3]["lost"]) == (9, 41, 2)
-        assert stats["line"]["gap_s"] == 0.25 and stats["line"]["crc_errors"] == 5
-        assert [(e["kind"], e["detail"]) for e in st.events("run")] == [
-            ("disconnect", "it's a \"quote\", a back\\slash and None")]
-        assert st.sessions()[0]["ended"] is not None
-        w2 = st.open_session("run", kind="free", append=True)
-        assert st.sessions()[0]["ended"] is None and st.last_seqs("run") == {3: 65570}
-        w2.end()
 
 
 def _recording(path, seed, duration):

@@ -40,12 +40,34 @@ uint8_t ninedof_fault_tick(ninedof_fault_t *f, uint16_t now_ms)
     f->check_mask |= (uint8_t)(1u << f->check_next);
     f->check_next = (uint8_t)((f->check_next + 1) % NINEDOF_CHIPS);
   }
-  if (!f->busy || (uint16_t)(now_ms - f->since) < NINEDOF_I2C_TIMEOUT_MS)
+  if (!f->busy && !f->down)
+    return NINEDOF_FAULT_NONE;
+  if ((uint16_t)(now_ms - f->since) < (f->down ? NINEDOF_BUSDOWN_RETRY_MS : NINEDOF_I2C_TIMEOUT_MS))
     return NINEDOF_FAULT_NONE;
   f->since = now_ms;                /* the bound starts again */
-  f->aborted = 1;
   f->n.bus_resets++;
+  if (!f->busy)
+    return NINEDOF_FAULT_CLEAR;     /* down and idle: try the lines again */
+  f->aborted = 1;
   return NINEDOF_FAULT_ABORT;
+}
+
+uint8_t ninedof_fault_cleared(ninedof_fault_t *f, uint8_t result)
+{
+  if (result & (NINEDOF_BC_SDA_STUCK | NINEDOF_BC_SCL_STUCK)) {
+    f->down = 1;
+    return 0;
+  }
+  if (f->down) {
+    f->down = 0;
+    f->check_mask = ALL_CHIPS;      /* a short may have cut the chips' supply */
+  }
+  return 1;
+}
+
+uint8_t ninedof_fault_bus_down(const ninedof_fault_t *f)
+{
+  return f->down;
 }
 
 uint8_t ninedof_fault_check_pick(ninedof_fault_t *f)

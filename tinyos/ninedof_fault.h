@@ -29,6 +29,20 @@
  *     out.  It never drives SDA low while SCL is high except inside the
  *     STOP, and it ends after at most NINEDOF_BUSCLEAR_MAX_STEPS steps
  *     even if a line stays stuck (reported, not waited for).
+ *     The board hands every clear's result to ninedof_fault_cleared().  A
+ *     clear that leaves a line low (a line shorted to ground, a chip that
+ *     holds SDA through 9 pulses) puts the bus "down": no read or
+ *     start/stop is begun (they are refused at once, FAIL: a START would
+ *     only wait for a bus that is not free), the watchdog no longer
+ *     clears every NINEDOF_I2C_TIMEOUT_MS but once every
+ *     NINEDOF_BUSDOWN_RETRY_MS, 256 ms (each clear busy-waits up to ~2 ms:
+ *     about 1 % of the CPU instead of 12 %; the bus is up again at most
+ *     that long after the line is free), an
+ *     operation still under way (the stock master cannot be aborted) is
+ *     aborted again on that schedule, and when a clear finds both lines
+ *     high the bus is up again and every chip is checked (below) with the
+ *     next reads, since a short may have cut their supply too.  Every
+ *     clear, after an abort or as such a retry, counts in bus_resets.
  *
  *  3. Configuration check.  Every NINEDOF_CHECK_TICKS ticks one chip (in
  *     turn) has its witness register (NINEDOF_CHIP[chip].witness in
@@ -50,6 +64,9 @@
 #ifndef NINEDOF_I2C_TIMEOUT_MS
 #define NINEDOF_I2C_TIMEOUT_MS 16       /* binary ms an operation may run before it is aborted */
 #endif
+#ifndef NINEDOF_BUSDOWN_RETRY_MS
+#define NINEDOF_BUSDOWN_RETRY_MS 256    /* binary ms between bus clears while a line stays low */
+#endif
 #ifndef NINEDOF_CHECK_TICKS
 #define NINEDOF_CHECK_TICKS 125         /* one witness read per second (each chip every 3 s) */
 #endif
@@ -57,7 +74,7 @@
 /* Counters (wrap at 65536; the host takes differences) */
 typedef struct {
   uint16_t nacks;          /* operations ended by a chip's NACK */
-  uint16_t bus_resets;     /* operations aborted by the watchdog, bus cleared */
+  uint16_t bus_resets;     /* bus clears: hung operations aborted, retries while down */
   uint16_t chip_reinits;   /* chips found reset and configured again */
 } ninedof_fault_counters_t;
 
@@ -73,6 +90,7 @@ enum {
 enum {
   NINEDOF_FAULT_NONE = 0,
   NINEDOF_FAULT_ABORT = 1, /* abort the operation under way and clear the bus */
+  NINEDOF_FAULT_CLEAR = 2, /* the bus is down and idle: clear it again (a retry) */
 };
 
 enum { NINEDOF_CHECK_NONE = 0xFF };
@@ -80,8 +98,9 @@ enum { NINEDOF_CHECK_NONE = 0xFF };
 typedef struct {
   ninedof_fault_counters_t n;
   uint8_t busy;            /* an operation is under way */
-  uint16_t since;          /* ... since this time (ms), or its last abort */
+  uint16_t since;          /* ... since this time (ms), or its last bus clear */
   uint8_t aborted;         /* the operation under way has been aborted */
+  uint8_t down;            /* the last bus clear left a line low */
   uint8_t check_wait;      /* ticks until the next scheduled check */
   uint8_t check_next;      /* chip of the next scheduled check */
   uint8_t check_mask;      /* chips to check with the next reads (bit per chip) */
@@ -99,11 +118,24 @@ uint8_t ninedof_fault_end(ninedof_fault_t *f, uint8_t outcome);
 
 /* Once per sampling period, from any context, at now_ms:
  * NINEDOF_FAULT_ABORT when the operation under way has run
- * NINEDOF_I2C_TIMEOUT_MS (counted in bus_resets; the bound starts again, so
- * a master that still does not end it is aborted again
- * NINEDOF_I2C_TIMEOUT_MS later); else NINEDOF_FAULT_NONE.  Also moves the
- * check schedule on by one tick. */
+ * NINEDOF_I2C_TIMEOUT_MS (NINEDOF_BUSDOWN_RETRY_MS while the bus is down;
+ * counted in bus_resets; the bound starts again, so a master that still
+ * does not end it is aborted again that much later); NINEDOF_FAULT_CLEAR
+ * when the bus is down, nothing is under way and the last clear was
+ * NINEDOF_BUSDOWN_RETRY_MS ago (counted in bus_resets); else
+ * NINEDOF_FAULT_NONE.  Either answer asks for a bus clear whose result goes
+ * to ninedof_fault_cleared().  Also moves the check schedule on by one
+ * tick. */
 uint8_t ninedof_fault_tick(ninedof_fault_t *f, uint16_t now_ms);
+
+/* The bus clear asked for by ninedof_fault_tick ended with `result`
+ * (NINEDOF_BC_DONE | NINEDOF_BC_SDA_STUCK / _SCL_STUCK).  A line still low
+ * puts the bus down; both lines high bring it up (every chip is checked
+ * with the next reads if it was down).  Returns 1 when the bus is up. */
+uint8_t ninedof_fault_cleared(ninedof_fault_t *f, uint8_t result);
+
+/* 1 while the bus is down: the board begins no operation (refused, FAIL). */
+uint8_t ninedof_fault_bus_down(const ninedof_fault_t *f);
 
 /* A sample read has its nine axes: the chip whose witness to read back now
  * (and removes it from the chips due), or NINEDOF_CHECK_NONE. */

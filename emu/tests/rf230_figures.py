@@ -1,11 +1,13 @@
-"""Build the radio's test harness and AVR test programs, run them, print
-the figures of docs/emulation-radio.md: frames sent / received / lost /
-collided at loss 0 and 10 %, air time, PLL lock time and CCA busy fraction.
+"""Build the harness (ninedof-emu) and the radio's AVR test programs, run
+them, print the figures of docs/emulation-radio.md: frames sent / received /
+lost / collided at loss 0 and 10 %, air time, PLL lock time and CCA busy
+fraction.
 
     python emu/tests/rf230_figures.py [--seeds 5] [--frames 100]
 
 Needs gcc, avr-gcc, libsimavr-dev and libelf-dev (make sysdeps).  The same
-build and run helpers serve tests/test_emu_radio.py.
+build and run helpers serve tests/test_emu_radio.py.  The programs run as
+nodes without a sensor board (board=none), each UART0 to its own file.
 """
 from __future__ import annotations
 
@@ -21,15 +23,12 @@ BYTE_US = 32
 
 
 def build_harness(d: Path) -> Path:
-    exe = d / "rf230-test"
-    cmd = ["gcc", "-std=gnu99", "-O2", "-Wall", "-Wextra", "-Werror",
-           f"-I{EMU}", f"-I{EMU / 'tests' / 'rf230_contract'}", f"-I{SIMAVR_INC}",
-           str(EMU / "tests" / "rf230_test_main.c"), str(EMU / "rf230.c"),
-           str(EMU / "channel.c"), str(EMU / "uart.c"), "-lsimavr", "-lelf", "-o", str(exe)]
-    res = subprocess.run(cmd, capture_output=True, text=True)
+    """ninedof-emu (make -C emu) built into d."""
+    res = subprocess.run(["make", "-s", "-C", str(EMU), f"BUILD={d / 'emu-build'}"],
+                         capture_output=True, text=True)
     if res.returncode != 0:
-        raise RuntimeError(res.stderr)
-    return exe
+        raise RuntimeError(res.stdout + res.stderr)
+    return d / "emu-build" / "ninedof-emu"
 
 
 def build_avr(d: Path, name: str, source: str = "rf230_node.c", **defines) -> Path:
@@ -45,18 +44,20 @@ def build_avr(d: Path, name: str, source: str = "rf230_node.c", **defines) -> Pa
 
 
 def run(exe: Path, nodes, *, loss=0.0, seed=1, ms=300.0, extra=()):
-    """Run nodes [(elf, id)]; return (console text per node, stats text)."""
-    args = [str(exe), "--loss", str(loss), "--seed", str(seed), "--ms", str(ms), *extra]
+    """Run nodes [(elf, id)] for ms emulated ms; return (console text per
+    node, the harness's text report: one rf230 line per node, the channel's)."""
+    args = [str(exe), "--loss", str(loss), "--seed", str(seed), "--seconds", str(ms / 1000),
+            "--report", "text", *extra]
     with tempfile.TemporaryDirectory(prefix="rf230-run-") as td:
         cons = []
         for i, (elf, nid) in enumerate(nodes):
             c = Path(td) / f"console-{i}.txt"
             cons.append(c)
-            args += ["--node", f"{elf},id={nid},console={c}"]
+            args += ["--mote", f"{elf},id={nid},board=none,console={c}"]
         res = subprocess.run(args, capture_output=True, text=True, timeout=300)
         if res.returncode != 0:
             raise RuntimeError(res.stderr)
-        return [c.read_text() for c in cons], res.stderr
+        return [c.read_text() for c in cons], res.stdout
 
 
 def fields(line: str) -> dict:

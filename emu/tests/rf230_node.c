@@ -45,7 +45,7 @@
 #define CHANNEL 26
 #endif
 
-volatile uint16_t node_id = 0xFFFF;         /* patched by the harness */
+volatile uint16_t TOS_NODE_ID = 0xFFFF;     /* patched by the harness, as in a TinyOS image */
 
 /* ------------------------------------------------------------- output */
 static void uart_init(void)
@@ -206,7 +206,7 @@ static void role(void)
         next += PERIOD_US;
         buf[0] = (uint8_t)(i >> 8);
         buf[1] = (uint8_t)i;
-        buf[2] = (uint8_t)node_id;
+        buf[2] = (uint8_t)TOS_NODE_ID;
         for (uint8_t k = 3; k < LEN - 2; k++)
             buf[k] = (uint8_t)(k * 7 + i);
         reg_write(TRX_STATE, ST_PLL_ON);

@@ -20,40 +20,8 @@
 #include <util/delay.h>
 
 #include "ninedof_board.h"
-#include "ninedof_twi.h"
 #include "test_out.h"
-
-static ninedof_twi_t twi;
-
-ISR(TWI_vect)
-{
-  (void)ninedof_twi_interrupt(&twi, &TWSR, &TWDR, &TWCR);
-}
-
-static uint8_t op(uint8_t read, uint8_t flags, uint8_t addr, uint8_t len, uint8_t *buf)
-{
-  uint8_t cmd;
-  cli();
-  cmd = ninedof_twi_begin(&twi, read, flags, addr, len, buf);
-  TWDR = twi.out;
-  TWCR = cmd;
-  sei();
-  while (*(volatile uint8_t *)&twi.state != NINEDOF_TWI_DONE)
-    ;
-  /* a STOP leaves no interrupt: wait until the TWI has sent it */
-  while (TWCR & _BV(TWSTO))
-    ;
-  return twi.result;
-}
-
-/* write reg, repeated START, read len bytes */
-static uint8_t read_regs(uint8_t addr, uint8_t reg, uint8_t len, uint8_t *buf)
-{
-  uint8_t r = op(0, NINEDOF_I2C_START, addr, 1, &reg);
-  if (r)
-    return r;
-  return op(1, NINEDOF_I2C_START | NINEDOF_I2C_STOP, addr, len, buf);
-}
+#include "twi_ops.h"
 
 static uint8_t write_reg(uint8_t addr, uint8_t reg, uint8_t v)
 {

@@ -8,10 +8,16 @@
  *    stretches the clock, or has a line shorted to ground;
  *  - the watchdog, the counters and the check schedule step by step;
  *  - a 2400-period scenario of a board whose chips reset, stop answering
- *    and hang the bus, run by the decisions alone.
+ *    and hang the bus, run by the decisions alone;
+ *  - what the board does when a bus clear fails (a line shorted to
+ *    ground): the bus down, reads refused, a clear every 256 ms, the bus
+ *    up and every chip checked when a clear finds the lines high, for a
+ *    master that ends an aborted operation (lean) and one that cannot
+ *    (stock).
  *
- * Prints "B<name>:<pulses>:<result>:<stop>;" per bus-clear case and
- * "S<hex>;" for the scenario (read by the Python test), then
+ * Prints "B<name>:<pulses>:<result>:<stop>;" per bus-clear case,
+ * "S<hex>;" for the scenario and "D<master>:<hex>;" per short scenario
+ * (read by the Python test), then
  * "CHECKS <n> FAILED <m>;END" (test_check.h).
  */
 #include <stdint.h>
@@ -409,6 +415,138 @@ static void test_scenario(void)
   (void)first_wrong;
 }
 
+/* ---------------------------------------------------------------------- */
+/* A line shorted to ground: what the board does when a clear fails        */
+/* ---------------------------------------------------------------------- */
+/* 1200 periods of 8 ms; SDA shorted from SHORT to SHORT_END.  `lean`: the
+ * master ends an aborted operation (lean: ECANCEL), else it stays under
+ * way until the bus is free again (stock; its pending START then completes
+ * the read).  The clear's result comes from the line: stuck while shorted. */
+static void short_case(uint8_t lean)
+{
+  enum { PERIODS = 1200, SHORT = 200, SHORT_END = 600 };
+  ninedof_fault_t f;
+  uint16_t t, good = 0, refused = 0, ended_bad = 0, late = 0, clears = 0, clears_down = 0;
+  uint16_t up_at = 0, last_clear = 0, max_apart = 0, first_good_after = 0;
+  uint8_t reading = 0, hung = 0, v[20], k, c;
+
+  ninedof_fault_init(&f);
+  for (t = 1; t <= PERIODS; t++) {
+    uint16_t now = (uint16_t)(8 * t);
+    uint8_t shorted = t >= SHORT && t < SHORT_END, act;
+    if (!shorted && hung && !lean) {          /* the stock master's START completes */
+      hung = 0;
+    }
+    act = ninedof_fault_tick(&f, now);
+    if (act != NINEDOF_FAULT_NONE) {
+      uint8_t result = shorted ? NINEDOF_BC_DONE | NINEDOF_BC_SDA_STUCK : NINEDOF_BC_DONE;
+      clears++;
+      if (ninedof_fault_bus_down(&f)) {
+        clears_down++;
+        if (last_clear && (uint16_t)(t - last_clear) > max_apart)
+          max_apart = (uint16_t)(t - last_clear);
+      }
+      last_clear = t;
+      CHECK(act == (reading ? NINEDOF_FAULT_ABORT : NINEDOF_FAULT_CLEAR));
+      if (!ninedof_fault_cleared(&f, result)) {
+        CHECK(shorted);
+      } else if (t >= SHORT_END && !up_at) {
+        up_at = t;
+      }
+      if (reading && lean) {                  /* ECANCEL: the read ends */
+        ninedof_fault_end(&f, NINEDOF_OP_FAIL);
+        reading = hung = 0;
+        ended_bad++;
+      }
+    }
+    if (reading && !hung) {                   /* the stock read completed late */
+      CHECK(ninedof_fault_end(&f, NINEDOF_OP_OK) == NINEDOF_OP_ABORTED);
+      reading = 0;
+      ended_bad++;
+    }
+    if (reading) {
+      late++;
+      continue;
+    }
+    if (ninedof_fault_bus_down(&f)) {         /* refused at once, no bus request */
+      refused++;
+      continue;
+    }
+    ninedof_fault_begin(&f, now);
+    if (shorted) {                            /* its START waits for a free bus */
+      reading = hung = 1;
+      continue;
+    }
+    CHECK(ninedof_fault_end(&f, NINEDOF_OP_OK) == NINEDOF_OP_OK);
+    good++;
+    if (t >= SHORT_END && !first_good_after)
+      first_good_after = t;
+    /* every chip is checked with the reads after the bus came back */
+    c = ninedof_fault_check_pick(&f);
+    if (c != NINEDOF_CHECK_NONE)
+      ninedof_fault_check_done(&f, c, NINEDOF_OP_OK,
+                               NINEDOF_CHIP[c].config[NINEDOF_CHIP[c].witness].value);
+  }
+  CHECK(good + refused + ended_bad + late == PERIODS);
+  /* one abort 16-24 ms into the short finds it; from then one clear every
+   * NINEDOF_BUSDOWN_RETRY_MS (32 periods of 8 binary ms), not one every 16 ms */
+  CHECK(max_apart == NINEDOF_BUSDOWN_RETRY_MS / 8);
+  CHECK(clears == f.n.bus_resets && f.n.nacks == 0);
+  CHECK(clears_down >= (SHORT_END - SHORT) * 8 / NINEDOF_BUSDOWN_RETRY_MS
+        && clears_down <= (SHORT_END - SHORT) * 8 / NINEDOF_BUSDOWN_RETRY_MS + 2);
+  /* the bus up with the first clear after the short */
+  CHECK(up_at >= SHORT_END && up_at < SHORT_END + NINEDOF_BUSDOWN_RETRY_MS / 8 + 1);
+  CHECK(first_good_after >= up_at && first_good_after <= up_at + 1);
+  CHECK(!ninedof_fault_bus_down(&f) && !reading);
+  /* reads: the one under way when the short began is aborted at the second
+   * tick after it began (16 ms); lean: it ends, later reads are refused
+   * until the bus is up; stock: it stays under way through the short (the
+   * periods are late) and completes when SDA is free, counted as aborted,
+   * and reads are refused until the next clear finds the lines high */
+  if (lean)
+    CHECK(ended_bad == 1 && late == 1 && refused == up_at - (SHORT + 2));
+  else
+    CHECK(ended_bad == 1 && late == SHORT_END - SHORT - 1 && refused == up_at - SHORT_END);
+  out_c('D');
+  out_c(lean ? 'L' : 'S');
+  out_c(':');
+  {
+    uint16_t w[10] = { good, refused, ended_bad, late, f.n.bus_resets, clears_down, max_apart,
+                       (uint16_t)(up_at - SHORT_END), (uint16_t)(first_good_after - SHORT_END),
+                       f.n.chip_reinits };
+    for (k = 0; k < 10; k++) {
+      v[2 * k] = (uint8_t)(w[k] >> 8);
+      v[2 * k + 1] = (uint8_t)w[k];
+    }
+    out_hex(v, 20);
+  }
+  out_c(';');
+}
+
+static void test_short(void)
+{
+  ninedof_fault_t f;
+  short_case(1);
+  short_case(0);
+  /* the decisions alone: a failed clear puts the bus down, a good one up
+   * again with every chip due for a check */
+  ninedof_fault_init(&f);
+  CHECK(!ninedof_fault_bus_down(&f));
+  CHECK(ninedof_fault_cleared(&f, NINEDOF_BC_DONE) && !ninedof_fault_bus_down(&f));
+  CHECK(ninedof_fault_check_pick(&f) == NINEDOF_CHECK_NONE);
+  CHECK(!ninedof_fault_cleared(&f, NINEDOF_BC_DONE | NINEDOF_BC_SCL_STUCK));
+  CHECK(ninedof_fault_bus_down(&f));
+  /* down and idle: nothing for NINEDOF_BUSDOWN_RETRY_MS after the clear
+   * (f.since 0), then a retry, counted */
+  CHECK(ninedof_fault_tick(&f, NINEDOF_BUSDOWN_RETRY_MS - 1) == NINEDOF_FAULT_NONE);
+  CHECK(ninedof_fault_tick(&f, NINEDOF_BUSDOWN_RETRY_MS) == NINEDOF_FAULT_CLEAR);
+  CHECK(f.n.bus_resets == 1);
+  CHECK(ninedof_fault_cleared(&f, NINEDOF_BC_DONE) && !ninedof_fault_bus_down(&f));
+  CHECK(ninedof_fault_check_pick(&f) == 0 && ninedof_fault_check_pick(&f) == 1 &&
+        ninedof_fault_check_pick(&f) == 2);
+  CHECK(ninedof_fault_tick(&f, 2 * NINEDOF_BUSDOWN_RETRY_MS) == NINEDOF_FAULT_NONE);
+}
+
 int main(void)
 {
   out_init();
@@ -416,6 +554,7 @@ int main(void)
   test_chip_table();
   test_decisions();
   test_scenario();
+  test_short();
   check_summary();
   out_end();
   return failed != 0;

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..line import protocol as P
 from ..line.samples import SampleBatch
-from ..sessions.store import LINE_COUNTERS, LINK_COUNTERS
+from ..sessions.store_schema import LINE_COUNTERS, LINK_COUNTERS
 
 REORDER_WINDOW = 2048        # samples back: further is a restart (or corruption)
 MAX_JUMP = 1000              # samples ahead (8 s): further is held until confirmed

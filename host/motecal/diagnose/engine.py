@@ -1,140 +1,122 @@
-"""The diagnosis: the four questions, in order, for one mote's session.
+"""The diagnosis of one mote's session, in stages
+(docs/diagnosis-method.md, "The stages"):
 
-1. what the simulation gets wrong -- the paper's starting model fitted, the
-   session simulated with it, statistics side by side (``compare``);
-2. the cause -- screens on the raw readings and nested fits (``screens``,
-   ``structure``), named from the vocabulary (``causes``) with evidence;
-3. the extension -- the kept terms as a simulator model file (``extend``);
-4. the gain -- held-out rms before/after per term, and how much closer the
-   simulated statistics come (``gain``, ``compare``).
+    observe -> screen -> structure -> test -> name -> extend -> compare
+
+``diagnose`` calls one function per stage; what a stage hands to the next is
+the ``State`` (each field says which stage sets it).  The four questions of
+``motecal diagnose`` (docs/diagnose.md) are answered along the way:
+
+1. what the simulation gets wrong -- ``compare``: the paper's starting model
+   fitted, the session simulated with it, statistics side by side;
+2. the cause -- ``screen`` (raw readings: ``screens``), ``structure`` (nested
+   fits per sensor: ``structure``, ``terms``, ``leftover``), ``test``
+   (tilt or drift: ``tilt``; temperature or time: ``thermal``) and ``name``
+   (the findings complete), named from the vocabulary (``causes``);
+3. the extension -- ``extend``: the kept terms as a simulator model file;
+4. the gain -- held-out rms before/after per term, measured where each term
+   is decided (``gain``), and in ``compare`` how much closer the extended
+   model's simulated statistics come on the held-out half.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
 
 from ..calib.content import describe
-from ..calib.gate import field_plausibility, residual_reason
+from ..calib.gate import field_plausibility
 from ..errors import QualityError, UserError
-from ..jsonable import finite, jsonable
-from ..maths.sphere import angle_deg, unit
 from ..sessions.session import SessionData
 from . import causes as C
 from . import extend as X
 from . import fitting as F
 from . import gain as G
+from . import leftover as LO
+from . import randomwalk as RW
 from . import screens as SC
 from . import structure as ST
+from . import terms as TM
 from . import thermal as TH
-from .prepare import SensorObs, all_obs, sensor_obs, session_still
+from . import tilt as TL
+from .prepare import all_obs, sensor_obs, session_still
+from .regimes import (CANDIDATES, MIN_SWEEP_ROWS, accel_for_blocks, plan_tests, regime,
+                      sweep_reasons)
+from .result import Diagnosis, Finding, num as _num
 from .turns import turn_corrected
-from .regimes import (MIN_SWEEP_ROWS, accel_for_blocks, regime, shared_rows, sweep_reasons,
-                      sweep_surrounds)
+
+TURN_SLOPE = (0.5, 2.0)  # the motion screen's slope: gyro and accelerometer agree about turns
 
 
-
-@dataclass
-class Finding:
-    sensor: str
-    cause: str
-    summary: str
-    evidence: dict
-    params: dict
-    gain: float | None
-
-    def to_json(self) -> dict:
-        return {"sensor": self.sensor, "cause": self.cause, "summary": self.summary,
-                "evidence": _jsonable(self.evidence), "params": _jsonable(self.params),
-                "gain": None if self.gain is None else _num(self.gain)}
-
-
-@dataclass
-class Diagnosis:
-    session: str
-    mote: int
-    kind: str
-    findings: list
-    tests: list                    # every test: sensor, cause, p, level, kept
-    alpha: float
-    n_tests: int
-    model: dict                    # the extended simulator model
-    start_model: dict              # the paper model fitted to the session
-    structures: dict               # sensor -> structure.Structure
-    screens: list
-    obs: dict
-    comparison: dict = field(default_factory=dict)
-    notes: list = field(default_factory=list)
-    temperature: dict = field(default_factory=dict)   # sensor -> thermal.TempTest
-
-    @property
-    def clean(self) -> bool:
-        return not self.findings
-
-    def to_json(self) -> dict:
-        """Exactly the issue's form: clean, findings, model."""
-        return {"clean": self.clean, "findings": [f.to_json() for f in self.findings],
-                "model": self.model}
-
-    def details_json(self) -> dict:
-        """Everything else (the --report directory's diagnosis.json)."""
-        return _jsonable({"session": self.session, "mote": self.mote, "kind": self.kind,
-                          "alpha": self.alpha, "n_tests": self.n_tests,
-                          "per_test_alpha": G.per_test_alpha(self.alpha, self.n_tests),
-                          "tests": self.tests, "comparison": self.comparison,
-                          "notes": self.notes, "start_model": self.start_model})
-
-    def causes(self) -> set:
-        return {(f.sensor, f.cause) for f in self.findings}
-
-
-def _num(x):
-    """A JSON number rounded to 6 significant digits (None for NaN/inf)."""
-    x = finite(x)
-    return None if x is None else float(f"{x:.6g}")
-
-
-def _jsonable(x):
-    return jsonable(x, _num)
-
-
-# ---------------------------------------------------------------------------
-# regimes and plan
-# ---------------------------------------------------------------------------
-CANDIDATES = {
-    "poses": ["cross_axis", "nonlinearity", "bias_drift"],
-    "sweep": ["cross_axis", "field_disturbance"],
-    "single": ["bias_drift"],
-    "still": ["g_sensitivity", "bias_drift"],
-}
-
-
-def _plan(obs: dict) -> list:
-    plan = []
-    for s, o in obs.items():
-        plan += [(s, "stale_samples"), (s, "saturation")]
-        r = regime(o)
-        if r:
-            cands = list(CANDIDATES[r])
-            if s == "gyro" and "accel" not in obs:
-                cands.remove("g_sensitivity")
-            plan += [(s, c) for c in cands]
-            plan.append((s, "excess"))
-    if shared_rows(obs.get("accel"), obs.get("gyro")) and obs["accel"].segs is not None:
-        plan.append(("accel", "motion"))
-    return plan
-
-
-# ---------------------------------------------------------------------------
-# the diagnosis
-# ---------------------------------------------------------------------------
 def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0,
              simulate: bool = True, force: set | None = None) -> Diagnosis:
     """Diagnose one mote's session (see the module doc).
 
     ``force``: a set of (sensor, cause) to keep without testing (and nothing
     else) -- used to refit a diagnosis' terms on half of the data."""
+    state = observe(data, alpha, force)
+    screen(state)
+    structure(state)
+    test(state)
+    name(state)
+    d = extend(state)
+    if simulate:
+        compare(d, data, seed)
+    return d
+
+
+# ---------------------------------------------------------------------------
+# the state between the stages
+# ---------------------------------------------------------------------------
+@dataclass
+class State:
+    """One diagnosis in progress.  ``observe`` sets the fields up to
+    ``notes``; the others are filled by the stage their comment names.
+    ``tests`` and ``notes`` grow in every stage, in the order the tests and
+    remarks arise (that order is the report's)."""
+    data: SessionData
+    alpha: float
+    force: set | None              # (sensor, cause) kept without testing, nothing else
+    still: np.ndarray | None       # the session's still stretches when no row has a pose label
+    obs: dict                      # sensor -> prepare.SensorObs, every reading
+    plan: list                     # every (sensor, cause) tested: their count sets the level
+    a_test: float                  # the per-test level (Bonferroni over the plan)
+    notes: list
+    tests: list = field(default_factory=list)         # every test: sensor, cause, p, level, kept
+    screens: list = field(default_factory=list)       # screen: the kept screens
+    stale_on: dict = field(default_factory=dict)      # screen: sensor -> its kept stale_samples
+    clip_rows: dict = field(default_factory=dict)     # screen: sensor -> clipped rows (of sobs)
+    motion: SC.Screen | None = None                   # screen: the kept motion screen
+    sobs: dict = field(default_factory=dict)          # screen: the observations analysed
+    #   (a sensor with repeats on its unique updates; structure: the gyro turn-corrected)
+    structures: dict = field(default_factory=dict)    # structure: sensor -> ST.Structure
+    findings: list = field(default_factory=list)      # structure, test, name
+    temperature: dict = field(default_factory=dict)   # test: sensor -> thermal.TempTest
+
+    @property
+    def n_tests(self) -> int:
+        return len(self.plan)
+
+    def decide(self, sensor, cause, p, g, practical=True, fitted=True, wins=None,
+               paired_p=None) -> bool:
+        """The criterion (``gain.accepted``), or the forced set."""
+        if self.force is not None:
+            return (sensor, cause) in self.force
+        return G.accepted(p, self.a_test, g if fitted else None, practical, wins, paired_p)
+
+    def record(self, sensor, cause, p, kept, **kw) -> None:
+        self.tests.append({"sensor": sensor, "cause": cause, "p": _num(p),
+                           "level": _num(self.a_test), "kept": bool(kept), **kw})
+
+
+# ---------------------------------------------------------------------------
+# 1. observe: what the session allows
+# ---------------------------------------------------------------------------
+def observe(data: SessionData, alpha: float, force: set | None) -> State:
+    """Each sensor's observations (still segments or poses, time blocks,
+    noise: ``prepare``) and the plan of tests they allow (``regimes``, with
+    ``temperature`` where the session's temperature span allows it); their
+    count sets the per-test level."""
     motes = data.motes
     if len(motes) != 1:
         raise UserError(f"session {data.name} holds motes {motes}: diagnose one mote at a "
@@ -145,76 +127,79 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
     obs = all_obs(data, still=still)
     if not obs:
         raise QualityError(f"session {data.name}: no sensor readings to diagnose")
-    plan = _plan(obs)
+    plan = plan_tests(obs)
     plan += [(s, "temperature") for s, o in obs.items()           # issue 16
              if TH.testable(data, o, regime(o))]
-    n_tests = len(plan)
     notes: list[str] = []
     if still is not None:
         notes.append("session: " + describe(data, still))
-    a_test = G.per_test_alpha(alpha, n_tests)
-    tests: list[dict] = []
-    findings: list[Finding] = []
-    screens: list[SC.Screen] = []
+    return State(data, alpha, force, still, obs, plan, G.per_test_alpha(alpha, len(plan)),
+                 notes)
 
-    def decide(sensor, cause, p, g, practical=True, fitted=True, wins=None, paired_p=None):
-        if force is not None:
-            return (sensor, cause) in force
-        return G.accepted(p, a_test, g if fitted else None, practical, wins, paired_p)
 
-    def record(sensor, cause, p, kept, **kw):
-        tests.append({"sensor": sensor, "cause": cause, "p": _num(p), "level": _num(a_test),
-                      "kept": bool(kept), **kw})
-
-    # -- screens on raw readings ----------------------------------------------------
-    stale_on, clip_rows = {}, {}
+# ---------------------------------------------------------------------------
+# 2. screen: the raw readings
+# ---------------------------------------------------------------------------
+def screen(state: State) -> None:
+    """Repeated readings and clipping on every sensor, the accelerometer
+    following the gyroscope's turns (``motion``) inside the still segments
+    (``screens``), each kept by the criterion; then a sensor with repeats is
+    observed again on its unique updates (``state.sobs``)."""
+    obs = state.obs
     for s, o in obs.items():
         sc = SC.stale_samples(o, o.rate)
         if sc is not None:
             g = sc.gain()
-            kept = decide(s, "stale_samples", sc.p, g, sc.practical, fitted=False)
-            record(s, "stale_samples", sc.p, kept, effect=sc.effect)
+            kept = state.decide(s, "stale_samples", sc.p, g, sc.practical, fitted=False)
+            state.record(s, "stale_samples", sc.p, kept, effect=sc.effect)
             if kept:
-                stale_on[s] = sc
-                screens.append(sc)
+                state.stale_on[s] = sc
+                state.screens.append(sc)
         sat = SC.saturation(o, X.SIM_LIMITS[s])
         if sat is not None:
             g = sat.gain()
-            kept = decide(s, "saturation", sat.p, g, sat.practical, fitted=False)
-            record(s, "saturation", sat.p, kept, effect=sat.effect)
+            kept = state.decide(s, "saturation", sat.p, g, sat.practical, fitted=False)
+            state.record(s, "saturation", sat.p, kept, effect=sat.effect)
             if kept:
-                screens.append(sat)
+                state.screens.append(sat)
                 rows = o.overflow.copy()
                 for h in sat.evidence.get("limits", []):
                     rows |= o.x[:, "xyz".index(h["axis"])] == h["limit_counts"]
-                clip_rows[s] = rows
-    mot = None
-    if ("accel", "motion") in plan:
+                state.clip_rows[s] = rows
+    if ("accel", "motion") in state.plan:
         mot = SC.motion(obs["accel"], obs["gyro"], True)
         if mot is not None:
-            kept = decide("accel", "motion", mot.p, mot.gain(), mot.practical, fitted=False)
-            record("accel", "motion", mot.p, kept, effect=mot.effect)
-            if not kept:
-                mot = None
-            else:
-                screens.append(mot)
+            kept = state.decide("accel", "motion", mot.p, mot.gain(), mot.practical,
+                                fitted=False)
+            state.record("accel", "motion", mot.p, kept, effect=mot.effect)
+            if kept:
+                state.motion = mot
+                state.screens.append(mot)
 
     # sensors with repeats are analysed on their unique updates
-    sobs = dict(obs)
-    for s in stale_on:
-        o2 = sensor_obs(data, s, dedup=True, still=still)
+    state.sobs = dict(obs)
+    for s in state.stale_on:
+        o2 = sensor_obs(state.data, s, dedup=True, still=state.still)
         if o2 is not None:
-            sobs[s] = o2
-            if s in clip_rows:
+            state.sobs[s] = o2
+            if s in state.clip_rows:
                 keep_rows = np.isin(obs[s].rows, o2.rows)
-                clip_rows[s] = clip_rows[s][keep_rows]
+                state.clip_rows[s] = state.clip_rows[s][keep_rows]
 
-    # -- structure: nested fits ----------------------------------------------------------
-    structures = {}
+
+# ---------------------------------------------------------------------------
+# 3. structure: nested fits per sensor
+# ---------------------------------------------------------------------------
+def structure(state: State) -> None:
+    """Per sensor (accelerometer, magnetometer, then the gyroscope, whose
+    specific force and turns come from the other two): the nested fits of
+    its regime's candidates (``structure``), each fitted term kept by its
+    test and the held-out check (``terms``), then the scatter left
+    (``leftover``)."""
     for s in ("accel", "mag", "gyro"):
-        if s == "gyro" and mot is not None:
-            _turn_correct(sobs, structures, mot, notes)
-        o = sobs.get(s)
+        if s == "gyro" and state.motion is not None:
+            _turn_correct(state)
+        o = state.sobs.get(s)
         if o is None:
             continue
         r = regime(o)
@@ -223,174 +208,75 @@ def diagnose(data: SessionData, *, alpha: float = G.DEFAULT_ALPHA, seed: int = 0
                    + "; ".join(sweep_reasons(o)) + ")"
                    if s == "mag" and o.moving is not None and o.moving.sum() >= MIN_SWEEP_ROWS
                    else "no still segments and no sweep")
-            notes.append(f"{s}: {why}: only the raw-reading screens ran")
+            state.notes.append(f"{s}: {why}: only the raw-reading screens ran")
             continue
-        cands = [c for (ss, c) in plan if ss == s and c in CANDIDATES[r]]
-        level = a_test
-        if force is not None:
-            cands = [c for c in cands if (s, c) in force]
-            level = 1.01
-        st = None
-        if r in ("poses", "sweep"):
-            st = ST.analyse_magnitude(o, r, cands, level, drop_rows=clip_rows.get(s))
-        elif r == "single":
-            st = ST.analyse_linear(o, cands, level, per_orientation=True)
-        else:
-            acc_g = accel_for_blocks(o, structures.get("accel"), sobs.get("accel"))
-            drop = None
-            if s in clip_rows:
-                drop = np.array([clip_rows[s][g].any() for g in o.blocks.rows])
-            if o.blocks is not None and o.blocks.var is not None:
-                # blocks whose turn could not be measured (turns): left out
-                bad = ~np.all(np.isfinite(o.blocks.var), axis=1)
-                drop = bad if drop is None else drop | bad
-            st = ST.analyse_linear(o, [c for c in cands if acc_g is not None
-                                       or c != "g_sensitivity"], level, accel_g=acc_g,
-                                   drop_blocks=drop)
+        st = _fit(state, s, o, r)
         if st is None:
-            notes.append(f"{s}: too few points for the {r} analysis")
+            state.notes.append(f"{s}: too few points for the {r} analysis")
             continue
-        structures[s] = st
+        state.structures[s] = st
         if "bias_drift" in st.causes and not isinstance(st.fit, F.MagnitudeFit):
             st.random_walk = ST.random_walk(st, o)
-            _krige_drift_gain(st, o)
-        for t in st.tests:
-            record(s, t.cause, t.p, False, F=t.F, q=t.q, dof=t.dof, dbic=t.dbic, round=t.round)
-        for c in st.causes:
-            before, after = st.heldout.get(c, (None, None))
-            g = before / after if before and after else None
-            ok = decide(s, c, min(t.p for t in st.tests if t.cause == c), g,
-                        wins=st.fold_wins.get(c), paired_p=st.heldout_p.get(c))
-            for t in tests:
-                if t["sensor"] == s and t["cause"] == c:
-                    t["kept"] = ok
-            if ok:
-                findings.append(_structure_finding(s, c, st, o, g, before, after))
-            else:
-                notes.append(f"{s}: {c} passed the F-test but not the held-out check "
-                             f"(gain {g if g is None else round(g, 3)}, better in "
-                             f"{st.fold_wins.get(c)} of {ST.KFOLD} folds"
-                             + (f", held-out points' paired test p {st.heldout_p[c]:.2g}"
-                                if st.heldout_p.get(c) is not None else "") + "); not kept")
-        fd = _excess_finding(s, st, o, sobs, structures, a_test, record, mot, force)
+            RW.krige_drift_gain(st, o)
+        _keep_terms(state, s, st, o)
+        fd = LO.excess_finding(s, st, o, state.sobs, state.structures, state.a_test,
+                               state.record, state.motion, state.force)
         if fd is not None:
-            findings.append(fd)
-
-    # one orientation: an accelerometer "drift" that turns the reading without
-    # changing its length is the board tilting (motion), not a bias
-    for i, f in enumerate(findings):
-        if f.sensor == "accel" and f.cause == "bias_drift" and \
-                structures["accel"].regime == "single":
-            tilt = _tilt(sobs["accel"])
-            tilt.update(_tilt_in_mag(sobs["accel"], sobs.get("mag")))
-            f.evidence.update(tilt)
-            if _is_tilt(tilt):
-                params = {"rms_deg": round(tilt["angle_rms_deg"], 5),
-                          "bandwidth_hz": round(max(0.02, 2.0 / max(tilt["segment_s"], 1.0)), 4)}
-                ev = dict(f.evidence, slow_tilt=True)
-                summ = C.summary("accel", "motion", {**ev, "what": "slow"}, params, f.gain,
-                                 ev.get("heldout_rms_before"), ev.get("heldout_rms_after"), "g")
-                findings[i] = Finding("accel", "motion", summ, ev, params, f.gain)
-                if ("mag", "bias_drift") in {(g.sensor, g.cause) for g in findings} and \
-                        structures.get("mag") is not None and \
-                        structures["mag"].regime == "single":
-                    findings = [g for g in findings if (g.sensor, g.cause) != ("mag", "bias_drift")]
-                    notes.append("mag: its drift in one orientation is the same slow tilt "
-                                 "(it turns with the accelerometer): not a bias drift")
-                break
-
-    # temperature (issue 16): a drift that follows the board temperature
-    temp_tests = {}
-    for s in ("accel", "gyro", "mag"):
-        if (s, "temperature") not in plan or s not in sobs:
-            continue
-        tt = (TH.make_pose_test(data, sobs[s], structures.get(s))
-              if regime(sobs[s]) == "poses" else TH.make_test(data, sobs[s], regime(sobs[s])))
-        if tt is None:
-            continue
-        TH.run_test(tt, a_test)
-        if force is not None:
-            tt.named = (s, "temperature") in force
-            tt.keep_drift = (s, "bias_drift") in force
-        temp_tests[s] = tt
-        record(s, "temperature", min(tt.p_T, tt.p_T_D), tt.named, p_temperature=tt.p_T,
-               p_temperature_beyond_time=tt.p_T_D, p_time_beyond_temperature=tt.p_D_T)
-        if not tt.named:
-            continue
-        ev, params, g = TH.finding_parts(tt)
-        findings.append(Finding(s, "temperature", C.summary(
-            s, "temperature", ev, params, g, ev["heldout_rms_before"], ev["heldout_rms_after"],
-            TH.UNITS[s]), ev, params, g))
-        if not tt.keep_drift and (s, "bias_drift") in {(f.sensor, f.cause) for f in findings}:
-            findings = [f for f in findings if (f.sensor, f.cause) != (s, "bias_drift")]
-            notes.append(f"{s}: its drift follows the board temperature (the time basis adds "
-                         f"nothing on top of it, p = {tt.p_D_T:.2g}): named temperature, not "
-                         f"bias_drift")
-
-    # saturation in static poses: the gain on the pose means (censored)
-    for sc in screens:
-        if sc.cause == "saturation" and sc.sensor in structures and sc.sensor in clip_rows:
-            sg = ST.saturation_gain(structures[sc.sensor], sobs[sc.sensor],
-                                    clip_rows[sc.sensor], sc.evidence.get("limits", []))
-            if sg is not None:
-                sc.fixed_gain = sg
-                sc.gain_unit = "held-out rms of the pose-mean magnitude residual, clipped " \
-                               "poses censored"
-
-    # screens become findings (after the structure, so that mag disturbance can veto)
-    for sc in screens:
-        sensor = "accel" if sc.cause == "motion" else sc.sensor
-        b, a = sc.rms()
-        ev = dict(sc.evidence)
-        ev.update({"p": _num(sc.p), "level": _num(a_test), "gain_basis": sc.gain_unit,
-                   "heldout_rms_before": b, "heldout_rms_after": a})
-        if sc.cause == "motion":
-            ev["sensors"] = ["accel", "gyro"]
-            tilt = next((f for f in findings if f.cause == "motion"), None)
-            if tilt is not None:               # a slow tilt already named: add the tremor
-                tilt.evidence["tremor"] = ev
-                continue
-        findings.append(Finding(sensor, sc.cause, C.summary(sensor, sc.cause, ev, sc.params,
-                                                            sc.gain(), b, a), ev, sc.params,
-                                sc.gain()))
-
-    # the magnetometer: a strongly disturbed field voids its calibration terms
-    fdist = [f for f in findings if f.sensor == "mag" and f.cause == "field_disturbance"]
-    if fdist and fdist[0].evidence.get("untrustworthy"):
-        dropped = [f.cause for f in findings if f.sensor == "mag"
-                   and f.cause in ("cross_axis", "nonlinearity", "bias_drift", "unexplained")]
-        findings = [f for f in findings if not (f.sensor == "mag" and f.cause in dropped)]
-        if dropped:
-            notes.append("mag: the field changes too much for a calibration: "
-                         + ", ".join(dropped) + " not reported")
-
-    # a field the Earth cannot give: the scale (gain setting, chip) or the place
-    mst = structures.get("mag")
-    if mst is not None and isinstance(mst.fit, F.MagnitudeFit):
-        why = field_plausibility(mst.fit.field_magnitude(), sobs["mag"].chip)
-        if why:
-            notes.append(f"mag: {why}")
-
-    order = {c: i for i, c in enumerate(C.ORDER)}
-    findings.sort(key=lambda f: ({"accel": 0, "gyro": 1, "mag": 2}[f.sensor], order[f.cause]))
-    start_model, model = _models(data, obs, sobs, structures, findings, screens, mot)
-    d = Diagnosis(data.name, motes[0], data.kind, findings, tests, alpha, n_tests, model,
-                  start_model, structures, screens, sobs, notes=notes, temperature=temp_tests)
-    if simulate:
-        from .compare import comparison
-        d.comparison = comparison(data, d, seed=seed, rediagnose=diagnose)
-    return d
+            state.findings.append(fd)
 
 
-# ---------------------------------------------------------------------------
-# helpers
-# ---------------------------------------------------------------------------
-TURN_SLOPE = (0.5, 2.0)  # the motion screen's slope: gyro and accelerometer agree about turns
-TILT_RATIO = 0.3        # length change / vector change below which a drift may be a tilt
-TILT_MAG_SE = 0.2       # the magnetometer's tilt slope must be known this well to decide
+def _fit(state: State, s: str, o, r: str) -> ST.Structure | None:
+    """The nested fits of one sensor's candidates in its regime (all of them
+    at level 1.01 when forced)."""
+    cands = [c for (ss, c) in state.plan if ss == s and c in CANDIDATES[r]]
+    level = state.a_test
+    if state.force is not None:
+        cands = [c for c in cands if (s, c) in state.force]
+        level = 1.01
+    clip_rows = state.clip_rows
+    if r in ("poses", "sweep"):
+        return ST.analyse_magnitude(o, r, cands, level, drop_rows=clip_rows.get(s))
+    if r == "single":
+        return ST.analyse_linear(o, cands, level, per_orientation=True)
+    acc_g = accel_for_blocks(o, state.structures.get("accel"), state.sobs.get("accel"))
+    drop = None
+    if s in clip_rows:
+        drop = np.array([clip_rows[s][g].any() for g in o.blocks.rows])
+    if o.blocks is not None and o.blocks.var is not None:
+        # blocks whose turn could not be measured (turns): left out
+        bad = ~np.all(np.isfinite(o.blocks.var), axis=1)
+        drop = bad if drop is None else drop | bad
+    return ST.analyse_linear(o, [c for c in cands if acc_g is not None
+                                 or c != "g_sensitivity"], level, accel_g=acc_g,
+                             drop_blocks=drop)
 
 
-def _turn_correct(sobs: dict, structures: dict, mot, notes: list) -> None:
+def _keep_terms(state: State, s: str, st: ST.Structure, o) -> None:
+    """Every nested test recorded; each cause the fits selected is kept when
+    it also passes the held-out check (a finding), else a note says why not."""
+    for t in st.tests:
+        state.record(s, t.cause, t.p, False, F=t.F, q=t.q, dof=t.dof, dbic=t.dbic,
+                     round=t.round)
+    for c in st.causes:
+        before, after = st.heldout.get(c, (None, None))
+        g = before / after if before and after else None
+        ok = state.decide(s, c, min(t.p for t in st.tests if t.cause == c), g,
+                          wins=st.fold_wins.get(c), paired_p=st.heldout_p.get(c))
+        for t in state.tests:
+            if t["sensor"] == s and t["cause"] == c:
+                t["kept"] = ok
+        if ok:
+            state.findings.append(TM.term_finding(s, c, st, o, g, before, after))
+        else:
+            state.notes.append(
+                f"{s}: {c} passed the F-test but not the held-out check "
+                f"(gain {g if g is None else round(g, 3)}, better in "
+                f"{st.fold_wins.get(c)} of {ST.KFOLD} folds"
+                + (f", held-out points' paired test p {st.heldout_p[c]:.2g}"
+                   if st.heldout_p.get(c) is not None else "") + "); not kept")
+
+
+def _turn_correct(state: State) -> None:
     """The board turned inside its still segments (tremor: the motion screen
     kept, its gyro and accelerometer agreeing about turns): each gyro block's
     mean carries the net turn.  The accelerometer and magnetometer, through
@@ -399,12 +285,13 @@ def _turn_correct(sobs: dict, structures: dict, mot, notes: list) -> None:
     calibration (one orientation) is used as read only if it is the
     accelerometer (its offsets are small next to gravity; a magnetometer's
     hard iron is not)."""
+    sobs, mot = state.sobs, state.motion
     g = sobs.get("gyro")
     if g is None or not TURN_SLOPE[0] < mot.evidence.get("slope_accel_on_gyro", 0) < TURN_SLOPE[1]:
         return
     refs = []
     for s in ("accel", "mag"):
-        o, st = sobs.get(s), structures.get(s)
+        o, st = sobs.get(s), state.structures.get(s)
         if o is None:
             continue
         if st is not None and isinstance(st.fit, F.MagnitudeFit):
@@ -414,609 +301,181 @@ def _turn_correct(sobs: dict, structures: dict, mot, notes: list) -> None:
     g2 = turn_corrected(g, refs)
     if g2 is not None:
         sobs["gyro"] = g2
-        notes.append(f"gyro: the board turned inside its still segments (motion): the bias of "
-                     f"{g2.turn_corrected} blocks is the rate less the turn that "
-                     f"{' and '.join(s for s in ('accel', 'mag') if any(r[0] is sobs.get(s) for r in refs))}"
-                     f" measured over each (their whole paths against the gyro's)"
-                     + (f"; {g2.turn_left_out} blocks too short to measure left out"
-                        if g2.turn_left_out else ""))
-
-
-def _is_tilt(tilt: dict) -> bool:
-    """An accelerometer drift in one orientation is a slow tilt only when the
-    magnetometer turned with it.  Its length staying put is necessary but not
-    enough: a bias drift across gravity also turns the reading without
-    changing its length.  Without a magnetometer that says so, it stays a
-    bias drift (the note says a tilt cannot be ruled out)."""
-    if tilt["length_to_vector_change"] >= TILT_RATIO:
-        return False
-    b, se = tilt.get("mag_tilt_slope"), tilt.get("mag_tilt_slope_se")
-    if b is None or se is None or not se < TILT_MAG_SE:
-        return False
-    return b > 0.5
-
-
-def _tilt_in_mag(acc: SensorObs, mag: SensorObs | None) -> dict:
-    """Did the magnetometer turn the way the accelerometer did?  Per still
-    segment, each accelerometer block's turn away from the segment's mean
-    direction (phi = u x du, the part of the turn that gravity shows) predicts
-    the field's change phi x m (the turn about gravity, which gravity does not
-    show, is projected out of both); the slope of the field's measured change
-    on that prediction is 1 for a tilt and 0 for an accelerometer bias drift."""
-    if mag is None or acc.blocks is None or mag.n < 10:
-        return {}
-    b = acc.blocks
-    P, M = [], []
-    for si in np.unique(b.seg):
-        idx = np.flatnonzero(b.seg == si)
-        if len(idx) < 3:
-            continue
-        mm, keep = [], []
-        for k in idx:
-            sel = (mag.t >= b.t0[k]) & (mag.t <= b.t1[k]) & ~mag.overflow
-            if sel.sum() >= 3:
-                mm.append(mag.x[sel].mean(axis=0))
-                keep.append(k)
-        if len(keep) < 3:
-            continue
-        mm = np.array(mm)
-        u = unit(b.mean[keep])
-        ub = unit(u.mean(axis=0))
-        mb = mm.mean(axis=0)
-        phi = np.cross(ub, u - u.mean(axis=0))
-        pred = np.cross(phi, mb)
-        dm = mm - mb
-        e = np.cross(ub, mb)
-        if not np.linalg.norm(e) > 0:
-            continue
-        e = e / np.linalg.norm(e)
-        pred = pred - np.outer(pred @ e, e)
-        dm = dm - np.outer(dm @ e, e)
-        P.append(pred.ravel())
-        M.append(dm.ravel())
-    if not P:
-        return {}
-    P, M = np.concatenate(P), np.concatenate(M)
-    den = float(P @ P)
-    if not den > 0 or len(P) < 6:
-        return {}
-    beta = float(P @ M) / den
-    r = M - beta * P
-    se = float(np.sqrt(max(r @ r, 1e-30) / max(len(P) - 1, 1) / den))
-    return {"mag_tilt_slope": beta, "mag_tilt_slope_se": se}
-
-
-def _tilt(o: SensorObs) -> dict:
-    """How the block means move inside each still segment: rms change of the
-    vector, of its length, and of its direction (deg)."""
-    b = o.blocks
-    dv, dl, ang, span = [], [], [], []
-    for si in np.unique(b.seg):
-        m = b.seg == si
-        if m.sum() < 3:
-            continue
-        v = b.mean[m]
-        c = v.mean(axis=0)
-        dv.append(np.sum((v - c) ** 2, axis=1))
-        L = np.linalg.norm(v, axis=1)
-        dl.append((L - L.mean()) ** 2)
-        ang.append(angle_deg(v, c) ** 2)
-        span.append(b.t[m].max() - b.t[m].min())
-    if not dv:
-        return {"length_to_vector_change": 1.0, "angle_rms_deg": 0.0, "segment_s": 1.0}
-    vec = np.sqrt(np.mean(np.concatenate(dv)))
-    length = np.sqrt(np.mean(np.concatenate(dl)))
-    return {"length_to_vector_change": float(length / vec) if vec > 0 else 1.0,
-            "angle_rms_deg": float(np.sqrt(np.mean(np.concatenate(ang)))),
-            "segment_s": float(np.median(span))}
-
-
-def _structure_finding(s, c, st: ST.Structure, o: SensorObs, g, before, after) -> Finding:
-    rec = [t for t in st.tests if t.cause == c]
-    best = min(rec, key=lambda t: t.p)
-    ev = {"F": _num(best.F), "p": _num(best.p), "extra_params": best.q, "dof": best.dof,
-          "delta_bic": _num(best.dbic), "regime": st.regime,
-          "heldout_rms_before": before, "heldout_rms_after": after, "unit": st.unit,
-          "noise_floor": st.noise_floor, "points": int(len(st.points.get("X", st.points.get("Y")))),
-          "gain_basis": ("held-out rms of the pose-mean magnitude residual"
-                         if st.regime == "poses" else
-                         "held-out rms of the magnitude residual (time blocks)"
-                         if st.regime == "sweep" else
-                         "held-out rms of block means (interleaved time blocks)")}
-    if c == "bias_drift" and getattr(st, "kriged", False):
-        ev["gain_basis"] += ("; with the drift, the random walk on top of it predicted "
-                             "from the neighbouring blocks (kriging)")
-    params = {}
-    fit = st.fit
-    if isinstance(fit, F.MagnitudeFit):
-        tb, parts = fit.split()
-        pmap = {e.cause: (e, p) for e, p in zip(fit.extras, parts)}
-        if c == "cross_axis":
-            A, cc, H = fit.affine()
-            M = np.linalg.inv(A)
-            D = np.diag(M)
-            Cm = M / D[:, None] - np.eye(3)
-            np.fill_diagonal(Cm, 0)
-            i, j = np.unravel_index(np.argmax(np.abs(Cm)), Cm.shape)
-            ev["max_coupling"] = float(Cm[i, j])
-            ev["max_coupling_at"] = f"C[{'xyz'[i]}{'xyz'[j]}]"
-            ev["matrix"] = np.round(M / np.cbrt(np.linalg.det(M)), 6)
-            params = {"C": np.round(Cm, 6)}
-        elif c == "nonlinearity":
-            e, p = pmap["nonlinearity"]
-            k = int(np.argmax(np.abs(p)))
-            ev["max_coef"] = float(p[k])
-            ev["max_coef_at"] = e.names()[k]
-            params = {"q": np.round(p[0:3], 6), "c3": np.round(p[3:6], 6), "a": np.round(p[6:9], 6)}
-        elif c == "bias_drift":
-            e, p = pmap["bias_drift"]
-            tt = np.linspace(*st.points["trange"], 200)
-            curve = e.offset(tt, p) / o.K
-            ev["drift_range"] = float(np.ptp(curve, axis=0).max())
-            ev["basis"] = f"{e.J} time functions per axis"
-            params = _drift_params_for(curve * X.K_NOMINAL[s], tt, e.J)
-        elif c == "field_disturbance":
-            e, p = pmap["field_disturbance"]
-            T = st.points["T"]
-            f = e.field(T, p)
-            H = fit.field_magnitude()
-            rel = float(np.std(f) / H)
-            ev["relative_change"] = rel
-            ev["field_range_gauss"] = float(np.ptp(f))
-            # the same decision calibrate's gate makes: the rms magnitude error a
-            # calibration without the field term leaves, relative to the field
-            item = next(i for i in st.accepted if ST.cause_of(i) == "field_disturbance")
-            f0 = st.fits.get(frozenset(st.accepted) - {item})
-            left = float(np.sqrt(np.mean(f0.residuals(st.points["X"], T) ** 2))) / H \
-                if f0 is not None else rel
-            ev["calibration_rms_rel"] = left
-            why = residual_reason("mag", left)
-            ev["untrustworthy"] = why is not None
-            if why:
-                ev["gate"] = why
-            ev["what"] = (f"the field magnitude moves with time by {np.std(f):.3g} gauss rms "
-                          f"({np.ptp(f):.3g} peak to peak) around {H:.3g} gauss, independent "
-                          f"of direction.")
-            params = {"rms_gauss": round(float(np.std(f)), 6),
-                      "tau_s": round(_corr_time(T, f), 3), "pose_rms_gauss": 0.0}
-    else:
-        cols = fit.groups.get(c, [])
-        if c == "g_sensitivity":
-            Gm = fit.beta[cols].T / o.K
-            i, j = np.unravel_index(np.argmax(np.abs(Gm)), Gm.shape)
-            ev["max_G"] = float(Gm[i, j])
-            ev["max_G_at"] = f"G[{'xyz'[i]}{'xyz'[j]}] (gyro {'xyz'[i]} per accel {'xyz'[j]})"
-            params = {"G": np.round(Gm, 6)}
-        elif c == "bias_drift":
-            J = len(cols)
-            tt = np.linspace(*st.points["trange"], 200)
-            Phi = F.time_basis(tt, *st.points["trange"], J)
-            curve = Phi @ fit.beta[cols] / o.K
-            ev["drift_range"] = float(np.ptp(curve, axis=0).max())
-            ev["basis"] = f"{J} time functions per axis"
-            params = _drift_params_for(curve * X.K_NOMINAL[s], tt, J)
-            rw = getattr(st, "random_walk", None)
-            if rw is not None:
-                rws = np.asarray(rw["sigma_counts_per_sqrt_s"]) * X.sim_scale(s, o.K)
-                params["sigma"] = X._r(np.maximum(np.asarray(params["sigma"], float), rws))
-                ev["random_walk_sigma"] = X._r(rws)
-    summ = C.summary(s, c, ev, params, g, before, after, st.unit)
-    return Finding(s, c, summ, ev, params, g)
-
-
-def _krige_drift_gain(st: ST.Structure, o: SensorObs):
-    """A random walk finer than the drift's basis is predicted on held-out
-    blocks by its conditional mean given the other blocks (kriging with the
-    restricted-likelihood intensity): the drift's held-out "after" is the
-    better of the smooth basis alone and the basis + walk."""
-    rw = getattr(st, "random_walk", None)
-    if rw is None or not np.any(np.asarray(rw["sigma_counts_per_sqrt_s"]) > 0):
-        return
-    kr = ST.heldout_random_walk(st, o, rw["sigma_counts_per_sqrt_s"])
-    before, after = st.heldout["bias_drift"]
-    if kr is None or not kr[0] < after:
-        return
-    item = next(c for c in st.accepted if ST.cause_of(c) == "bias_drift")
-    without = getattr(st, "fold_ms", {}).get(frozenset(st.accepted) - {item})
-    st.heldout["bias_drift"] = (before, kr[0])
-    if without is not None:
-        st.fold_wins["bias_drift"] = int(np.sum(kr[1] < without))
-    st.heldout_total = (st.heldout_total[0], kr[0])
-    st.kriged = True
-
-
-def _drift_params_for(curve_sim, tt, J):
-    dp, _ = X.drift_params(tt - tt[0], curve_sim, J > F.DRIFT_J, J)
-    return dp
-
-
-def _corr_time(T, f) -> float:
-    f = f - f.mean()
-    if len(f) < 4 or not np.any(f):
-        return 10.0
-    ac = np.correlate(f, f, "full")[len(f) - 1:] / (f @ f)
-    dt = np.median(np.diff(T)) if len(T) > 1 else 1.0
-    k = np.flatnonzero(ac < np.exp(-1))
-    return float((k[0] if len(k) else len(f)) * dt)
-
-
-def _structure_text(st: ST.Structure, r: np.ndarray) -> str:
-    """What the leftover residual looks like."""
-    parts = []
-    T = st.points.get("T")
-    if T is not None and len(r) > 8:
-        o = np.argsort(T)
-        rr = r[o] - r.mean()
-        ac = float(rr[1:] @ rr[:-1] / max(rr @ rr, 1e-30))
-        parts.append(f"lag-1 autocorrelation in time {ac:.2f}")
-        z = np.abs(r) / np.sqrt(np.mean(r * r))
-        parts.append(f"largest |residual| {z.max():.1f}x its rms")
-        kurt = float(stats.kurtosis(r))
-        if kurt > 3:
-            parts.append(f"heavy tails (excess kurtosis {kurt:.1f}): outlier poses")
-            out = _outliers(T, st.points.get("pose"), z)
-            if out:
-                parts.append("largest: " + ", ".join(out))
-    return "; ".join(parts) if parts else "none identified"
-
-
-def _outliers(T: np.ndarray, pose: np.ndarray | None, z: np.ndarray,
-              most: int = 8) -> list[str]:
-    """The poses (or still stretches) whose residual is over 3x the rms,
-    largest first, named by pose label and time, for the user to look at
-    (none when the residuals are not one per point of ``T``)."""
-    if len(z) != len(T):
-        return []
-    k = [i for i in np.argsort(-z) if z[i] > 3.0][:most]
-    return [(f"pose {pose[i]} " if pose is not None and pose[i] > 0 else "")
-            + f"at {T[i]:.1f} s ({z[i]:.1f}x)" for i in k]
-
-
-def _excess_finding(s, st: ST.Structure, o, sobs, structures, a_test, record, mot, force=None):
-    """Scatter beyond the noise after every kept term: field disturbance
-    (magnetometer) or unexplained."""
-    ratio, p = st.excess
-    if s == "mag" and st.regime == "sweep":
-        # what is left of a sweep (after a kept field wander too: it does not
-        # end the questions) is tested against the noise, and for outliers
-        return _sweep_leftover(s, st, o, a_test, record, force)
-    fit = st.fit
-    if isinstance(fit, F.MagnitudeFit):
-        X_, T = st.points["X"], st.points["T"]
-        r = fit.residuals(X_, T)
-        V = st.points["V"]
-    else:
-        Xd, names, groups = ST._design(st.points, frozenset(st.accepted), st.points["trange"])
-        r = ((st.points["Y"] - Xd @ fit.beta) / o.K).ravel()
-        V = ((1.0 / st.points["W"]) / o.K).ravel() ** 2
-    time_kept = any(c in st.causes for c in ("bias_drift", "field_disturbance"))
-    kept = p < a_test
-    if force is not None:
-        kept = (s, "field_disturbance") in force or (s, "unexplained") in force
-        time_kept = False
-    if kept and "bias_drift" in st.causes and not isinstance(fit, F.MagnitudeFit):
-        # a random walk on top of the smooth drift (restricted likelihood)
-        rw = getattr(st, "random_walk", None)
-        if rw is not None:
-            if rw["excess"][1] >= a_test:
-                record(s, "excess", p, False, ratio=ratio,
-                       note=f"explained by a random walk of the kept drift "
-                            f"(sigma {np.round(rw['sigma_counts_per_sqrt_s'], 3).tolist()} "
-                            f"counts/sqrt(s); chi-square p {rw['excess'][1]:.2g})")
-                return None
-    if kept and time_kept:
-        # leftover that is just finer time structure of a kept drift
-        T = st.points["T"]
-        rr = r if r.shape == T.shape else r.reshape(-1, 3)
-        ac, z = ST.lag1(rr, T)
-        if z > 1.645:                 # one-sided 5 %: correlated, i.e. still the drift
-            record(s, "excess", p, False, ratio=ratio,
-                   note=f"time-correlated leftover (lag-1 {ac:.2f}) of the kept drift")
-            return None
-    if kept and mot is not None and s in ("accel", "gyro"):
-        record(s, "excess", p, False, ratio=ratio, note="explained by the kept motion")
-        return None
-    if not kept:
-        record(s, "excess", p, False, ratio=ratio)
-        return None
-    if force is None and not isinstance(fit, F.MagnitudeFit) and "bias_drift" not in st.causes:
-        fd = _random_walk_finding(s, st, o, a_test)
-        if fd is not None:
-            record(s, "excess", p, True, ratio=ratio,
-                   note="a random walk of the bias (restricted likelihood ratio "
-                        f"p {fd.evidence['p']:.2g}): named bias_drift")
-            return fd
-    k = len(r)
-    dof = max(1, k - fit.p)
-    fold = (np.arange(k) % ST.KFOLD) if st.regime != "poses" else st.points["fold"]
-
-    def tau2(mask):
-        return max(0.0, float(np.mean(r[mask] ** 2) * k / max(dof, 1) - np.mean(V[mask])))
-
-    tau2_all = tau2(np.ones(k, bool))
-    if s == "mag" and st.regime in ("poses", "single"):
-        gval, before, after = G.variance_gain(r, V, fold, tau2)
-        ev = {"excess_ratio": ratio, "p": p, "level": a_test, "regime": st.regime,
-              "heldout_rms_before": before, "heldout_rms_after": after,
-              "gain_basis": "held-out rms of (measured - predicted) pose-residual spread"}
-        dip = _dip_test(st, sobs, structures)
-        H = fit.field_magnitude() if isinstance(fit, F.MagnitudeFit) else np.nan
-        tau = float(np.sqrt(tau2_all))
-        ev.update({"extra_scatter_gauss": tau, "relative_change": tau / H if H == H else None,
-                   "untrustworthy": bool(H == H and residual_reason("mag", tau / H) is not None)})
-        what = (f"pose field magnitudes scatter {ratio:.2g}x their noise "
-                f"({tau:.2g} gauss beyond it).")
-        if dip is not None:
-            ev.update(dip)
-            what += (f" The dip angle scatters {dip['dip_sd_deg']:.3g} deg across poses "
-                     f"({dip['dip_excess_ratio']:.2g}x its noise).")
-        ev["what"] = what
-        is_field = dip is None or dip["dip_p"] < a_test
-        if force is not None:
-            is_field = (s, "field_disturbance") in force
-        record(s, "excess", p, True, ratio=ratio)
-        if is_field:
-            # time correlation splits the scatter into per-pose jumps and a wander
-            Tt = st.points["T"]
-            order = np.argsort(Tt)
-            x = r[order]
-            ac = float(x[1:] @ x[:-1] / max(x @ x, 1e-30)) if len(x) > 3 else 0.0
-            params = {"pose_rms_gauss": round(tau, 6), "rms_gauss": 0.0, "tau_s": 10.0}
-            if ac > 3.0 / np.sqrt(len(x)):
-                dt = float(np.median(np.diff(Tt[order])))
-                params = {"pose_rms_gauss": round(tau * np.sqrt(1 - ac), 6),
-                          "rms_gauss": round(tau * np.sqrt(ac), 6),
-                          "tau_s": round(-dt / np.log(min(ac, 0.99)), 3)}
-            ev["pose_residual_autocorrelation"] = ac
-            return Finding(s, "field_disturbance",
-                           C.summary(s, "field_disturbance", ev, params, gval, before, after,
-                                     "gauss"), ev, params, gval)
-        ev["structure"] = ("field magnitude scatter without a dip-angle change: "
-                           + _structure_text(st, r))
-        return Finding(s, "unexplained", C.summary(s, "unexplained", ev, {}, None), ev, {}, 1.0)
-    record(s, "excess", p, True, ratio=ratio)
-    ev = {"excess_ratio": ratio, "p": p, "level": a_test, "regime": st.regime,
-          "extra_scatter": float(np.sqrt(tau2_all)), "unit": st.unit,
-          "structure": _structure_text(st, r)}
-    return Finding(s, "unexplained", C.summary(s, "unexplained", ev, {}, None), ev, {}, 1.0)
-
-
-OUTLIER_MIN_REL = 0.03     # an outlier reading must also be this far off (share of the field)
-
-
-def _sweep_leftover(s, st: ST.Structure, o: SensorObs, a_test, record, force=None):
-    """A sweep's residual after every kept term (the field's wander included):
-    scatter beyond the white noise (chi-square, its degrees of freedom deflated
-    by the residuals' long-run variance ratio, since consecutive readings share
-    leftovers) and single readings far outside the rest (robust z beyond the
-    Bonferroni bound of the readings).  Either is named ``unexplained``, with
-    the outliers listed; no term is added."""
-    X_, T, V = st.points["X"], st.points["T"], st.points["V"]
-    r = st.fit.residuals(X_, T)
-    k = len(r)
-    dof = max(1, k - st.fit.p)
-    ratio = float(np.mean(r * r) * k / dof / max(np.mean(V), 1e-30))
-    lags = int(round(ST.NW_LAG_S / max(float(np.median(np.diff(T))) if k > 1 else 1.0, 1e-6)))
-    kap = ST.inflation(st.fit, lambda f: f.residuals(X_, T), lags)
-    dof_eff = max(1.0, dof / kap)
-    p = float(stats.chi2.sf(ratio * dof_eff, dof_eff))
-    # outliers among every reading (the fit saw a thinned sweep)
-    ok = ~o.overflow
-    Ta = o.t[ok]
-    ra = st.fit.residuals(o.x[ok], Ta)
-    med = float(np.median(ra))
-    mad = 1.4826 * float(np.median(np.abs(ra - med)))
-    z = np.abs(ra - med) / max(mad, 1e-30)
-    zcrit = float(stats.norm.isf(a_test / (2 * len(ra))))
-    H = st.fit.field_magnitude()
-    out = np.flatnonzero((z > max(zcrit, 5.0)) & (np.abs(ra - med) > OUTLIER_MIN_REL * H))
-    # scatter that is correlated in time is the kept wander, finer than its
-    # basis follows; single readings far off are not
-    ac, zac = ST.lag1(r, T)
-    wander = "field_disturbance" in st.causes
-    # a sweep's noise is not known well enough for the chi-square alone (its
-    # estimate from moving readings is ~10 % low: clean simulated sweeps show
-    # 1.15x): without a kept wander the leftover must also be correlated in
-    # time (the whiteness test); correlated leftover after a kept wander is
-    # that wander, finer than its basis
-    white_p = st.excess[1]
-    scatter = (p < a_test and white_p < a_test) if not wander else False
-    kept = (scatter or len(out) > 0) if force is None else (s, "unexplained") in force
-    record(s, "excess", min(p, 1.0), kept, ratio=ratio, outliers=int(len(out)),
-           note="after the kept field wander" if wander else "sweep leftover")
-    if not kept:
-        return None
-    parts = [f"lag-1 autocorrelation in time {ac:.2f}"
-             + (" (the kept wander, finer than its basis)" if wander and p < a_test else "")]
-    if len(out):
-        big = out[np.argsort(-z[out])][:8]
-        parts.append(f"{len(out)} outlier readings (robust z > {max(zcrit, 5.0):.1f} and > "
-                     f"{100 * OUTLIER_MIN_REL:.0f} % of the field off), up to "
-                     f"{100 * np.abs(ra[big[0]] - med) / H:.0f} % of the field; largest at "
-                     + ", ".join(f"{Ta[i]:.1f} s ({z[i]:.0f}x)" for i in big))
-    ev = {"excess_ratio": ratio, "p": p, "level": a_test, "regime": st.regime,
-          "extra_scatter": float(np.sqrt(max(0.0, np.mean(r * r) - np.mean(V)))),
-          "unit": st.unit, "outliers": int(len(out)),
-          "outlier_times_s": [float(Ta[i]) for i in out[:200]],
-          "largest_outlier_rel": float(np.abs(ra[out] - med).max() / H) if len(out) else 0.0,
-          "structure": "; ".join(parts) + (" (after the kept field wander)" if wander else "")}
-    return Finding(s, "unexplained", C.summary(s, "unexplained", ev, {}, None), ev, {}, 1.0)
-
-
-def _random_walk_finding(s, st: ST.Structure, o: SensorObs, a_test) -> Finding | None:
-    """Block means that scatter beyond their noise with no smooth drift: a
-    bias random walk (restricted likelihood ratio against no walk) that
-    predicts held-out blocks from their neighbours (kriging) better than the
-    model without it, overall and in MIN_FOLD_WINS folds, is a bias_drift."""
-    rw = ST.random_walk(st, o)
-    if rw is None or not rw["lr_p"] < a_test:
-        return None
-    sig = np.asarray(rw["sigma_counts_per_sqrt_s"], float)
-    kr = ST.heldout_random_walk(st, o, sig)
-    base = getattr(st, "fold_ms", {}).get(frozenset(st.accepted))
-    if kr is None or base is None or st.heldout_total is None:
-        return None
-    before, after = st.heldout_total[1], kr[0]
-    g = before / after if after > 0 else None
-    wins = int(np.sum(kr[1] < base))
-    if not G.accepted(rw["lr_p"], a_test, g, True, wins):
-        return None
-    span = float(np.ptp(st.points["T"]))
-    ev = {"p": rw["lr_p"], "level": a_test, "likelihood_ratio": rw["lr"], "regime": st.regime,
-          "heldout_rms_before": before, "heldout_rms_after": after, "unit": st.unit,
-          "noise_floor": st.noise_floor, "points": int(len(st.points["Y"])),
-          "random_walk_sigma_counts_per_sqrt_s": sig,
-          "drift_range": float(sig.max() * np.sqrt(span) / o.K),
-          "basis": "a random walk (restricted likelihood)",
-          "gain_basis": "held-out rms of block means (interleaved time blocks), the walk "
-                        "predicted from the neighbouring blocks (kriging)"}
-    params = {"amplitude": [0.0, 0.0, 0.0], "tau_s": 300.0, "slope": [0.0, 0.0, 0.0],
-              "sigma": X._r(sig * X.sim_scale(s, o.K))}
-    summ = (f"The {s} bias wanders as a random walk: {X._r(sig)} counts/sqrt(s) per axis "
-            f"(restricted likelihood ratio {rw['lr']:.1f}, p = {rw['lr_p']:.2g}), about "
-            f"{C._fmt(ev['drift_range'], st.unit)} over the session. Gain on held-out data: "
-            f"{g:.3g}x (rms {C._fmt(before, st.unit)} -> {C._fmt(after, st.unit)}).")
-    return Finding(s, "bias_drift", summ, ev, params, g)
-
-
-def _dip_test(st: ST.Structure, sobs, structures) -> dict | None:
-    """Angle between calibrated gravity and field per pose: constant unless the
-    field changes direction.  A relative rotation of the two sensors (3
-    parameters) and the dip are fitted; the scatter left is compared with
-    the noise of the two pose means (chi-square)."""
-    acc = sobs.get("accel")
-    ast = structures.get("accel")
-    mag = sobs.get("mag")
-    if acc is None or ast is None or ast.regime != "poses" or st.regime != "poses":
-        return None
-    H = st.fit.field_magnitude()
-    gvec, bvec, n_acc, idx = ST.pose_vectors(acc, ast.fit, mag, st.fit, st.points["group"])
-    if len(gvec) < 8:
-        return None
-    n_mag = np.array([len(mag.segs.rows[gi]) for gi in idx])
-    vg = np.mean(acc.sigma_eff ** 2) / acc.K ** 2 / n_acc
-    vb = np.mean(mag.sigma_eff ** 2) / mag.K ** 2 / n_mag / H ** 2
-    gu, bu = unit(gvec), unit(bvec)
-    sd = np.sqrt(vg + vb)                                 # rad, per pose
-
-    from scipy.optimize import least_squares
-    from scipy.spatial.transform import Rotation
-
-    def res(p):
-        R = Rotation.from_rotvec(p[:3]).as_matrix()
-        ang = np.radians(angle_deg(gu, bu @ R.T))
-        return (ang - p[3]) / sd
-
-    ang0 = np.radians(angle_deg(gu, bu))
-    sol = least_squares(res, np.r_[0, 0, 0, ang0.mean()])
-    rss = float(sol.fun @ sol.fun)
-    dof = len(gu) - 4
-    ratio, p = F.chi2_excess(rss, dof)
-    R = Rotation.from_rotvec(sol.x[:3]).as_matrix()
-    ang = np.radians(angle_deg(gu, bu @ R.T))
-    return {"dip_deg": float(np.degrees(sol.x[3]) - 90.0), "dip_sd_deg": float(np.degrees(np.std(ang))),
-            "dip_excess_ratio": ratio, "dip_p": p,
-            "accel_mag_rotation_deg": float(np.degrees(np.linalg.norm(sol.x[:3])))}
+        state.notes.append(
+            f"gyro: the board turned inside its still segments (motion): the bias of "
+            f"{g2.turn_corrected} blocks is the rate less the turn that "
+            f"{' and '.join(s for s in ('accel', 'mag') if any(r[0] is sobs.get(s) for r in refs))}"
+            f" measured over each (their whole paths against the gyro's)"
+            + (f"; {g2.turn_left_out} blocks too short to measure left out"
+               if g2.turn_left_out else ""))
 
 
 # ---------------------------------------------------------------------------
-# the models: fitted start model and the extension
+# 4. test: between two explanations
 # ---------------------------------------------------------------------------
-def _models(data, obs, sobs, structures, findings, screens, mot):
-    kept = {(f.sensor, f.cause): f for f in findings}
-    rate = data.rate()
-    sensors_start, sensors_ext = {}, {}
-    env = {"gravity_g": 1.0, "field_gauss": 0.48, "inclination_deg": 60.0,
-           "declination_deg": 0.0}
+def test(state: State) -> None:
+    """The questions that need every sensor's structure first: is an
+    accelerometer drift in one orientation the board tilting (``tilt``), and
+    does a drift follow the board's temperature rather than time
+    (``thermal``)?"""
+    _tilt_or_drift(state)
+    _temperature_or_time(state)
+
+
+def _tilt_or_drift(state: State) -> None:
+    """One orientation: an accelerometer "drift" that turns the reading
+    without changing its length, with the magnetometer turning too, is the
+    board tilting (motion), not a bias; the magnetometer's own "drift" is
+    then the same tilt."""
+    findings, structures, sobs = state.findings, state.structures, state.sobs
+    for i, f in enumerate(findings):
+        if f.sensor == "accel" and f.cause == "bias_drift" and \
+                structures["accel"].regime == "single":
+            tilt = TL.tilt_of_blocks(sobs["accel"])
+            tilt.update(TL.tilt_in_mag(sobs["accel"], sobs.get("mag")))
+            f.evidence.update(tilt)
+            if TL.is_tilt(tilt):
+                params = {"rms_deg": round(tilt["angle_rms_deg"], 5),
+                          "bandwidth_hz": round(max(0.02, 2.0 / max(tilt["segment_s"], 1.0)), 4)}
+                ev = dict(f.evidence, slow_tilt=True)
+                summ = C.summary("accel", "motion", {**ev, "what": "slow"}, params, f.gain,
+                                 ev.get("heldout_rms_before"), ev.get("heldout_rms_after"), "g")
+                findings[i] = Finding("accel", "motion", summ, ev, params, f.gain)
+                if ("mag", "bias_drift") in {(g.sensor, g.cause) for g in findings} and \
+                        structures.get("mag") is not None and \
+                        structures["mag"].regime == "single":
+                    state.findings = [g for g in findings
+                                      if (g.sensor, g.cause) != ("mag", "bias_drift")]
+                    state.notes.append("mag: its drift in one orientation is the same slow "
+                                       "tilt (it turns with the accelerometer): not a bias "
+                                       "drift")
+                break
+
+
+def _temperature_or_time(state: State) -> None:
+    """(issue 16) Per sensor the plan tests for it: a drift that follows the
+    board temperature is named ``temperature``, and replaces the sensor's
+    ``bias_drift`` when the time basis adds nothing on top of it."""
+    data, sobs, structures = state.data, state.sobs, state.structures
     for s in ("accel", "gyro", "mag"):
-        o = sobs.get(s)
-        if o is None:
+        if (s, "temperature") not in state.plan or s not in sobs:
             continue
-        st = structures.get(s)
-        scale = X.sim_scale(s, o.K)
-        t0 = float(o.t[0])
-        noise = X.white_noise(o.sigma, scale) if np.all(np.isfinite(o.sigma)) else [0, 0, 0]
-        start_terms, ext_terms = [], []
-        if s in ("accel", "mag"):
-            fit0, fitx = _magnitude_fits(o, st)
-            if fit0 is not None:
-                trange = (float(o.t.min()), float(o.t.max()))
-                start_terms, info0 = X.magnitude_sensor_terms(fit0, s, o.K, t0, trange)
-                ext_terms, info = X.magnitude_sensor_terms(fitx, s, o.K, t0,
-                                                           st.points["trange"] if st else trange)
-                if s == "mag":
-                    env["field_gauss"] = round(float(info["field"]), 6)
-        else:
-            if st is not None:
-                start_terms, _ = X.gyro_terms(st.fit0, o.K, t0, st.points["trange"])
-                ext_terms, _ = X.gyro_terms(st.fit, o.K, t0, st.points["trange"])
-            else:
-                b = np.median(o.x, axis=0) * scale
-                start_terms = ext_terms = [{"term": "linear", "b": X._r(b)}]
-        if (s, "bias_drift") in kept and s in ("accel", "mag") and st is not None \
-                and st.regime == "single":
-            ext_terms.append({"term": "bias_drift", **kept[(s, "bias_drift")].params})
-        if (s, "bias_drift") in kept:
-            # the random walk measured on top of the smooth drift
-            for t in ext_terms:
-                if t["term"] == "bias_drift":
-                    t["sigma"] = kept[(s, "bias_drift")].params.get("sigma", t["sigma"])
-            if not any(t["term"] == "bias_drift" for t in ext_terms):
-                ext_terms.append({"term": "bias_drift", **kept[(s, "bias_drift")].params})
-        if s == "mag" and (s, "field_disturbance") in kept:
-            ext_terms = [{"term": "field_disturbance",
-                          **kept[(s, "field_disturbance")].params}] + ext_terms
-        if (s, "temperature") in kept:
-            tp = kept[(s, "temperature")].params
-            ext_terms.append({"term": "temperature", "t_ref_c": tp["t_ref_c"],
-                              "offset_per_c": X._r(np.asarray(tp["offset_per_c"]) * scale)})
-        if (s, "saturation") in kept:
-            ext_terms.append(X.saturation_term(kept[(s, "saturation")].params, s, o.K))
-        if (s, "stale_samples") in kept:
-            ext_terms.append({"term": "stale_samples", **kept[(s, "stale_samples")].params})
-        sensors_start[s] = {"noise": noise, "terms": start_terms}
-        sensors_ext[s] = {"noise": noise, "terms": ext_terms}
-    incl = _inclination(structures, sobs)
-    if incl is not None:
-        env["inclination_deg"] = round(incl, 3)
-    board_terms = []
-    if ("accel", "motion") in kept:
-        board_terms.append({"term": "motion", **kept[("accel", "motion")].params})
-    if any(c == "temperature" for _, c in kept):
-        board_terms.append(TH.thermal_term(data))
-    mote = data.motes[0]
-    start = X.model_json(f"{data.name}-paper", mote, rate, dict(env), sensors_start, [],
-                         f"the paper's starting model fitted to session {data.name}")
-    causes_txt = ", ".join(f"{f.sensor} {f.cause}" for f in findings) or "nothing"
-    ext = X.model_json(f"{data.name}-extended", mote, rate, dict(env), sensors_ext, board_terms,
-                       f"session {data.name}: the paper's model extended by motecal diagnose "
-                       f"({causes_txt})")
-    return start, ext
+        tt = (TH.make_pose_test(data, sobs[s], structures.get(s))
+              if regime(sobs[s]) == "poses" else TH.make_test(data, sobs[s], regime(sobs[s])))
+        if tt is None:
+            continue
+        TH.run_test(tt, state.a_test)
+        if state.force is not None:
+            tt.named = (s, "temperature") in state.force
+            tt.keep_drift = (s, "bias_drift") in state.force
+        state.temperature[s] = tt
+        state.record(s, "temperature", min(tt.p_T, tt.p_T_D), tt.named, p_temperature=tt.p_T,
+                     p_temperature_beyond_time=tt.p_T_D, p_time_beyond_temperature=tt.p_D_T)
+        if not tt.named:
+            continue
+        ev, params, g = TH.finding_parts(tt)
+        state.findings.append(Finding(s, "temperature", C.summary(
+            s, "temperature", ev, params, g, ev["heldout_rms_before"], ev["heldout_rms_after"],
+            TH.UNITS[s]), ev, params, g))
+        if not tt.keep_drift and \
+                (s, "bias_drift") in {(f.sensor, f.cause) for f in state.findings}:
+            state.findings = [f for f in state.findings if (f.sensor, f.cause) != (s, "bias_drift")]
+            state.notes.append(f"{s}: its drift follows the board temperature (the time basis "
+                               f"adds nothing on top of it, p = {tt.p_D_T:.2g}): named "
+                               f"temperature, not bias_drift")
 
 
-def _magnitude_fits(o: SensorObs, st):
-    """(start fit, final fit) for the model files: the structure's when there
-    is one; else a paper fit on whatever still means exist (>= 6)."""
-    if st is not None and isinstance(st.fit, F.MagnitudeFit):
-        return st.fit0, st.fit
-    if o.segs is not None and len(o.segs) >= 6:
-        f = F.fit_magnitude(o.sensor, o.K, o.segs.mean, o.segs.t, np.ones(len(o.segs)))
-        return f, f
-    if o.sensor == "mag" and o.moving is not None and o.moving.sum() >= MIN_SWEEP_ROWS \
-            and sweep_surrounds(o):
-        x = o.x[~o.overflow]
-        f = F.fit_magnitude(o.sensor, o.K, x, o.t[~o.overflow], np.ones(len(x)))
-        return f, f
-    return None, None
+# ---------------------------------------------------------------------------
+# 5. name: the findings complete
+# ---------------------------------------------------------------------------
+def name(state: State) -> None:
+    """The kept screens become findings (after the structure: clipping in
+    poses gets its gain on the pose means, and a tremor joins a slow tilt
+    already named); a strongly disturbed field voids the magnetometer's
+    calibration terms; a field the Earth cannot give is noted; the findings
+    in the vocabulary's chain order."""
+    _saturation_gain_in_poses(state)
+    _screen_findings(state)
+    _disturbed_field_veto(state)
+    # a field the Earth cannot give: the scale (gain setting, chip) or the place
+    mst = state.structures.get("mag")
+    if mst is not None and isinstance(mst.fit, F.MagnitudeFit):
+        why = field_plausibility(mst.fit.field_magnitude(), state.sobs["mag"].chip)
+        if why:
+            state.notes.append(f"mag: {why}")
+    order = {c: i for i, c in enumerate(C.ORDER)}
+    state.findings.sort(key=lambda f: ({"accel": 0, "gyro": 1, "mag": 2}[f.sensor],
+                                       order[f.cause]))
 
 
-def _inclination(structures, sobs):
-    a, m = structures.get("accel"), structures.get("mag")
-    acc, mag = sobs.get("accel"), sobs.get("mag")
-    if a is None or m is None or a.regime != "poses" or m.regime != "poses":
-        return None
-    g, b, _, _ = ST.pose_vectors(acc, a.fit, mag, m.fit, m.points["group"])
-    if not len(g):
-        return None
-    dots = np.sum(unit(g) * unit(b), axis=1)
-    return float(np.degrees(np.arcsin(np.clip(-np.mean(dots), -1, 1))))
+def _saturation_gain_in_poses(state: State) -> None:
+    """Saturation in static poses: the gain on the pose means (censored)."""
+    for sc in state.screens:
+        if sc.cause == "saturation" and sc.sensor in state.structures and \
+                sc.sensor in state.clip_rows:
+            sg = ST.saturation_gain(state.structures[sc.sensor], state.sobs[sc.sensor],
+                                    state.clip_rows[sc.sensor], sc.evidence.get("limits", []))
+            if sg is not None:
+                sc.fixed_gain = sg
+                sc.gain_unit = "held-out rms of the pose-mean magnitude residual, clipped " \
+                               "poses censored"
+
+
+def _screen_findings(state: State) -> None:
+    """Each kept screen as a finding; the tremor of a board already named as
+    slowly tilting goes into that finding's evidence."""
+    for sc in state.screens:
+        sensor = "accel" if sc.cause == "motion" else sc.sensor
+        b, a = sc.rms()
+        ev = dict(sc.evidence)
+        ev.update({"p": _num(sc.p), "level": _num(state.a_test), "gain_basis": sc.gain_unit,
+                   "heldout_rms_before": b, "heldout_rms_after": a})
+        if sc.cause == "motion":
+            ev["sensors"] = ["accel", "gyro"]
+            tilt = next((f for f in state.findings if f.cause == "motion"), None)
+            if tilt is not None:               # a slow tilt already named: add the tremor
+                tilt.evidence["tremor"] = ev
+                continue
+        state.findings.append(Finding(sensor, sc.cause, C.summary(sensor, sc.cause, ev,
+                                                                  sc.params, sc.gain(), b, a),
+                                      ev, sc.params, sc.gain()))
+
+
+def _disturbed_field_veto(state: State) -> None:
+    """The magnetometer: a strongly disturbed field (the gate's 5 % rule)
+    voids its calibration terms and leftover."""
+    findings = state.findings
+    fdist = [f for f in findings if f.sensor == "mag" and f.cause == "field_disturbance"]
+    if fdist and fdist[0].evidence.get("untrustworthy"):
+        dropped = [f.cause for f in findings if f.sensor == "mag"
+                   and f.cause in ("cross_axis", "nonlinearity", "bias_drift", "unexplained")]
+        state.findings = [f for f in findings if not (f.sensor == "mag" and f.cause in dropped)]
+        if dropped:
+            state.notes.append("mag: the field changes too much for a calibration: "
+                               + ", ".join(dropped) + " not reported")
+
+
+# ---------------------------------------------------------------------------
+# 6. extend: the model files
+# ---------------------------------------------------------------------------
+def extend(state: State) -> Diagnosis:
+    """The paper's starting model fitted to the session and the model the
+    findings extend it to (``extend.models``), in the diagnosis."""
+    data = state.data
+    start_model, model = X.models(data, state.obs, state.sobs, state.structures,
+                                  state.findings, state.screens, state.motion)
+    return Diagnosis(data.name, data.motes[0], data.kind, state.findings, state.tests,
+                     state.alpha, state.n_tests, model, start_model, state.structures,
+                     state.screens, state.sobs, notes=state.notes,
+                     temperature=state.temperature)
+
+
+# ---------------------------------------------------------------------------
+# 7. compare: the simulated statistics
+# ---------------------------------------------------------------------------
+def compare(d: Diagnosis, data: SessionData, seed: int) -> None:
+    """The session simulated again with the starting model, its statistics
+    beside the measured ones (question 1); both models fitted on one half
+    and compared on the other (the whole model's gain): ``compare``."""
+    from .compare import comparison
+    d.comparison = comparison(data, d, seed=seed, rediagnose=diagnose)

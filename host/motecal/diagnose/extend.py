@@ -15,14 +15,22 @@ simulator's nominal sensitivities* (256 LSB/g, 14.375 LSB/(deg/s),
 K_sim / K_chip, so a simulated session reproduces the measured statistics in
 physical units.  Noise is the white noise without the rounding (the
 simulator rounds itself).
+
+``models`` builds both files of a diagnosis: the paper's starting model
+fitted to the session, and that model extended by the findings.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ..maths.sphere import unit
 from ..sim.model import MODEL_FORMAT, MODEL_VERSION
 from ..sim.physics import K_NOMINAL
 from . import fitting as F
+from . import structure as ST
+from . import thermal as TH
+from .prepare import SensorObs
+from .regimes import MIN_SWEEP_ROWS, sweep_surrounds
 
 TAU_GRID_S = (5.0, 15.0, 50.0, 150.0, 500.0, 1500.0)
 SIM_LIMITS = {"accel": (-4096.0, 4095.0), "gyro": (-32768.0, 32767.0), "mag": (-2048.0, 2047.0)}
@@ -174,3 +182,106 @@ def model_json(name: str, mote: int, rate_hz: float, environment: dict, sensors:
     return {"format": MODEL_FORMAT, "version": MODEL_VERSION, "name": name,
             "description": description, "rate_hz": _r(rate_hz),
             "environment": environment, "defaults": board, "boards": {str(int(mote)): board}}
+
+
+# ---------------------------------------------------------------------------
+# the models: the fitted start model and its extension by the findings
+# ---------------------------------------------------------------------------
+def models(data, obs, sobs, structures, findings, screens, mot):
+    kept = {(f.sensor, f.cause): f for f in findings}
+    rate = data.rate()
+    sensors_start, sensors_ext = {}, {}
+    env = {"gravity_g": 1.0, "field_gauss": 0.48, "inclination_deg": 60.0,
+           "declination_deg": 0.0}
+    for s in ("accel", "gyro", "mag"):
+        o = sobs.get(s)
+        if o is None:
+            continue
+        st = structures.get(s)
+        scale = sim_scale(s, o.K)
+        t0 = float(o.t[0])
+        noise = white_noise(o.sigma, scale) if np.all(np.isfinite(o.sigma)) else [0, 0, 0]
+        start_terms, ext_terms = [], []
+        if s in ("accel", "mag"):
+            fit0, fitx = _magnitude_fits(o, st)
+            if fit0 is not None:
+                trange = (float(o.t.min()), float(o.t.max()))
+                start_terms, info0 = magnitude_sensor_terms(fit0, s, o.K, t0, trange)
+                ext_terms, info = magnitude_sensor_terms(fitx, s, o.K, t0,
+                                                           st.points["trange"] if st else trange)
+                if s == "mag":
+                    env["field_gauss"] = round(float(info["field"]), 6)
+        else:
+            if st is not None:
+                start_terms, _ = gyro_terms(st.fit0, o.K, t0, st.points["trange"])
+                ext_terms, _ = gyro_terms(st.fit, o.K, t0, st.points["trange"])
+            else:
+                b = np.median(o.x, axis=0) * scale
+                start_terms = ext_terms = [{"term": "linear", "b": _r(b)}]
+        if (s, "bias_drift") in kept and s in ("accel", "mag") and st is not None \
+                and st.regime == "single":
+            ext_terms.append({"term": "bias_drift", **kept[(s, "bias_drift")].params})
+        if (s, "bias_drift") in kept:
+            # the random walk measured on top of the smooth drift
+            for t in ext_terms:
+                if t["term"] == "bias_drift":
+                    t["sigma"] = kept[(s, "bias_drift")].params.get("sigma", t["sigma"])
+            if not any(t["term"] == "bias_drift" for t in ext_terms):
+                ext_terms.append({"term": "bias_drift", **kept[(s, "bias_drift")].params})
+        if s == "mag" and (s, "field_disturbance") in kept:
+            ext_terms = [{"term": "field_disturbance",
+                          **kept[(s, "field_disturbance")].params}] + ext_terms
+        if (s, "temperature") in kept:
+            tp = kept[(s, "temperature")].params
+            ext_terms.append({"term": "temperature", "t_ref_c": tp["t_ref_c"],
+                              "offset_per_c": _r(np.asarray(tp["offset_per_c"]) * scale)})
+        if (s, "saturation") in kept:
+            ext_terms.append(saturation_term(kept[(s, "saturation")].params, s, o.K))
+        if (s, "stale_samples") in kept:
+            ext_terms.append({"term": "stale_samples", **kept[(s, "stale_samples")].params})
+        sensors_start[s] = {"noise": noise, "terms": start_terms}
+        sensors_ext[s] = {"noise": noise, "terms": ext_terms}
+    incl = _inclination(structures, sobs)
+    if incl is not None:
+        env["inclination_deg"] = round(incl, 3)
+    board_terms = []
+    if ("accel", "motion") in kept:
+        board_terms.append({"term": "motion", **kept[("accel", "motion")].params})
+    if any(c == "temperature" for _, c in kept):
+        board_terms.append(TH.thermal_term(data))
+    mote = data.motes[0]
+    start = model_json(f"{data.name}-paper", mote, rate, dict(env), sensors_start, [],
+                         f"the paper's starting model fitted to session {data.name}")
+    causes_txt = ", ".join(f"{f.sensor} {f.cause}" for f in findings) or "nothing"
+    ext = model_json(f"{data.name}-extended", mote, rate, dict(env), sensors_ext, board_terms,
+                       f"session {data.name}: the paper's model extended by motecal diagnose "
+                       f"({causes_txt})")
+    return start, ext
+
+
+def _magnitude_fits(o: SensorObs, st):
+    """(start fit, final fit) for the model files: the structure's when there
+    is one; else a paper fit on whatever still means exist (>= 6)."""
+    if st is not None and isinstance(st.fit, F.MagnitudeFit):
+        return st.fit0, st.fit
+    if o.segs is not None and len(o.segs) >= 6:
+        f = F.fit_magnitude(o.sensor, o.K, o.segs.mean, o.segs.t, np.ones(len(o.segs)))
+        return f, f
+    if o.sensor == "mag" and o.moving is not None and o.moving.sum() >= MIN_SWEEP_ROWS \
+            and sweep_surrounds(o):
+        x = o.x[~o.overflow]
+        f = F.fit_magnitude(o.sensor, o.K, x, o.t[~o.overflow], np.ones(len(x)))
+        return f, f
+    return None, None
+
+
+def _inclination(structures, sobs):
+    a, m = structures.get("accel"), structures.get("mag")
+    acc, mag = sobs.get("accel"), sobs.get("mag")
+    if a is None or m is None or a.regime != "poses" or m.regime != "poses":
+        return None
+    g, b, _, _ = ST.pose_vectors(acc, a.fit, mag, m.fit, m.points["group"])
+    if not len(g):
+        return None
+    dots = np.sum(unit(g) * unit(b), axis=1)
+    return float(np.degrees(np.arcsin(np.clip(-np.mean(dots), -1, 1))))

@@ -1,7 +1,8 @@
 """What a sensor's observations allow (its regime: poses, a sweep, a single
-pose, still blocks) and the accelerometer's specific force during the
-gyroscope's still blocks: shared by the diagnosis (``engine``) and the
-statistics of the comparison (``compare``)."""
+pose, still blocks), the candidate causes each regime can test (the plan of
+tests), and the accelerometer's specific force during the gyroscope's still
+blocks: shared by the diagnosis (``engine``) and the statistics of the
+comparison (``compare``)."""
 from __future__ import annotations
 
 import numpy as np
@@ -12,6 +13,14 @@ from . import structure as ST
 from .prepare import SensorObs
 
 MIN_SWEEP_ROWS = 200
+
+# the causes each regime's observations can test (structure.analyse_*)
+CANDIDATES = {
+    "poses": ["cross_axis", "nonlinearity", "bias_drift"],
+    "sweep": ["cross_axis", "field_disturbance"],
+    "single": ["bias_drift"],
+    "still": ["g_sensitivity", "bias_drift"],
+}
 
 
 def regime(obs: SensorObs) -> str | None:
@@ -76,3 +85,23 @@ def accel_for_blocks(g: SensorObs, acc_st, acc: SensorObs | None):
         fit = acc_st.fit0
         return fit.calibrate(out, np.zeros(len(out)))
     return out / acc.K
+
+
+def plan_tests(obs: dict) -> list:
+    """Every (sensor, cause) the observations allow testing: the screens on
+    every sensor, each regime's candidates and its leftover scatter
+    (``excess``), and ``motion`` when accelerometer and gyroscope share a
+    clock.  Their count sets the Bonferroni level."""
+    plan = []
+    for s, o in obs.items():
+        plan += [(s, "stale_samples"), (s, "saturation")]
+        r = regime(o)
+        if r:
+            cands = list(CANDIDATES[r])
+            if s == "gyro" and "accel" not in obs:
+                cands.remove("g_sensitivity")
+            plan += [(s, c) for c in cands]
+            plan.append((s, "excess"))
+    if shared_rows(obs.get("accel"), obs.get("gyro")) and obs["accel"].segs is not None:
+        plan.append(("accel", "motion"))
+    return plan

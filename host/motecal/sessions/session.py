@@ -214,3 +214,16 @@ class SessionData:
         x = self.physical(name)
         return np.array([np.nanmean(x[self.label == k], axis=0) for k in self.poses()]
                         ).reshape(-1, 3)
+
+    def pose_magnitudes(self) -> dict:
+        """Per mote: the number of static poses, |accel| (g) and |mag| (gauss)
+        of each pose's mean at the session's scales, and every sample's flags
+        (what `make demo` and the release check print before and after an
+        upload)."""
+        out = {}
+        for m in self.motes:
+            d = self.for_mote(m)
+            out[m] = {"poses": len(d.poses()), "flags": np.asarray(d.flags),
+                      "acc": np.linalg.norm(d.pose_means("accel"), axis=1),
+                      "mag": np.linalg.norm(d.pose_means("mag"), axis=1)}
+        return out

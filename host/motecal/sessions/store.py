@@ -2,8 +2,18 @@
 
 ``open_store(target)`` opens a sqlite file (the default) or, with a
 ``postgresql://`` URL, a PostgreSQL server, or with a ``mysql://`` URL a MySQL
-or MariaDB server (store_mysql.py).  All hold the same schema, versioned in
-the ``schema_version`` table and migrated forward on open.
+or MariaDB server.  All hold the same schema, versioned in the
+``schema_version`` table and migrated forward on open.  The parts:
+
+* store.py          -- ``Store`` (sessions in and out, calibrations, diagnoses,
+                       counters, the schema check and migration), ``open_store``;
+* store_backend.py  -- the one interface a backend implements, the store's errors;
+* store_sqlite.py, store_postgres.py, store_mysql.py -- the backends;
+* store_schema.py   -- schema version, migrations, link and line counters;
+* store_writer.py   -- ``SessionWriter``, a live session's batched writer;
+* store_values.py   -- times, JSON documents and labels as stored.
+
+Other modules import all of it from here (``__all__``).
 
 Samples are one row each: session, mote, unwrapped sequence number, host time
 ``t`` (seconds since the session started, NULL if unknown), label (text as in
@@ -19,118 +29,32 @@ leaves a consistent database that lacks at most the uncommitted batch.
 from __future__ import annotations
 
 import contextlib
-import datetime as _dt
 import itertools
 import json
-import os
-import socket
-import sqlite3
-import stat
 import time
-import urllib.parse
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import UserError
-from .session import (COLUMNS, NOMINAL_CHIPS, NOMINAL_SCALES, SessionData, label_from_text,
-                      label_to_text)
+from .session import NOMINAL_CHIPS, NOMINAL_SCALES, SessionData
+from .store_backend import Backend, StoreBusy, StoreError, store_fault
+from .store_schema import (APPLICATION_ID, LINE_COUNTERS, LINK_COUNTERS, MIGRATIONS,
+                           SAMPLE_COLUMNS, SCHEMA_VERSION, SIGNATURE, SIGNATURE_SINCE)
+from .store_sqlite import SqliteBackend
+from .store_values import document, dumps, from_iso, iso, label_texts, labels_from_texts
+from .store_writer import INSERT_TEMPS, LOCK_BUFFER_SAMPLES, LOCK_TIMEOUT_S, SessionWriter
 from .temperature import rows_from_readings
 
-SCHEMA_VERSION = 7
-
-SAMPLE_COLUMNS = ("session", "mote", "seq", "t", "label", "flags") + COLUMNS
-
-# Per-mote link counters (link_stats) and per-line counters (line_stats):
-# name -> meaning.  The logger fills them; docs/log.md (the database) lists them.
-LINK_COUNTERS = {
-    "frames": "sample messages received from this mote",
-    "samples": "records stored",
-    "lost": "records missing by sequence number (gaps not filled later)",
-    "duplicates": "records received again (dropped)",
-    "reordered": "records that arrived late and filled a gap",
-    "restarts": "sequence number jumped back: mote restarted",
-    "rejected": "frames rejected: sequence number implausible, not confirmed",
-    "first_seq": "first unwrapped sequence number",
-    "last_seq": "last unwrapped sequence number",
-    "status_msgs": "mote status messages received",
-    "mote_dropped": "mote counter: samples lost, send queue full",
-    "mote_send_fail": "mote counter: radio sends that failed",
-    "mote_i2c_errors": "mote counter: sensor reads that failed",
-    "mote_late": "mote counter: periods whose read was late",
-    "cal_version": "calibration version in force on the mote",
-    "cal_sensors": "sensors corrected on the mote (bit mask)",
-    "mote_i2c_nacks": "mote counter: I2C operations a chip did not acknowledge",
-    "mote_bus_resets": "mote counter: hung I2C operations aborted, bus cleared",
-    "mote_chip_reinits": "mote counter: chips found with reset registers, configured again",
-}
-LINE_COUNTERS = {
-    "frames": "good serial frames",
-    "crc_errors": "frames with a bad CRC (corrupt or truncated)",
-    "bad_frames": "frames with a good CRC but a wrong length or protocol byte",
-    "garbage_bytes": "bytes outside any frame",
-    "cut_off": "frames cut short by the end of the line (port closed, logger stopped)",
-    "unknown_msgs": "frames of an unknown AM type or dispatch byte",
-    "bad_msgs": "known AM type with a wrong payload length",
-    "acks": "ack frames (0x43)",
-    "disconnects": "times the port went away",
-    "gap_s": "seconds without a port",
-    "bs_status_msgs": "BaseStation status messages",
-    "bs_radio_rx": "BaseStation counter: packets from the radio",
-    "bs_radio_drops": "BaseStation counter: radio->serial queue full",
-    "bs_serial_rx": "BaseStation counter: packets from the serial line",
-    "bs_serial_drops": "BaseStation counter: serial->radio queue full",
-    "bs_radio_fail": "BaseStation counter: radio sends failed",
-    "bs_serial_fail": "BaseStation counter: serial sends failed",
-}
+# What other modules import from here: the store itself, and the names of the
+# modules it is made of (one import path for the database).
+__all__ = ["Store", "SessionInfo", "open_store", "check_session_name", "INT16_MIN", "INT16_MAX",
+           "Backend", "StoreError", "StoreBusy", "store_fault",
+           "SessionWriter", "LOCK_TIMEOUT_S", "LOCK_BUFFER_SAMPLES",
+           "SCHEMA_VERSION", "MIGRATIONS", "SAMPLE_COLUMNS", "LINK_COUNTERS", "LINE_COUNTERS",
+           "APPLICATION_ID", "SIGNATURE", "SIGNATURE_SINCE"]
 
 INT16_MIN, INT16_MAX = -32768, 32767
-
-# sqlite's PRAGMA application_id of a motecal database ("MCAL"): set on
-# create, and on the first write to an older motecal database recognised by
-# SIGNATURE (its tables and their columns).
-APPLICATION_ID = 0x4D43414C
-SIGNATURE = {
-    "schema_version": {"version"},
-    "sessions": {"id", "name", "kind", "started", "ended", "scales", "chips", "meta"},
-    "samples": {"session", "mote", "seq", "t", "label", "flags", "ax", "ay", "az", "gx", "gy",
-                "gz", "mx", "my", "mz"},
-    "calibrations": {"id", "session", "mote", "created", "cal"},
-}
-SIGNATURE_SINCE = {2: ("link_stats", "line_stats", "events"), 5: ("writers", "sample_conflicts"),
-                   6: ("temps",), 7: ("diagnoses",)}
-_NULL = 1 << 40                    # a stored NULL, when samples are compared
-
-# A live session waits this long for a write lock another process holds,
-# buffering samples meanwhile, before it gives up (SessionWriter.commit).
-LOCK_TIMEOUT_S = 60.0
-LOCK_BUFFER_SAMPLES = 2_000_000     # ~0.3 GB of queued samples at most
-
-
-class StoreError(UserError):
-    """The database failed under a command: disk full, I/O error, a lock held
-    too long.  One line on stderr; exit status 1 (the user's input was fine)."""
-
-    exit_code = 1
-
-
-class StoreBusy(StoreError):
-    """Another process holds the database's write lock."""
-
-
-def store_fault(target: str, e: Exception) -> StoreError:
-    """A database driver's error as one line (StoreBusy for a held lock)."""
-    text = " ".join(str(e).split()) or type(e).__name__
-    low = text.lower()
-    if "locked" in low or "busy" in low or "lock timeout" in low:
-        return StoreBusy(f"{target}: the database is locked by another process")
-    if "full" in low or "no space" in low or "diskfull" in low:
-        return StoreError(f"{target}: the database or its disk is full")
-    if "i/o" in low or "ioerr" in low:
-        return StoreError(f"{target}: disk I/O error")
-    if "readonly" in low or "read-only" in low or "read only" in low:
-        return StoreError(f"{target}: the database is read-only")
-    return StoreError(f"{target}: database error: {text[:200]}")
 
 
 def check_session_name(name) -> str:
@@ -140,414 +64,6 @@ def check_session_name(name) -> str:
         raise UserError(f"session name {name!r}: a session needs a name that is not "
                         "empty or blank")
     return name
-
-
-# --------------------------------------------------------------------------
-# Schema and migrations.  Each migration is a list of statements; {int16},
-# {real}, {id_pk}, {wr} are filled in per backend.  Never edit a released
-# migration: add the next one and bump SCHEMA_VERSION.
-# --------------------------------------------------------------------------
-def _counter_cols(names, real=("gap_s",)):
-    return ", ".join(f"{n} {{real}} NOT NULL DEFAULT 0" if n in real
-                     else f"{n} BIGINT NOT NULL DEFAULT 0" for n in names)
-
-
-_LINE_COUNTERS_V3 = ("cut_off",)      # line counters that schema version 3 added
-_LINK_COUNTERS_V4 = ("mote_i2c_nacks", "mote_bus_resets", "mote_chip_reinits")  # version 4
-
-MIGRATIONS = {
-    1: [
-        "CREATE TABLE schema_version (version INTEGER NOT NULL)",
-        """CREATE TABLE sessions (
-             id {id_pk},
-             name TEXT NOT NULL UNIQUE,
-             kind TEXT NOT NULL,
-             started {real} NOT NULL,
-             ended {real},
-             source TEXT,
-             rate_hz {real},
-             notes TEXT,
-             scales TEXT NOT NULL,
-             chips TEXT NOT NULL,
-             meta TEXT NOT NULL)""",
-        """CREATE TABLE samples (
-             session BIGINT NOT NULL,
-             mote INTEGER NOT NULL,
-             seq BIGINT NOT NULL,
-             t {real},
-             label TEXT NOT NULL DEFAULT '',
-             flags SMALLINT NOT NULL DEFAULT 0,
-             ax {int16}, ay {int16}, az {int16},
-             gx {int16}, gy {int16}, gz {int16},
-             mx {int16}, my {int16}, mz {int16},
-             PRIMARY KEY (session, mote, seq)){wr}""",
-        """CREATE TABLE calibrations (
-             id {id_pk},
-             session BIGINT NOT NULL,
-             mote INTEGER NOT NULL,
-             created {real} NOT NULL,
-             cal TEXT NOT NULL)""",
-        "CREATE INDEX calibrations_session ON calibrations (session, mote, id)",
-    ],
-    2: [
-        f"""CREATE TABLE link_stats (
-             session BIGINT NOT NULL,
-             mote INTEGER NOT NULL,
-             {_counter_cols(k for k in LINK_COUNTERS if k not in _LINK_COUNTERS_V4)},
-             updated {{real}},
-             PRIMARY KEY (session, mote))""",
-        f"""CREATE TABLE line_stats (
-             session BIGINT PRIMARY KEY,
-             {_counter_cols(k for k in LINE_COUNTERS if k not in _LINE_COUNTERS_V3)},
-             updated {{real}})""",
-        """CREATE TABLE events (
-             session BIGINT NOT NULL,
-             t {real} NOT NULL,
-             kind TEXT NOT NULL,
-             mote INTEGER,
-             detail TEXT NOT NULL DEFAULT '')""",
-        "CREATE INDEX events_session ON events (session, t)",
-    ],
-    3: [f"ALTER TABLE line_stats ADD COLUMN {_counter_cols([k])}" for k in _LINE_COUNTERS_V3],
-    4: [f"ALTER TABLE link_stats ADD COLUMN {_counter_cols([k])}" for k in _LINK_COUNTERS_V4],
-    # 5: several writers to one session (docs/guarantees.md, "several writers"):
-    # each live writer's own row of counts, and every sample a writer received
-    # under a key already stored with other values, kept whole
-    5: [
-        """CREATE TABLE writers (
-             session BIGINT NOT NULL,
-             writer TEXT NOT NULL,
-             source TEXT,
-             started {real} NOT NULL,
-             updated {real},
-             ended {real},
-             stored BIGINT NOT NULL DEFAULT 0,
-             duplicates BIGINT NOT NULL DEFAULT 0,
-             conflicts BIGINT NOT NULL DEFAULT 0,
-             PRIMARY KEY (session, writer))""",
-        """CREATE TABLE sample_conflicts (
-             session BIGINT NOT NULL,
-             mote INTEGER NOT NULL,
-             seq BIGINT NOT NULL,
-             t {real},
-             flags SMALLINT NOT NULL DEFAULT 0,
-             ax {int16}, ay {int16}, az {int16},
-             gx {int16}, gy {int16}, gz {int16},
-             mx {int16}, my {int16}, mz {int16},
-             writer TEXT NOT NULL,
-             found {real} NOT NULL)""",
-        "CREATE INDEX sample_conflicts_key ON sample_conflicts (session, mote, seq)",
-    ],
-    # 6: the board temperature (issue 16).  One row per reading: a mote's
-    # temperature message (seq = unwrapped sequence number of the newest
-    # sample in its sum, count = readings averaged, t = host time it came)
-    # or an imported row's temperature (count 1, the row's seq); temp_c is
-    # the mean in degrees C.  SessionData.temp is interpolated from these
-    # when a session is loaded (sessions/temperature.py).
-    6: [
-        """CREATE TABLE temps (
-             session BIGINT NOT NULL,
-             mote INTEGER NOT NULL,
-             seq BIGINT NOT NULL,
-             t {real},
-             temp_c {real} NOT NULL,
-             count INTEGER NOT NULL DEFAULT 1,
-             PRIMARY KEY (session, mote, seq)){wr}""",
-    ],
-    # 7: a session's diagnoses (issue 13, closing the loop): what ``motecal
-    # diagnose`` found on one mote's data, kept with the session so that
-    # ``calibrate`` uses it by default.  ``tool`` is the motecal version that
-    # made it, ``data_key`` the fingerprint of the rows it saw
-    # (sessions.fingerprint): a diagnosis of other data or another version
-    # is never used silently.
-    7: [
-        """CREATE TABLE diagnoses (
-             id {id_pk},
-             session BIGINT NOT NULL,
-             mote INTEGER NOT NULL,
-             created {real} NOT NULL,
-             tool TEXT NOT NULL,
-             data_key TEXT NOT NULL,
-             diagnosis TEXT NOT NULL)""",
-        "CREATE INDEX diagnoses_session ON diagnoses (session, mote, id)",
-    ],
-}
-
-
-# --------------------------------------------------------------------------
-# Backends
-# --------------------------------------------------------------------------
-class _SqliteBackend:
-    """A sqlite file: WAL journal, synchronous=NORMAL (a crash loses no
-    committed transaction; power loss at most the last ones, never consistency)."""
-
-    name = "sqlite"
-    types = {"int16": "INTEGER", "real": "REAL", "id_pk": "INTEGER PRIMARY KEY",
-             "wr": " WITHOUT ROWID"}
-    errors = (sqlite3.Error,)
-
-    def __init__(self, path: str, create: bool, readonly: bool = False):
-        self.path = path
-        self.display = path
-        if os.path.isdir(path):
-            raise UserError(f"{path} is a directory, not a database file")
-        exists = os.path.exists(path)
-        if not exists and not create:
-            raise UserError(f"no database {path}")
-        folder = os.path.dirname(os.path.abspath(path))
-        if not exists:
-            if not os.path.isdir(folder):
-                raise UserError(f"cannot create database {path}: folder {folder} does not exist")
-            if not os.access(folder, os.W_OK):
-                raise UserError(f"cannot create database {path}: folder {folder} is not writable")
-        else:
-            mode = os.stat(path).st_mode
-            if not stat.S_ISREG(mode):
-                raise UserError(f"{path} is not a database file (it is a device, FIFO or "
-                                "socket)")
-            if create and not os.access(path, os.W_OK):
-                raise UserError(f"database {path} is not writable")
-            if create and not os.access(folder, os.W_OK):
-                raise UserError(f"database {path} cannot be written: its folder {folder} is "
-                                "read-only")
-        # read-only: asked for (commands that only read), or the file or its
-        # folder (where the WAL lives) cannot be written -- read-only media
-        self.readonly = exists and (readonly or not os.access(path, os.W_OK)
-                                    or not os.access(folder, os.W_OK))
-        try:
-            if self.readonly:
-                self.conn = sqlite3.connect(self._ro_uri(path), uri=True, isolation_level=None,
-                                            check_same_thread=False)
-            else:
-                self.conn = sqlite3.connect(path, isolation_level=None, timeout=10.0,
-                                            check_same_thread=False)
-            self.conn.execute("PRAGMA busy_timeout = 10000")
-            self.tables()                         # fails on a non-sqlite file
-        except sqlite3.DatabaseError as e:
-            with contextlib.suppress(Exception):
-                self.conn.close()
-            if "not a database" in str(e) or "malformed" in str(e):
-                raise UserError(f"{path} is not a motecal database ({e})") from None
-            raise UserError(f"cannot open database {path}: {e}") from None
-
-    @staticmethod
-    def _ro_uri(path: str) -> str:
-        """Read-only URI: ``immutable`` (no lock, no -shm/-wal made: works on
-        read-only media and leaves the folder as it was) unless a write-ahead
-        log with data is there -- a logger may be writing, or crashed before
-        checkpointing -- which only a normal read-only open sees."""
-        wal = path + "-wal"
-        live = os.path.exists(wal) and os.path.getsize(wal) > 0
-        return ("file:" + urllib.parse.quote(os.path.abspath(path)) + "?mode=ro"
-                + ("" if live else "&immutable=1"))
-
-    def prepare_writes(self):
-        """Write-ahead log, synchronous=NORMAL: only once the file is known to
-        be a motecal database (or a new one), never on a foreign file."""
-        self.conn.execute("PRAGMA journal_mode = WAL")
-        self.conn.execute("PRAGMA synchronous = NORMAL")
-
-    def app_id(self) -> int:
-        return int(self.conn.execute("PRAGMA application_id").fetchone()[0])
-
-    def set_app_id(self, cur):
-        cur.execute(f"PRAGMA application_id = {APPLICATION_ID}")
-
-    def columns(self, table: str) -> set[str]:
-        return {r[1] for r in self.conn.execute(f"PRAGMA table_info({table})")}
-
-    def sql(self, text: str) -> str:
-        return text
-
-    def tables(self) -> set[str]:
-        return {r[0] for r in self.conn.execute(
-            "SELECT name FROM sqlite_master WHERE type = 'table'")}
-
-    def begin(self):
-        self.conn.execute("BEGIN IMMEDIATE")        # writers queue here (busy_timeout)
-
-    def set_busy_timeout(self, seconds: float):
-        self.conn.execute(f"PRAGMA busy_timeout = {max(0, int(seconds * 1000))}")
-
-    def lock_schema(self, cur):
-        pass                                         # BEGIN IMMEDIATE already serialises
-
-    def commit(self):
-        self.conn.execute("COMMIT")
-
-    def rollback(self):
-        if self.conn.in_transaction:
-            self.conn.execute("ROLLBACK")
-
-    def cursor(self):
-        return self.conn.cursor()
-
-    def insert_samples(self, cur, rows):
-        cur.executemany(
-            "INSERT INTO samples (session, mote, seq, t, label, flags, ax, ay, az, gx, gy, gz, "
-            "mx, my, mz) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", rows)
-
-    def close(self):
-        self.conn.close()
-
-
-class _PostgresBackend:
-    """A PostgreSQL server (psycopg 3), for labs where several base stations log
-    into one database.  ``create`` is implied: the database must exist, the
-    motecal tables are made in it when it has none."""
-
-    name = "postgresql"
-    types = {"int16": "SMALLINT", "real": "DOUBLE PRECISION",
-             "id_pk": "BIGINT GENERATED BY DEFAULT AS IDENTITY PRIMARY KEY", "wr": ""}
-
-    def __init__(self, url: str, create: bool, readonly: bool = False):
-        self.readonly = readonly
-        try:
-            import psycopg
-        except ImportError:
-            raise UserError("a postgresql:// database needs the psycopg package "
-                            "(pip install './host[postgres]')") from None
-        self.psycopg = psycopg
-        self.errors = (psycopg.Error,)
-        self.display = _hide_password(url)
-        try:
-            self.conn = psycopg.connect(url, autocommit=True, connect_timeout=10)
-            if readonly:
-                self.conn.execute("SET SESSION CHARACTERISTICS AS TRANSACTION READ ONLY")
-        except psycopg.Error as e:
-            raise UserError(f"cannot connect to {self.display}: "
-                            f"{str(e).strip().splitlines()[0] if str(e).strip() else e}") from None
-
-    def sql(self, text: str) -> str:
-        return text.replace("?", "%s")
-
-    def prepare_writes(self):
-        pass
-
-    def app_id(self) -> None:
-        return None                          # PostgreSQL: recognised by its tables
-
-    def set_app_id(self, cur):
-        pass
-
-    def columns(self, table: str) -> set[str]:
-        cur = self.conn.execute("SELECT column_name FROM information_schema.columns WHERE "
-                                "table_schema = current_schema() AND table_name = %s", (table,))
-        return {r[0] for r in cur.fetchall()}
-
-    def tables(self) -> set[str]:
-        cur = self.conn.execute("SELECT table_name FROM information_schema.tables "
-                                "WHERE table_schema = current_schema()")
-        return {r[0] for r in cur.fetchall()}
-
-    def begin(self):
-        self.conn.execute("BEGIN")
-
-    def set_busy_timeout(self, seconds: float):
-        self.conn.execute(f"SET lock_timeout = {max(1, int(seconds * 1000))}")
-
-    def lock_schema(self, cur):
-        cur.execute("SELECT pg_advisory_xact_lock(7260001)")   # one migrator at a time
-
-    def commit(self):
-        self.conn.execute("COMMIT")
-
-    def rollback(self):
-        if self.conn.info.transaction_status != self.psycopg.pq.TransactionStatus.IDLE:
-            self.conn.execute("ROLLBACK")
-
-    def cursor(self):
-        return self.conn.cursor()
-
-    def insert_samples(self, cur, rows):
-        with cur.copy("COPY samples (session, mote, seq, t, label, flags, ax, ay, az, gx, gy, "
-                      "gz, mx, my, mz) FROM STDIN") as copy:
-            for row in rows:
-                copy.write_row(row)
-
-    def close(self):
-        self.conn.close()
-
-
-def _hide_password(url: str) -> str:
-    head, sep, tail = url.partition("://")
-    cred, at, rest = tail.rpartition("@")
-    if at and ":" in cred:
-        return f"{head}{sep}{cred.split(':', 1)[0]}:***@{rest}"
-    return url
-
-
-def _backend_for(target: str, create: bool, readonly: bool = False):
-    if target.startswith(("postgresql://", "postgres://")):
-        return _PostgresBackend(target, create, readonly)
-    if target.startswith(("mysql://", "mariadb://")):
-        from .store_mysql import MysqlBackend        # its driver only when asked for
-        return MysqlBackend(target, create, readonly)
-    if target.startswith("sqlite:///"):
-        target = target[len("sqlite:///") - 1:] if target.startswith("sqlite:////") \
-            else target[len("sqlite:///"):]
-    elif "://" in target:
-        raise UserError(f"unsupported database URL {target} (use a sqlite file path, "
-                        "postgresql://... or mysql://...)")
-    return _SqliteBackend(target, create, readonly)
-
-
-# --------------------------------------------------------------------------
-# Helpers
-# --------------------------------------------------------------------------
-def _iso(ts: float | None) -> str | None:
-    if ts is None:
-        return None
-    return _dt.datetime.fromtimestamp(ts, _dt.timezone.utc).isoformat(timespec="milliseconds") \
-        .replace("+00:00", "Z")
-
-
-def _from_iso(value) -> float | None:
-    if value is None or value == "":
-        return None
-    if isinstance(value, (int, float)):
-        return float(value)
-    try:
-        d = _dt.datetime.fromisoformat(str(value).replace("Z", "+00:00"))
-    except ValueError:
-        raise UserError(f"bad time {value!r} in session metadata (want ISO 8601)") from None
-    if d.tzinfo is None:
-        d = d.replace(tzinfo=_dt.timezone.utc)
-    return d.timestamp()
-
-
-def _json_default(o):
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    raise TypeError(f"{type(o).__name__} is not JSON serialisable")
-
-
-def _dumps(obj) -> str:
-    return json.dumps(obj, default=_json_default, sort_keys=True)
-
-
-def _document(obj, what: str) -> str:
-    """``obj`` as stored JSON text; one line (UserError) naming ``what`` when
-    it is not JSON-able."""
-    try:
-        return _dumps(obj)
-    except (TypeError, ValueError) as e:
-        raise UserError(f"{what} is not JSON: {e}") from None
-
-
-def _label_texts(label: np.ndarray) -> list[str]:
-    """int labels -> their text form (session.label_to_text), vectorised."""
-    uniq, inv = np.unique(np.asarray(label), return_inverse=True)
-    texts = np.array([label_to_text(int(u)) for u in uniq], dtype=object)
-    return texts[inv].tolist()
-
-
-def _labels_from_texts(texts: list[str]) -> np.ndarray:
-    uniq, inv = np.unique(np.asarray(texts, dtype=object).astype(str), return_inverse=True)
-    vals = np.array([label_from_text(u) for u in uniq], dtype=np.int32)
-    return vals[inv] if len(texts) else np.zeros(0, np.int32)
 
 
 _META_COLUMNS = ("source", "rate_hz", "notes")
@@ -568,7 +84,7 @@ class SessionInfo:
 class Store:
     """An open motecal database.  Use ``open_store``; close it (or use ``with``)."""
 
-    def __init__(self, backend, create: bool = False):
+    def __init__(self, backend: Backend, create: bool = False):
         self._b = backend
         self.target = backend.display
         self._check_schema(create)
@@ -733,7 +249,7 @@ class Store:
                 "SELECT id, name, kind, started, ended, source, rate_hz, notes "
                 "FROM sessions ORDER BY id"):
             c = counts.get(sid, {"samples": 0, "motes": [], "poses": 0})
-            out.append(dict(name=name, kind=kind, started=_iso(started), ended=_iso(ended),
+            out.append(dict(name=name, kind=kind, started=iso(started), ended=iso(ended),
                             source=source, rate_hz=rate, notes=notes, **c))
         return out
 
@@ -742,14 +258,14 @@ class Store:
 
     def _meta_row(self, name, kind, scales, chips, meta):
         meta = dict(meta or {})
-        started = _from_iso(meta.pop("started", None)) or time.time()
-        ended = _from_iso(meta.pop("ended", None))
+        started = from_iso(meta.pop("started", None)) or time.time()
+        ended = from_iso(meta.pop("ended", None))
         cols = {k: meta.pop(k, None) for k in _META_COLUMNS}
         if cols["rate_hz"] is not None:
             cols["rate_hz"] = float(cols["rate_hz"])
         return (name, kind, started, ended, cols["source"], cols["rate_hz"], cols["notes"],
-                _dumps(dict(scales or NOMINAL_SCALES)), _dumps(dict(chips or NOMINAL_CHIPS)),
-                _dumps(meta))
+                dumps(dict(scales or NOMINAL_SCALES)), dumps(dict(chips or NOMINAL_CHIPS)),
+                dumps(meta))
 
     def _insert_session(self, cur, row) -> int:
         cur.execute(self._b.sql(
@@ -798,7 +314,7 @@ class Store:
             sid = self._insert_session(cur, row)
             n = len(data)
             step = 100_000
-            labels = _label_texts(data.label)
+            labels = label_texts(data.label)
             int_rows = np.where(finite, raw, 0).astype(np.int64)
             for a in range(0, n, step):
                 sl = slice(a, a + step)
@@ -811,7 +327,7 @@ class Store:
             if data.temp is not None:
                 has = np.isfinite(data.temp)
                 tt = t[has]
-                cur.executemany(self._b.sql(_INSERT_TEMPS), zip(
+                cur.executemany(self._b.sql(INSERT_TEMPS), zip(
                     itertools.repeat(sid), data.mote[has].tolist(), data.seq[has].tolist(),
                     np.where(np.isnan(tt), None, tt).tolist(), data.temp[has].tolist(),
                     itertools.repeat(1)))
@@ -840,16 +356,16 @@ class Store:
                             + (f" (motes: {', '.join(map(str, motes))})" if motes else ""))
         if rows:
             num = np.array([r[:13] for r in rows], dtype=float)
-            labels = _labels_from_texts([r[13] for r in rows])
+            labels = labels_from_texts([r[13] for r in rows])
         else:
             num = np.zeros((0, 13))
             labels = np.zeros(0, np.int32)
         meta = json.loads(meta)
         meta.update({k: v for k, v in (("source", source), ("rate_hz", rate), ("notes", notes))
                      if v is not None})
-        meta["started"] = _iso(started)
+        meta["started"] = iso(started)
         if ended is not None:
-            meta["ended"] = _iso(ended)
+            meta["ended"] = iso(ended)
         data = SessionData(name=name, raw=num[:, 4:13], mote=num[:, 0].astype(np.int32),
                            seq=num[:, 1].astype(np.int64), t=num[:, 2], label=labels,
                            flags=num[:, 3].astype(np.uint8), kind=kind,
@@ -887,7 +403,7 @@ class Store:
     def save_calibration(self, session: str, mote: int, cal: dict) -> int:
         """Store a calibration (JSON-able dict) of one mote of a session; returns its id."""
         info = self._require(session)
-        text = _document(cal, f"calibration for {session!r} mote {mote}")
+        text = document(cal, f"calibration for {session!r} mote {mote}")
         with self._tx() as cur:
             cur.execute(self._b.sql(
                 "INSERT INTO calibrations (session, mote, created, cal) VALUES (?, ?, ?, ?) "
@@ -915,7 +431,7 @@ class Store:
         session with the tool version that made it and the fingerprint of the
         rows it saw; returns its id."""
         info = self._require(session)
-        text = _document(diagnosis, f"diagnosis for {session!r} mote {mote}")
+        text = document(diagnosis, f"diagnosis for {session!r} mote {mote}")
         with self._tx() as cur:
             cur.execute(self._b.sql(
                 "INSERT INTO diagnoses (session, mote, created, tool, data_key, diagnosis) "
@@ -940,7 +456,7 @@ class Store:
             d = json.loads(text)
         except (TypeError, ValueError):
             d = None
-        return {"id": int(i), "created": _iso(created), "tool": tool, "data_key": key,
+        return {"id": int(i), "created": iso(created), "tool": tool, "data_key": key,
                 "diagnosis": d}
 
     # -- link statistics and events ------------------------------------------------
@@ -1009,7 +525,7 @@ class Store:
         info = self._require(session)
         if "writers" not in self._tables:
             return []                            # an older schema, opened read-only
-        return [dict(writer=w, source=src, started=_iso(a), ended=_iso(e), stored=int(n),
+        return [dict(writer=w, source=src, started=iso(a), ended=iso(e), stored=int(n),
                      duplicates=int(d), conflicts=int(c)) for w, src, a, e, n, d, c in self._query(
             "SELECT writer, source, started, ended, stored, duplicates, conflicts FROM writers "
             "WHERE session = ? ORDER BY started, writer", (info.id,))]
@@ -1034,267 +550,23 @@ class Store:
             "SELECT mote, MAX(seq) FROM samples WHERE session = ? GROUP BY mote", (info.id,))}
 
 
-_INSERT_TEMPS = ("INSERT INTO temps (session, mote, seq, t, temp_c, count) "
-                 "VALUES (?, ?, ?, ?, ?, ?) ON CONFLICT DO NOTHING")
-
-
-class SessionWriter:
-    """Batched writer of one live session; the logger's side of the store.
-
-    ``add_samples`` and ``set_label`` only queue; ``commit`` writes everything
-    queued in one transaction (samples first, then labels, counters, events),
-    and ``due`` says when ``commit_every`` seconds have passed.
-
-    Several writers may log into one session at once (two BaseStations that
-    hear the same motes, or other motes): a sample whose (mote, seq) is not
-    stored yet is stored, and belongs to the writer that committed it first;
-    one stored already with the same flags and values is a duplicate
-    (counted); one stored with other values is a conflict: kept whole in
-    ``sample_conflicts`` with this writer's id and counted, never dropped.
-    Each writer keeps its counts in its own ``writers`` row (``writer_id``).
-    """
-
-    _INSERT = ("INSERT INTO samples (session, mote, seq, t, flags, ax, ay, az, gx, gy, gz, "
-               "mx, my, mz) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) "
-               "ON CONFLICT DO NOTHING")
-
-    def __init__(self, store: Store, sid: int, name: str, started: float, commit_every: float,
-                 lock_timeout: float = LOCK_TIMEOUT_S):
-        self.store = store
-        self.lock_timeout = lock_timeout
-        self.locked_since: float | None = None   # monotonic time the lock wait began
-        self.lock_waits = 0                       # times a commit found the lock held
-        self.id = sid
-        self.name = name
-        self.started = started          # unix seconds; t is relative to it
-        self.commit_every = commit_every
-        self._rows: list[tuple] = []    # (mote, seq, t, flags, raw) arrays
-        self._labels: list[tuple] = []
-        self._events: list[tuple] = []
-        self._temps: list[tuple] = []   # (session, mote, seq, t, temp_c, count)
-        self._link: dict[int, dict] = {}
-        self._line: dict | None = None
-        self._last_commit = time.monotonic()
-        self.committed_samples = 0
-        self.commits = 0
-        self.duplicates = 0              # samples another writer had stored the same
-        self.conflicts = 0               # ... had stored with other values (kept aside)
-        self.writer_id = f"{socket.gethostname()}:{os.getpid()}:{id(self):x}"
-        self.source: str | None = None
-
-    def now(self) -> float:
-        """Seconds since the session started (the ``t`` column's clock)."""
-        return time.time() - self.started
-
-    @property
-    def pending(self) -> int:
-        return sum(len(r[1]) for r in self._rows)
-
-    def add_samples(self, mote, seq, t, flags, raw) -> None:
-        """Queue records: arrays of mote, unwrapped seq, t, flags and (n, 9) int counts."""
-        if len(seq):
-            self._rows.append((np.asarray(mote), np.asarray(seq), np.asarray(t, float),
-                               np.asarray(flags), np.asarray(raw)))
-
-    def add_temp(self, mote: int, seq: int, t: float, temp_c: float, count: int) -> None:
-        """Queue one temperature reading of a mote: the mean of ``count`` readings,
-        in degrees C, the newest of the sample with unwrapped sequence number
-        ``seq``; ``t`` when it came (the ``t`` column's clock).  A reading
-        stored already (the same message twice) is kept once."""
-        self._temps.append((self.id, int(mote), int(seq), float(t), float(temp_c), int(count)))
-
-    def set_label(self, mote: int, seq_lo: int, seq_hi: int, label: int) -> None:
-        """Label the stored records of one mote with seq_lo <= seq <= seq_hi."""
-        self._labels.append((label_to_text(label), self.id, int(mote), int(seq_lo), int(seq_hi)))
-
-    def add_event(self, kind: str, detail: str = "", mote: int | None = None,
-                  t: float | None = None) -> None:
-        self._events.append((self.id, self.now() if t is None else t, kind, mote, detail))
-
-    def set_link_stats(self, mote: int, counters: dict) -> None:
-        unknown = set(counters) - set(LINK_COUNTERS)
-        if unknown:
-            raise ValueError(f"unknown link counters {sorted(unknown)}")
-        self._link[int(mote)] = dict(counters)
-
-    def set_line_stats(self, counters: dict) -> None:
-        unknown = set(counters) - set(LINE_COUNTERS)
-        if unknown:
-            raise ValueError(f"unknown line counters {sorted(unknown)}")
-        self._line = dict(counters)
-
-    @property
-    def due(self) -> bool:
-        """``commit_every`` seconds have passed since the last commit."""
-        return time.monotonic() - self._last_commit >= self.commit_every
-
-    def commit(self) -> bool:
-        """Write everything queued in one transaction; True when done.
-
-        When another process holds the write lock nothing is lost: the queue
-        is kept and False returned (the caller goes on reading and tries again);
-        after ``lock_timeout`` seconds of that, or ``LOCK_BUFFER_SAMPLES``
-        queued, ``StoreBusy`` is raised.  Other failures (disk full, I/O) raise
-        ``StoreError``; the queue is then kept too (``pending``)."""
-        try:
-            self._commit()
-        except StoreBusy:
-            now = time.monotonic()
-            if self.locked_since is None:
-                self.locked_since = now
-                self.lock_waits += 1
-            waited = now - self.locked_since
-            if waited >= self.lock_timeout or self.pending > LOCK_BUFFER_SAMPLES:
-                raise StoreBusy(f"{self.store.target}: the database stayed locked by another "
-                                f"process for {waited:.0f} s ({self.pending} samples held in "
-                                "memory could not be stored)") from None
-            return False
-        self.locked_since = None
-        return True
-
-    def discard(self) -> int:
-        """Drop what is queued (it cannot be stored); returns the samples dropped."""
-        n = self.pending
-        self._rows, self._labels, self._events, self._temps = [], [], [], []
-        self._link, self._line = {}, None
-        return n
-
-    def _commit(self) -> None:
-        st = self.store
-        b = st._b
-        rows, labels, events, temps = self._rows, self._labels, self._events, self._temps
-        link, line = self._link, self._line
-        n = 0
-        with st._tx() as cur:
-            if rows:
-                mote = np.concatenate([r[0] for r in rows])
-                seq = np.concatenate([r[1] for r in rows])
-                t = np.concatenate([r[2] for r in rows])
-                flags = np.concatenate([r[3] for r in rows])
-                raw = np.concatenate([r[4] for r in rows]).astype(np.int64)
-                n, dups, clash = self._insert(cur, mote, seq, t, flags, raw)
-                self._writer_row(cur, n, dups, clash)
-            elif self.commits == 0:
-                self._writer_row(cur, 0, 0, 0)
-            if temps:
-                cur.executemany(b.sql(_INSERT_TEMPS), temps)
-            if labels:
-                cur.executemany(b.sql("UPDATE samples SET label = ? WHERE session = ? AND "
-                                      "mote = ? AND seq BETWEEN ? AND ?"), labels)
-            if events:
-                cur.executemany(b.sql("INSERT INTO events (session, t, kind, mote, detail) "
-                                      "VALUES (?, ?, ?, ?, ?)"), events)
-            for mote_id, c in link.items():
-                self._upsert(cur, "link_stats", {"session": self.id, "mote": mote_id}, c)
-            if line is not None:
-                self._upsert(cur, "line_stats", {"session": self.id}, line)
-        self._rows, self._labels, self._events, self._temps = [], [], [], []
-        self._link, self._line = {}, None
-        self.committed_samples += n
-        self.commits += 1
-        self._last_commit = time.monotonic()
-
-    # -- several writers ----------------------------------------------------------
-    _KEY_COLS = "seq, flags, ax, ay, az, gx, gy, gz, mx, my, mz"
-
-    def _stored(self, cur, m: int, seqs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Stored (seq, [flags + 9 values]) of mote ``m`` within the span of ``seqs``
-        (NULL read as a value no sample has)."""
-        cur.execute(self.store._b.sql(
-            f"SELECT {self._KEY_COLS} FROM samples WHERE session = ? AND mote = ? "
-            "AND seq BETWEEN ? AND ? ORDER BY seq"), (self.id, m, int(seqs.min()), int(seqs.max())))
-        got = cur.fetchall()
-        if not got:
-            return np.zeros(0, np.int64), np.zeros((0, 10), np.int64)
-        arr = np.array([[_NULL if v is None else v for v in r] for r in got], dtype=np.int64)
-        return arr[:, 0], arr[:, 1:]
-
-    def _classify(self, cur, mote, seq, flags, raw):
-        """Per row: 0 new, 1 duplicate of a stored sample, 2 conflict with one."""
-        kind = np.zeros(len(seq), np.int8)
-        vals = np.column_stack([flags.astype(np.int64), raw])
-        for m in np.unique(mote):
-            rows = np.flatnonzero(mote == m)
-            sseq, svals = self._stored(cur, int(m), seq[rows])
-            if not len(sseq):
-                continue
-            pos = np.searchsorted(sseq, seq[rows])
-            hit = pos < len(sseq)
-            hit[hit] = sseq[pos[hit]] == seq[rows][hit]
-            same = np.zeros(len(rows), bool)
-            same[hit] = (svals[pos[hit]] == vals[rows[hit]]).all(axis=1)
-            kind[rows[hit & same]] = 1
-            kind[rows[hit & ~same]] = 2
-        return kind
-
-    def _insert(self, cur, mote, seq, t, flags, raw) -> tuple[int, int, int]:
-        """Store the new samples, count duplicates, keep conflicts aside;
-        returns (stored, duplicates, conflicts)."""
-        b = self.store._b
-        kind = self._classify(cur, mote, seq, flags, raw)
-        new = kind == 0
-        rows = lambda sel: zip(itertools.repeat(self.id), mote[sel].tolist(),  # noqa: E731
-                               seq[sel].tolist(), t[sel].tolist(), flags[sel].tolist(),
-                               *raw[sel].T.tolist())
-        cur.executemany(b.sql(self._INSERT), rows(new))
-        stored = cur.rowcount if cur.rowcount is not None and cur.rowcount >= 0 \
-            else int(new.sum())
-        if stored < new.sum():
-            # another writer committed some of these keys meanwhile (PostgreSQL
-            # runs writers side by side): what differs from ours is a conflict
-            again = self._classify(cur, mote[new], seq[new], flags[new], raw[new])
-            idx = np.flatnonzero(new)
-            kind[idx[again == 2]] = 2
-            twins = int(new.sum()) - stored - int((again == 2).sum())
-        else:
-            twins = 0
-        clash = kind == 2
-        if clash.any():
-            cur.executemany(b.sql(
-                "INSERT INTO sample_conflicts (session, mote, seq, t, flags, ax, ay, az, gx, "
-                "gy, gz, mx, my, mz, writer, found) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
-                "?, ?, ?, ?, ?)"),
-                [r + (self.writer_id, time.time()) for r in rows(clash)])
-        return stored, int((kind == 1).sum()) + twins, int(clash.sum())
-
-    def _writer_row(self, cur, stored: int, dups: int, clash: int) -> None:
-        """This writer's own row of counts (added to in the same transaction)."""
-        now = time.time()
-        cur.execute(self.store._b.sql(
-            "INSERT INTO writers (session, writer, source, started, updated, stored, duplicates, "
-            "conflicts) VALUES (?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT (session, writer) DO UPDATE "
-            "SET updated = excluded.updated, stored = writers.stored + excluded.stored, "
-            "duplicates = writers.duplicates + excluded.duplicates, "
-            "conflicts = writers.conflicts + excluded.conflicts"),
-            (self.id, self.writer_id, self.source, now, now, stored, dups, clash))
-        self.duplicates += dups
-        self.conflicts += clash
-
-    def _upsert(self, cur, table: str, key: dict, counters: dict) -> None:
-        """Set a row of counters (link_stats / line_stats) to these values."""
-        values = {**key, **counters, "updated": time.time()}
-        names = list(values)
-        cur.execute(self.store._b.sql(
-            f"INSERT INTO {table} ({', '.join(names)}) VALUES ({', '.join('?' * len(names))}) "
-            f"ON CONFLICT ({', '.join(key)}) DO UPDATE SET "
-            + ", ".join(f"{k} = excluded.{k}" for k in names if k not in key)),
-            tuple(values.values()))
-
-    def end(self) -> None:
-        """Commit what is queued and mark the session ended (waiting for a
-        held lock up to ``lock_timeout``)."""
-        while not self.commit():
-            time.sleep(0.05)
-        self.mark_ended()
-
-    def mark_ended(self) -> None:
-        """Mark the session ended, with what was committed."""
-        st = self.store
-        now = time.time()
-        with st._tx() as cur:
-            cur.execute(st._b.sql("UPDATE sessions SET ended = ? WHERE id = ?"), (now, self.id))
-            cur.execute(st._b.sql("UPDATE writers SET ended = ? WHERE session = ? AND writer = ?"),
-                        (now, self.id, self.writer_id))
+def _backend_for(target: str, create: bool, readonly: bool = False) -> Backend:
+    """The backend a target names: ``postgresql://`` (or ``postgres://``),
+    ``mysql://`` (or ``mariadb://``), else a sqlite file (``sqlite:///path`` or
+    a path)."""
+    if target.startswith(("postgresql://", "postgres://")):
+        from .store_postgres import PostgresBackend  # its driver only when asked for
+        return PostgresBackend(target, create, readonly)
+    if target.startswith(("mysql://", "mariadb://")):
+        from .store_mysql import MysqlBackend        # its driver only when asked for
+        return MysqlBackend(target, create, readonly)
+    if target.startswith("sqlite:///"):
+        target = target[len("sqlite:///") - 1:] if target.startswith("sqlite:////") \
+            else target[len("sqlite:///"):]
+    elif "://" in target:
+        raise UserError(f"unsupported database URL {target} (use a sqlite file path, "
+                        "postgresql://... or mysql://...)")
+    return SqliteBackend(target, create, readonly)
 
 
 def open_store(target: str, *, create: bool = False, readonly: bool = False) -> Store:

@@ -1,7 +1,7 @@
 """The store's MySQL / MariaDB backend (PyMySQL, pure Python): the seed paper's
 database.  Same schema, same migrations and the same ``Store`` on top as the
-sqlite and PostgreSQL backends (sessions/store.py); this module only speaks
-the dialect.
+sqlite and PostgreSQL backends, behind the same interface (store_backend.py);
+this module only speaks the dialect.
 
 URLs::
 
@@ -38,6 +38,7 @@ import re
 import urllib.parse
 
 from ..errors import UserError
+from .store_backend import Backend, shown_url
 
 SCHEMES = ("mysql://", "mariadb://")
 DEFAULT_SOCKET = "/run/mysqld/mysqld.sock"
@@ -66,17 +67,17 @@ def parse_url(url: str) -> tuple[dict, str]:
         u = urllib.parse.urlsplit(url)
         port = u.port
     except ValueError as e:
-        raise UserError(f"bad database URL {_shown(url)}: {e}") from None
+        raise UserError(f"bad database URL {shown_url(url)}: {e}") from None
     db = urllib.parse.unquote(u.path.lstrip("/"))
     if not db or "/" in db:
-        raise UserError(f"database URL {_shown(url)} names no database "
+        raise UserError(f"database URL {shown_url(url)} names no database "
                         "(mysql://user@host/DATABASE)")
     args = dict(database=db, user=urllib.parse.unquote(u.username) if u.username else None,
                 password=urllib.parse.unquote(u.password) if u.password else "")
     query = urllib.parse.parse_qs(u.query, keep_blank_values=True)
     unknown = set(query) - {"unix_socket", "socket"}
     if unknown:
-        raise UserError(f"database URL {_shown(url)}: unknown option(s) "
+        raise UserError(f"database URL {shown_url(url)}: unknown option(s) "
                         f"{', '.join(sorted(unknown))} (known: unix_socket)")
     sockets = query.get("unix_socket", []) + query.get("socket", [])
     if sockets:
@@ -86,15 +87,7 @@ def parse_url(url: str) -> tuple[dict, str]:
         args["port"] = port or DEFAULT_PORT
     else:
         args["unix_socket"] = DEFAULT_SOCKET
-    return args, _shown(url)
-
-
-def _shown(url: str) -> str:
-    head, sep, tail = url.partition("://")
-    cred, at, rest = tail.rpartition("@")
-    if at and ":" in cred:
-        return f"{head}{sep}{cred.split(':', 1)[0]}:***@{rest}"
-    return url
+    return args, shown_url(url)
 
 
 def _first_line(e: Exception) -> str:
@@ -195,7 +188,7 @@ class _Cursor:
         self._c.close()
 
 
-class MysqlBackend:
+class MysqlBackend(Backend):
     """A MySQL or MariaDB server (PyMySQL).  ``create`` is implied: the
     database must exist, the motecal tables are made in it when it has none."""
 

@@ -21,6 +21,15 @@ typedef struct {
   int16_t temp;
 } ninedof_raw_t;
 
+/* A global label at this point of the code, no instruction: the emulator
+ * harness times the board's read from its entry (ninedof_span_read) to the
+ * readDone signal (ninedof_span_readdone) by the program counter
+ * (`ninedof-emu --span ninedof_span_read:ninedof_span_readdone`, what
+ * `make emulate` and bench/bench_cycles.py ask for).  Each label may stand
+ * once in an image: the assembler refuses a second copy, so an image in
+ * which the compiler duplicated the code does not build. */
+#define NINEDOF_SPAN_MARK(name) asm volatile (".global " #name "\n" #name ":")
+
 /* The chips' shares of the board's bus (NineDofBusP), in reading order:
  * NINEDOF_CHIP_ACCEL, _GYRO, _MAG (ninedof_board.h) */
 

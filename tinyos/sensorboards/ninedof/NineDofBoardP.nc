@@ -14,12 +14,23 @@
  * Faults (decisions in ninedof_fault.c, see ninedof_fault.h):
  *  - Health.tick, once per sampling period, runs the watchdog: an
  *    operation that has run NINEDOF_I2C_TIMEOUT_MS (16 binary ms of the
- *    crystal, LocalTime<TMilli>) at a tick is aborted through Recover (bus clear, TWI re-initialised, the master
- *    ends the transfer with an error) and ends with that error.
- *  - After the nine axes of a sample, one chip's witness register may be
- *    read back (on a schedule, and for every chip after a failure); a chip
+ *    crystal, LocalTime<TMilli>) at a tick is aborted through Recover (bus
+ *    clear, TWI re-initialised, the master ends the transfer with an
+ *    error) and ends with that error.
+ *  - The bus clear's result decides what follows (ninedof_fault_cleared):
+ *    a line still low puts the bus down.  While it is down no operation
+ *    begins (read, start and stop return FAIL at once), and the tick
+ *    clears the bus again once every NINEDOF_BUSDOWN_RETRY_MS (and aborts
+ *    an operation the master could not end on that schedule, not every
+ *    16 ms); the first clear that finds both lines high brings the bus up
+ *    and every chip is checked with the next reads.
+ *  - After a sample has been reported, one chip's witness register may be
+ *    read back (on a schedule, and for every chip after a failure), as an
+ *    operation of its own (a bus grant, the watchdog, no event); a chip
  *    found with its reset value gets its register table written again, in
- *    the same bus grant.  The sample is reported as read either way.
+ *    the same grant.  A read asked for meanwhile is refused (EBUSY), as
+ *    during any operation.  So the check (about 0.2 ms once a second) is
+ *    not part of a read's time from read() to readDone.
  *  - NACKs, watchdog aborts and re-initialisations are counted
  *    (Health.counters).
  *
@@ -76,11 +87,17 @@ implementation
 
   /* ---- the watchdog ---- */
   async command void Health.tick() {
-    uint8_t act;
+    uint8_t act, result;
     uint16_t t = now();
     atomic act = ninedof_fault_tick(&fault, t);
-    if (act == NINEDOF_FAULT_ABORT)
-      call Recover.recover();             /* the operation's done event follows */
+    if (act == NINEDOF_FAULT_NONE)
+      return;
+    /* ABORT: the bus clear, and the operation's done event follows (if the
+     * master can end it); CLEAR: the bus is down and idle, the lines are
+     * tried again (this board is the bus's only client and begins nothing
+     * while it is down) */
+    result = call Recover.recover();
+    atomic ninedof_fault_cleared(&fault, result);
   }
 
   async command ninedof_fault_counters_t Health.counters() {
@@ -154,6 +171,8 @@ implementation
         return EALREADY;
       if (power != from || reading)
         return EBUSY;
+      if (ninedof_fault_bus_down(&fault))
+        return FAIL;             /* a line is stuck low: nothing can begin */
       power = to;
       ninedof_fault_begin(&fault, t);
     }
@@ -176,6 +195,8 @@ implementation
   }
 
   /* ---- one sample: accel, gyro, mag back to back, on the held bus ---- */
+  void checkStart();
+
   /* End of a sample: release the bus, then report. */
   void readEnd(error_t err) {
     ninedof_raw_t done = sample;
@@ -190,17 +211,24 @@ implementation
       reading = FALSE;
       ninedof_fault_end(&fault, outcome(err));
     }
+    NINEDOF_SPAN_MARK(ninedof_span_readdone);   /* the signal (emulator's --span) */
     signal ReadNow.readDone(err, done);
+    if (err == SUCCESS)
+      checkStart();
   }
 
   async command error_t ReadNow.read() {
     error_t err;
-    uint16_t t = now();
+    uint16_t t;
+    NINEDOF_SPAN_MARK(ninedof_span_read);   /* the read's entry (emulator's --span) */
+    t = now();
     atomic {
       if (power != B_ON)
         return power == B_OFF ? EOFF : EBUSY;
       if (reading)
         return EBUSY;
+      if (ninedof_fault_bus_down(&fault))
+        return FAIL;                     /* a line is stuck low: refused at once */
       reading = TRUE;
       ninedof_fault_begin(&fault, t);
     }
@@ -239,19 +267,39 @@ implementation
       readEnd(err);
   }
 
-  /* The nine axes are in: a witness to read back, or the end. */
-  void check() {
+  /* ---- the configuration check: one witness read back, after a sample ---- */
+  void checkEnd(bool held) {
+    if (held)
+      call Bus.release();
+    atomic {
+      reading = FALSE;
+      ninedof_fault_end(&fault, NINEDOF_OP_OK);   /* counted by check_done / reinit_done */
+    }
+  }
+
+  void checkStart() {
     uint8_t chip;
+    uint16_t t;
     const ninedof_chip_t *d;
-    atomic chip = ninedof_fault_check_pick(&fault);
-    if (chip == NINEDOF_CHECK_NONE) {
-      readEnd(SUCCESS);
+    atomic {
+      if (reading || power != B_ON || ninedof_fault_bus_down(&fault))
+        return;                          /* a read began from readDone, or the bus is down: next time */
+      chip = ninedof_fault_check_pick(&fault);
+      if (chip == NINEDOF_CHECK_NONE)
+        return;                          /* the common case */
+      reading = TRUE;                    /* a read now is refused (EBUSY) */
+    }
+    t = now();
+    atomic ninedof_fault_begin(&fault, t);
+    if (call Bus.immediateRequest() != SUCCESS) {
+      atomic ninedof_fault_check_done(&fault, chip, NINEDOF_OP_FAIL, 0);   /* due again */
+      checkEnd(FALSE);
       return;
     }
     d = &NINEDOF_CHIP[chip];
     if (call Registers.readRegister[chip](d->config[d->witness].reg) != SUCCESS) {
       atomic ninedof_fault_check_done(&fault, chip, NINEDOF_OP_FAIL, 0);
-      readEnd(SUCCESS);
+      checkEnd(TRUE);
     }
   }
 
@@ -263,7 +311,7 @@ implementation
       if (chip == NINEDOF_CHIP_GYRO)
         sample.temp = v.temp;
       if (chip + 1 == NINEDOF_CHIPS) {
-        check();
+        readEnd(SUCCESS);
         return;
       }
       err = call Chip.read[chip + 1]();
@@ -279,13 +327,13 @@ implementation
     if (reinit && call Registers.configure[chip]() != SUCCESS)
       atomic ninedof_fault_reinit_done(&fault, chip, NINEDOF_OP_FAIL);
     else if (reinit)
-      return;                            /* configureDone ends the sample */
-    readEnd(SUCCESS);
+      return;                            /* configureDone ends the check */
+    checkEnd(TRUE);
   }
 
   async event void Registers.configureDone[uint8_t chip](error_t err) {
     atomic ninedof_fault_reinit_done(&fault, chip, outcome(err));
-    readEnd(SUCCESS);
+    checkEnd(TRUE);
   }
 
   default command error_t ChipControl.start[uint8_t chip]() { return FAIL; }

@@ -54,21 +54,18 @@ import emulate  # noqa: E402
 import release_check as rc  # noqa: E402
 
 PERIOD_S = 0.008
-# the status message's fields, big-endian u16 except sensors/reserved
-# (tinyos/NineDofMsg.h); later firmware appends i2c_nacks, bus_resets, chip_reinits
-STATUS = ("seq", "version", "sensors", "dropped", "send_fail", "i2c_errors", "late",
-          "i2c_nacks", "bus_resets", "chip_reinits")
 
 
-def decode_status(payload: bytes) -> dict:
-    b = payload
-    out = {"seq": int.from_bytes(b[0:2], "big"), "version": int.from_bytes(b[2:4], "big"),
-           "sensors": b[4]}
-    names = STATUS[3:]
-    for i, off in enumerate(range(6, len(b) - 1, 2)):
-        if i < len(names):
-            out[names[i]] = int.from_bytes(b[off:off + 2], "big")
-    return out
+def decode_status(payload: bytes) -> dict | None:
+    """The mote's status message, decoded by the host's own decoder
+    (motecal.line.protocol, checked against tinyos/NineDofMsg.h): a mote
+    built before the fault counters sends the message without them, and
+    they are absent; None for a payload that is no layout of the message."""
+    from motecal.line import protocol as P
+    msg = P.MOTE_STATUS.decode(payload)
+    if msg is not None:
+        msg.pop("reserved", None)
+    return msg
 
 
 class LineReader:

@@ -235,6 +235,11 @@ static int control_poll(int *open_, int nspec, emu_channel_t *ch)
 
 int main(int argc, char **argv)
 {
+    /* a TCP client that goes away (a motecal command exiting with serial
+     * bytes unread: its kernel answers with a reset) must not kill the
+     * harness with SIGPIPE on the next write: write() then fails with EPIPE
+     * and uart.c drops the client */
+    signal(SIGPIPE, SIG_IGN);
     node_spec_t specs[MAX_NODES];
     int nspec = 0, base = -1;
     const char *serial = NULL, *report = "text", *twi_log = NULL, *console = NULL;

@@ -12,9 +12,13 @@ which cannot build nesC).
   3. `motecal log --guided static80 --yes` over the emulated port: the
      logger's stillness detection takes the poses from the data;
   4. `motecal calibrate --upload` through the BaseStation image into each
-     mote image;
-  5. the harness resets the three motes (`reset motes`: simavr's reset, the
-     EEPROM kept); the images boot with the set from their EEPROM;
+     mote image: each upload ends only when its mote reports the set stored
+     in its EEPROM (written and read back);
+  5. each mote is reset (`reset I 0`: simavr's reset, the EEPROM kept) the
+     moment its upload prints that the set is stored, while the command goes
+     on with the next mote (any mote without that line: when the command
+     exits): no time for a write still under way; the images boot with the
+     set from their EEPROM;
   6. `motecal log --guided static80 --yes --poses N` again: the samples must
      come corrected and flagged with the new version; the accelerometer and
      magnetometer magnitudes of the pose means before (raw) and after
@@ -156,8 +160,10 @@ class Harness:
             return None
 
 
-def motecal(args: list[str], log: Path, timeout: float) -> tuple[int, str, float]:
-    """Run `motecal ARGS`, its output into log and echoed; (exit, output, wall s)."""
+def motecal(args: list[str], log: Path, timeout: float,
+            on_line=None) -> tuple[int, str, float]:
+    """Run `motecal ARGS`, its output into log and echoed; (exit, output, wall s).
+    ``on_line(line)`` is called with each line as it comes."""
     print("$ motecal " + " ".join(shlex.quote(a) for a in args), flush=True)
     t0 = time.monotonic()
     with open(log, "w") as f:
@@ -167,6 +173,8 @@ def motecal(args: list[str], log: Path, timeout: float) -> tuple[int, str, float
         timer = threading.Timer(timeout, proc.terminate)
         timer.start()
         for line in proc.stdout:
+            if on_line:
+                on_line(line)
             f.write(line)
             out.append(line)
             print("  " + line.rstrip("\n"), flush=True)
@@ -208,7 +216,7 @@ def main(argv=None) -> int:
                     help="poses logged after the reset (default 10)")
     ap.add_argument("--loss", type=float, default=0.0, help="radio loss rate")
     ap.add_argument("--out", help="folder for everything (default: a temp folder)")
-    ap.add_argument("--timeout", type=float, default=1500,
+    ap.add_argument("--timeout", type=float, default=3600,
                     help="wall seconds each logging step may take")
     a = ap.parse_args(argv)
     try:
@@ -279,30 +287,52 @@ def main(argv=None) -> int:
 
         say("4. motecal calibrate --upload through the BaseStation image")
         t_emu0 = harness.now()
+        # each mote is reset the moment its upload says the set is stored
+        # (issue 29: what the word is worth), the others the moment the
+        # command exits; mote id N is the harness's node index N - 1
+        reset_sent = []
+
+        def reset_when_stored(line):
+            m = re.match(r"  mote (\d+): calibration version \d+ \(was \d+\) in force and "
+                         r"verified, and stored", line)
+            if m and int(m.group(1)) in (1, 2, 3):
+                harness.send(f"reset {int(m.group(1)) - 1} 0")
+                reset_sent.append(int(m.group(1)))
         rc, text, wall = motecal(["calibrate", "--db", str(db), "--session", "before", "--seed",
                                   "1", "--out", str(out / "cal-mote{mote}.json"), "--upload",
-                                  "--port", url], out / "calibrate.txt", a.timeout)
+                                  "--port", url], out / "calibrate.txt", a.timeout,
+                                 on_line=reset_when_stored)
+        for m in (1, 2, 3):
+            if m not in reset_sent:
+                harness.send(f"reset {m - 1} 0")
+        resets = [harness.wait_line(r"^reset node .*", 120).group(0) for _ in range(3)]
         t_emu1 = harness.now()
         print(f"  calibrate + upload took {wall:.0f} s wall, {t_emu1 - t_emu0:.1f} s emulated",
               flush=True)
         uploads = {int(m.group(1)): m.groups()[1:] for m in re.finditer(
-            r"mote (\d+): calibration version (\d+) in force and verified \(was (\d+)\); "
-            r"(\d+) messages, (\d+) repeated, (\d+) serial repeats, ([0-9.]+) s", text)}
+            r"mote (\d+): calibration version (\d+) \(was (\d+)\) in force and verified, and "
+            r"stored \(survives a reboot\); (\d+) messages, (\d+) repeated, (\d+) serial "
+            r"repeats, ([0-9.]+) s", text)}
+        stored = {}                 # mote -> s from its commit to the report saying stored
+        for part in re.split(r"(?m)^  uploading to mote ", text)[1:]:
+            m = re.search(r"stored: version \d+ written to the EEPROM and read back, ([0-9.]+) s "
+                          r"after the commit", part)
+            if m:
+                stored[int(part.split()[0])] = m.group(1)
         for m in sorted(before):
             if m in uploads:
                 ver, was, msgs, rep, srep, secs = uploads[m]
-                print(f"  mote {m}: version {ver} in force and verified (was {was}); upload "
-                      f"{secs} s wall, {msgs} messages, {rep} repeated, {srep} serial repeats",
-                      flush=True)
+                print(f"  mote {m}: version {ver} in force and verified (was {was}), stored "
+                      f"{stored.get(m, '?')} s after its commit; upload {secs} s wall, {msgs} "
+                      f"messages, {rep} repeated, {srep} serial repeats", flush=True)
             else:
-                failures.append(f"mote {m}: no verified upload")
+                failures.append(f"mote {m}: no upload verified and stored")
         if rc != 0:
             failures.append(f"motecal calibrate --upload exited {rc}")
 
-        say("5. reset of the three motes (EEPROM kept)")
-        harness.send("reset motes 1.0")     # 1 s: the background EEPROM writes (~0.4 s) end
-        for _ in range(3):
-            print("  " + harness.wait_line(r"^reset node .*", 120).group(0), flush=True)
+        say("5. each mote reset (EEPROM kept) the moment its upload said stored")
+        for line in resets:
+            print("  " + line, flush=True)
 
         say(f"6. log {a.poses_after} poses after the reset: corrected on the mote?")
         rc, text, wall = motecal(["log", "--port", url, "--db", str(db), "--session", "after",

@@ -6,7 +6,8 @@ user runs, into one sqlite database.
      rotation sweep (a second simulator run on the same boards);
   2. `motecal calibrate ... --upload`: accelerometer, gyroscope and
      magnetometer of every board in one run, gated, uploaded to each mote
-     and verified (the motes keep the set in their EEPROM);
+     and verified, each upload done when its mote reports the set stored in
+     its EEPROM (so the simulator can stop the moment the command exits);
   3. the motes reboot with the set in force; a second static session is logged:
      its samples arrive corrected, and the script prints the accelerometer and
      magnetometer magnitudes before and after;
@@ -101,7 +102,7 @@ def main() -> int:
         run("log", "--port", sim.url, "--db", str(db), "--session", "board", "--append",
             "--guided", "rotation", "--yes")
 
-    say("2. calibrate every board (GA + polish), gate, upload to the motes, verify")
+    say("2. calibrate every board (GA + polish), gate, upload to the motes, verify, stored")
     with Simulator("--motes", motes, "--session", "idle", "--duration", "3600", "--seed", "3",
                    "--model", str(truth), "--eeprom", str(eeprom)) as sim:
         run("calibrate", "--db", str(db), "--session", "board", "--seed", "1",

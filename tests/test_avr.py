@@ -102,6 +102,11 @@ def _vectors(rng):
     commit(1, binascii.crc_hqx(good, 0))
     for o in range(0, 120, 20):
         msgs.append((P.AM_NINEDOF_CAL_QUERY_MSG, P.CAL_QUERY.pack(mote=MOTE, offset=o)))
+    # the stored set asked for (the longer report), and a host's query from
+    # before the flags byte (3 bytes: the report of that time)
+    msgs.append((P.AM_NINEDOF_CAL_QUERY_MSG, P.CAL_QUERY.pack(mote=MOTE, offset=20,
+                                                              flags=P.QUERY_STORED)))
+    msgs.append((P.AM_NINEDOF_CAL_QUERY_MSG, P.CAL_QUERY.pack(mote=MOTE, offset=0)[:3]))
     commit(9, 0, action=P.CAL_RESET)
     commit(1, binascii.crc_hqx(good, 0))          # staged set still there: back in force
     msgs.append((0x42, b"\0" * 10))                # not ours: no reply
@@ -165,6 +170,11 @@ def test_correction_is_bit_identical_on_the_avr(avr_run):
     np.testing.assert_array_equal(M.correct(calsets[4], raw), raw)
 
 
+def _replay(msgs):
+    rx = M.CalReceiver(MOTE)
+    return [rx.handle(t, payload) for t, payload in msgs]
+
+
 def test_receiver_replies_are_identical_on_the_avr(avr_run):
     calsets, _, raw, msgs, tokens = avr_run
     rx = M.CalReceiver(MOTE)
@@ -178,6 +188,9 @@ def test_receiver_replies_are_identical_on_the_avr(avr_run):
         assert got == want
         if want and want[0] == P.AM_NINEDOF_CAL_COMMIT_ACK_MSG:
             statuses.append(P.CAL_COMMIT_ACK.unpack(want[1])["status"])
+    reports = [len(w[1]) for (t, _), w in zip(msgs, (rx2 for rx2 in _replay(msgs)))
+               if t == P.AM_NINEDOF_CAL_QUERY_MSG]
+    assert reports == [P.CAL_REPORT.earlier[0]] * 6 + [P.CAL_REPORT.size, 28]
     e_crc = next(c for c, (n, _) in P.CAL_REASONS.items() if n == "NINEDOF_CAL_E_CRC")
     assert statuses == [e_crc, P.CAL_OK, P.CAL_OK, P.CAL_OK]   # bad CRC, apply, reset, apply
     flags_tok = rest[len(msgs)]
@@ -235,8 +248,10 @@ def test_logic_outputs_identical_and_readable_by_the_host(logic_outputs):
     assert P.MOTE_TEMP.unpack(digests[3]) == dict(seq=(0xFFC0 + 124) & 0xFFFF, count=125, reserved=0,
                                                   temp_sum=-16000 * 125 - 124)
     assert abs(float(P.temp_c(-16001)) - 25.0) < 0.01
-    # EEPROM: slot 0 holds generation 1 (version 0x25), slot 1 generation 2 (0x27)
-    assert M.image_check(digests[4], 3) == 1 and len(digests[4]) == P.CALSET_SIZE + 6
+    # EEPROM: slot 0 holds generation 3 (version 0x29, written again after
+    # 0x28 failed its read-back there), slot 1 generation 2 (0x27)
+    assert M.image_check(digests[4], 3) == 3 and len(digests[4]) == P.CALSET_SIZE + 6
+    assert digests[4][6 + 2:6 + 4] == b"\x00\x29"
     assert M.image_check(digests[5], 3) == 2
     assert P.BS_STATUS.unpack(digests[6]) == dict(radio_rx=1, radio_drops=2, serial_rx=3,
                                                   serial_drops=4, radio_fail=5,

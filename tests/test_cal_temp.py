@@ -253,25 +253,6 @@ def test_receiver_eeprom_and_the_old_second_slot():
 # --------------------------------------------------------------------------
 # Upload: cal.json format 2, an image without temperature terms, --no-temp
 # --------------------------------------------------------------------------
-class OldImage:
-    """A mote image built before the temperature terms: its receiver took
-    no byte past the 102-byte set (NINEDOF_CAL_E_FRAG), otherwise the same."""
-
-    def __init__(self, cal):
-        self._cal = cal
-
-    def handle(self, am_type, payload):
-        if am_type == P.AM_NINEDOF_CAL_FRAG_MSG:
-            f = P.CAL_FRAG.unpack(payload)
-            if f["offset"] + f["len"] > P.CALSET_SIZE:
-                return P.AM_NINEDOF_CAL_FRAG_ACK_MSG, P.CAL_FRAG_ACK.pack(
-                    mote=f["mote"], version=f["version"], offset=f["offset"], status=2)
-        return self._cal.handle(am_type, payload)
-
-    def __getattr__(self, name):
-        return getattr(self._cal, name)
-
-
 @pytest.fixture(scope="module")
 def cal_temp(tmp_path_factory):
     """A cal.json (format 2) with temperature models for gyro and accel."""
@@ -288,8 +269,10 @@ def cal_temp(tmp_path_factory):
     return path
 
 
-def _world(celsius=None):
-    w = World(motes=1, session="idle", seed=2, duration=3600.0)
+def _world(celsius=None, temperature=True):
+    """temperature=False: the mote runs an image built before the temperature
+    terms (``motecal sim --no-temp``): it refuses a set with them."""
+    w = World(motes=1, session="idle", seed=2, duration=3600.0, temperature=temperature)
     if celsius is not None:          # the board's temperature (the thermal model's place)
         w.motes[1].temperature_c = lambda t: np.full(np.shape(t), float(celsius))
     port = WorldPort(w)
@@ -305,7 +288,8 @@ def test_upload_with_temperature_terms_and_to_an_old_image(cal_temp):
     res = U.upload_cal(port, cal, 1, U.Options(), progress=U.NullProgress())
     tset, _ = U.build_set(cal, 1, 1)
     assert len(tset) == 164 and w.motes[1].cal.active_calset() == tset
-    assert res.stats.messages == 1 + 9 + 1 + 9 and res.readback
+    assert res.stats.messages == 1 + 9 + 1 + 9 + res.stored.polls and res.readback
+    assert res.stored.reported and w.motes[1].cal.stored_version == 1
     # the simulated mote corrects as the firmware: at the mean TEMP_OUT of the
     # last temperature message (35 C: -13200), before the first one at t_ref
     w.run_until(w.now + 2.0)
@@ -328,18 +312,24 @@ def test_upload_with_temperature_terms_and_to_an_old_image(cal_temp):
         return np.concatenate([head, rx.correct(raw[k:])])
     assert any(np.array_equal(got, replay(j)) for j in range(max(k - 20, 0), k + 1))
     assert np.abs(got[-150:].astype(int) - at35[-150:]).max() <= 1
-    # an old image: refused in one line, nothing changed on the mote
-    w, port = _world()
-    w.motes[1].cal = OldImage(w.motes[1].cal)
+    # an old image (the simulator's --no-temp mote): refused in one line at the
+    # first fragment past the plain set, nothing changed on the mote
+    w, port = _world(temperature=False)
     with pytest.raises(U.NoTemperature) as exc:
         U.upload_cal(port, cal, 1, U.Options(), progress=U.NullProgress())
     msg = str(exc.value)
     assert "\n" not in msg and "refused the temperature terms" in msg and "--no-temp" in msg
     assert exc.value.exit_code == 1 and w.motes[1].cal.version == 0
-    # --no-temp: the plain set, byte for byte the set of a cal.json without models
+    assert w.motes[1].cal.handle(P.AM_NINEDOF_CAL_COMMIT_MSG, P.CAL_COMMIT.pack(
+        mote=1, version=1, length=164, action=P.CAL_APPLY,
+        crc=P.crc16(tset)))[1][6] == 3          # nothing past byte 102 was staged: incomplete
+    # --no-temp: the plain set, byte for byte the set of a cal.json without models;
+    # the old image does not report its stored set: the upload waits, and says so
     res = U.upload_cal(port, cal, 1, U.Options(temperature=False), progress=U.NullProgress())
     plain = w.motes[1].cal.active_calset()
-    assert len(plain) == 102 and res.stats.messages == 1 + 6 + 1 + 6
+    assert len(plain) == 102 and res.stats.messages == 1 + 6 + 1 + 6 + 1
+    assert not res.stored.reported and res.stored.waited >= U.OLD_IMAGE_WAIT
+    assert "stored: not reported by its firmware" in U.summary(res)
     cal_plain = U.CalFile(cal.path, cal.mote, cal.physical)
     assert plain == U.build_set(cal_plain, 1, 1)[0] == FP.without_temperature(tset)
 

@@ -74,6 +74,12 @@ def test_analysis_of_a_planted_stream():
     # a 14-byte status (firmware without the fault counters) has only the first four
     assert set(FM.decode_status(bytes(14))) == {"seq", "version", "sensors", "dropped",
                                                 "send_fail", "i2c_errors", "late"}
+    # the host's decoder (checked against the header), not a field list of its own:
+    # a length that is no layout of the message is refused, as the logger refuses it
+    payload = P.MOTE_STATUS.pack(seq=1, late=9, chip_reinits=3)
+    want = P.decode_message(P.AMPacket(0, 1, 0x22, P.AM_NINEDOF_MOTE_STATUS_MSG, payload))
+    assert FM.decode_status(payload) == {k: v for k, v in want.items() if k != "reserved"}
+    assert FM.decode_status(payload[:16]) is None and not hasattr(FM, "STATUS")
 
 
 def test_analysis_clean_stream():

@@ -71,16 +71,52 @@ def test_ack_and_packet_ack_frames():
     assert f.protocol == P.PROTO_PACKET_ACK and f.seq == 0x7E and f.am() == am
     (a,) = P.decode_stream(P.encode_ack(0x7E))
     assert a.protocol == P.PROTO_ACK and a.seq == 0x7E
-    assert P.decode_message(am) == {"mote": 5, "offset": 20}
+    assert P.decode_message(am) == {"mote": 5, "offset": 20, "flags": 0}
 
 
 def test_fixed_messages_roundtrip():
     data = bytes(range(20))
     v = dict(mote=7, version=513, offset=40, len=20, data=data)
     assert P.CAL_FRAG.unpack(P.CAL_FRAG.pack(**v)) == v
-    assert P.CAL_FRAG.size == 26 and P.CAL_REPORT.size == 28
-    with pytest.raises(ValueError):
+    assert P.CAL_FRAG.size == 26 and P.CAL_REPORT.size == 33 and P.CAL_REPORT.earlier == (28,)
+    with pytest.raises(ValueError, match="5 bytes, expected 26 or more"):
         P.CAL_FRAG.unpack(b"\0" * 5)
+
+
+def _am(spec, payload):
+    return P.AMPacket(0, 7, P.DEFAULT_GROUP, spec.am_type, payload)
+
+
+@pytest.mark.parametrize("spec", [s for s in P.FIXED_MESSAGES.values()], ids=lambda s: s.name)
+def test_messages_grow_at_their_end(spec):
+    """The rule for every fixed message (NineDofMsg.h, "How messages
+    change"): a payload of the current size or of one of its earlier sizes
+    decodes, the fields appended since absent; a longer one (a newer image's)
+    decodes by the fields known, the rest ignored; any other length is
+    refused (None), never raised."""
+    values = {f.name: (bytes(range(1, f.count + 1)) if f.fmt == "B" else
+                       tuple(range(1, f.count + 1))) if f.count > 1 else i + 1
+              for i, f in enumerate(spec.fields)}
+    full = spec.pack(**values)
+    assert P.decode_message(_am(spec, full)) == values
+    assert P.decode_message(_am(spec, full + b"\x99" * 7)) == values      # a newer layout
+    sizes = spec.earlier + (spec.size,)
+    for n in range(len(full)):
+        got = P.decode_message(_am(spec, full[:n]))
+        if n in sizes:
+            known = {k: v for k, v in values.items() if k not in spec.fields_since(n)}
+            assert got == known, n
+            assert spec.fields_since(n) and list(got) == [f.name for f in spec.fields][:len(got)]
+        else:
+            assert got is None, n
+
+
+def test_an_earlier_size_must_end_at_a_field():
+    with pytest.raises(ValueError, match="must end at fields"):
+        P.MessageSpec("x", None, (P.Field("a", P.U16), P.Field("b", P.U16)), earlier=(3,))
+    with pytest.raises(ValueError, match="oldest first"):
+        P.MessageSpec("x", None, (P.Field("a", P.U8), P.Field("b", P.U8), P.Field("c", P.U8)),
+                      earlier=(2, 1))
 
 
 def _stream(n=200, seed=0):

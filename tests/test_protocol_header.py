@@ -1,4 +1,5 @@
 """The host's message layouts must be exactly those of tinyos/NineDofMsg.h."""
+import re
 import subprocess
 
 import pytest
@@ -113,3 +114,38 @@ def test_c_compiler_agrees_on_sizes(tmp_path):
     expect = [18, P.samples_payload_size(P.NINEDOF_BATCH), P.CALSET_SIZE, P.CALSET_TEMP_SIZE] + \
         [s.size for s in P.FIXED_MESSAGES.values()]
     assert sizes == expect
+
+
+def _earlier_name(spec: P.MessageSpec, k: int) -> str:
+    """ninedof_cal_report_msg -> NINEDOF_CAL_REPORT_SIZE_V1"""
+    stem = spec.name.removeprefix("ninedof_").removesuffix("_msg").upper()
+    return f"NINEDOF_{stem}_SIZE_V{k}"
+
+
+def test_earlier_sizes_match_header(hdr):
+    """Every size a message had before it grew at its end is declared once,
+    in the header (NINEDOF_<NAME>_SIZE_V<n>, oldest first), and protocol.py
+    decodes exactly those (MessageSpec.earlier); each ends at a field of the
+    header's layout."""
+    declared = {k for k in hdr.constants if re.fullmatch(r"NINEDOF_\w+_SIZE_V\d+", k)}
+    seen = set()
+    for spec in P.FIXED_MESSAGES.values():
+        names = [_earlier_name(spec, k + 1) for k in range(len(spec.earlier))]
+        assert [hdr.constants[n] for n in names] == list(spec.earlier), spec.name
+        assert _earlier_name(spec, len(spec.earlier) + 1) not in hdr.constants, spec.name
+        seen.update(names)
+        ends, at = set(), 0
+        for f in hdr.structs[spec.name].fields:
+            at += hdr.sizeof(f.ctype) * hdr.dim(f.dim)
+            ends.add(at)
+        assert set(spec.earlier) <= ends, spec.name
+    assert declared == seen
+    assert (P.MOTE_STATUS.earlier, P.CAL_QUERY.earlier, P.CAL_REPORT.earlier) == \
+        ((14,), (3,), (28,))
+
+
+def test_query_flags_and_store_states_match_header(hdr):
+    assert hdr.constants["NINEDOF_QUERY_STORED"] == P.QUERY_STORED
+    assert (hdr.constants["NINEDOF_STORE_IDLE"], hdr.constants["NINEDOF_STORE_WRITING"],
+            hdr.constants["NINEDOF_STORE_FAILED"]) == (P.STORE_IDLE, P.STORE_WRITING,
+                                                        P.STORE_FAILED)

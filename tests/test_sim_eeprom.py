@@ -30,9 +30,9 @@ def test_uploaded_set_survives_a_reboot(tmp_path, cal):
     w.run_until(0.5)
     res = U.upload_cal(port, cal, 1, U.Options(), progress=U.NullProgress())
     assert res.version == 1
-    # the image is written byte by byte in the background: not yet complete
-    assert w.motes[1].eeprom_writes == 0
-    w.run_until(w.now + 1.0)            # 108 bytes x 3.4 ms = 0.37 s
+    # the image is written byte by byte in the background (108 bytes x 3.4 ms
+    # = 0.37 s), read back, and only then reported stored: the upload waited
+    assert res.stored.reported and res.stored.seconds > 0.37
     assert w.motes[1].eeprom_writes == 1 and w.motes[2].eeprom_writes == 0
     saved = json.loads(ee.read_text())
     assert saved["format"] == "motecal-sim-eeprom" and set(saved["motes"]) == {"1", "2"}
@@ -57,9 +57,12 @@ def test_torn_write_falls_back_to_the_older_set(tmp_path, cal):
     U.upload_cal(port, cal, 1, U.Options(), progress=U.NullProgress())
     w.run_until(w.now + 1.0)
     first = w.motes[1].cal.active_calset()
-    U.upload_cal(port, cal, 1, U.Options(version=7), progress=U.NullProgress())
+    up = U.Uploader(U.Link(port), 1)
+    calset = U.build_set(cal, 1, 7)[0]
+    up.stage(calset)
+    up.apply(7, P.crc16(calset))
     w.run_until(w.now + 0.1)            # about 30 of 108 bytes written, then "power off"
-    assert w.motes[1].ee.busy
+    assert w.motes[1].ee.busy and w.motes[1].cal.stored_version == 1
     from motecal.sim.world import _save_eeproms
     _save_eeproms(ee, w.eeproms)        # what the chip holds at that moment
     w2 = World(motes=1, session="idle", seed=2, duration=1.0, eeprom=ee)

@@ -69,11 +69,15 @@ def test_upload_completes_bit_identical_and_the_mote_corrects(cal, loss):
     st = res.stats
     print(f"loss {loss:.0%}: {res.seconds:.3f} simulated s, {st.messages} messages, "
           f"{st.retries} repeated")
-    assert st.messages == 1 + 6 + 1 + 6                   # query, fragments, commit, read-back
+    # query, fragments, commit, read-back, then queries of the stored set
+    assert st.messages == 1 + 6 + 1 + 6 + res.stored.polls
+    assert res.stored.reported and rx.stored_version == 1 and rx.stored_crc == P.crc16(calset)
+    # 108 bytes at 3.4 ms from the commit, then a query: not before, and at most one poll after
+    assert 0.37 < res.stored.seconds < 0.37 + (0.8 if loss else 0.15)
     if loss:
         assert st.retries > 0 and res.seconds < 15.0
     else:
-        assert st.retries == 0 and st.serial_retries == 0 and res.seconds < 0.5
+        assert st.retries == 0 and st.serial_retries == 0 and res.seconds < 0.7
     # what reached the line: raw, then corrected with the new flags (never back)
     w.run_until(w.now + 2.0)
     sent = w.sent[1]

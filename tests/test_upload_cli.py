@@ -188,10 +188,16 @@ def test_upload_show_reset_and_a_silent_mote_over_tcp(served, cal_path, capsys):
     assert out[7] == (f"  commit: accepted, mote CRC 0x{crc:04x} = ours, version 1 in force, "
                       "corrected: accel, gyro, mag")
     assert f"  read-back: 102 bytes identical, CRC 0x{crc:04x}" in out
-    assert "  samples: 3 messages in a row flagged corrected, version low bits 1" in out[-2]
-    assert out[-1].startswith("mote 1: calibration version 1 in force and verified (was 0); "
-                              "14 messages, 0 repeated, 0 serial repeats, ")
+    assert "  samples: 3 messages in a row flagged corrected, version low bits 1" in out[-3]
+    assert out[-2].startswith("  stored: version 1 written to the EEPROM and read back, ")
+    assert out[-2].endswith(" s after the commit; a reset keeps it")
+    polls = int(out[-1].split("; ")[1].split()[0]) - 14
+    assert 1 <= polls <= 8
+    assert out[-1].startswith("mote 1: calibration version 1 (was 0) in force and verified, and "
+                              f"stored (survives a reboot); {14 + polls} messages, 0 repeated, "
+                              "0 serial repeats, ")
     assert world.motes[1].cal.active_calset() == calset
+    assert world.motes[1].cal.stored_version == 1
 
     show = _in_process(capsys, "--show", cal_path, "--port", url)
     assert show[0] == (f"mote 1: calibration version 1 in force (CRC 0x{crc:04x}), corrected: "
@@ -201,7 +207,9 @@ def test_upload_show_reset_and_a_silent_mote_over_tcp(served, cal_path, capsys):
 
     out = _in_process(capsys, "--reset", "--mote", 1, "--port", url)
     assert "  reset: accepted, raw output, version 2 in force" in out
-    assert out[-1].startswith("mote 1: raw output version 2 in force and verified (was 1)")
+    assert out[-1].startswith("mote 1: raw output version 2 (was 1) in force and verified, and "
+                              "stored (survives a reboot); ")
+    assert world.motes[1].cal.stored_version == 2
     out = _in_process(capsys, "--show", "--mote", 1, "--port", url)
     assert out[0] == (f"mote 1: calibration version 2 in force (CRC "
                       f"0x{world.motes[1].cal.crc:04x}), corrected: none (raw output)")

@@ -5,7 +5,9 @@ does two static80 sessions in a row, ``session="static80,static80"``):
    reading the world in simulated time up to the end of the first part);
 2. ``motecal calibrate --db .. --session raw --out cal.json --upload --port
    socket://.. --mote 1``, a subprocess talking to the same world over TCP
-   (``serve_in_thread``, paced at real time): calibrate, gate, upload, verify;
+   (``serve_in_thread``, paced at real time): calibrate, gate, upload,
+   verify, stored; the world stopped as the command exits and booted again
+   on its EEPROM file has the new set in force;
 3. log again, guided, 12 poses of the second part (in process).
 
 The second session is flagged corrected with version 1, every record is what
@@ -64,7 +66,8 @@ def _pose_means(rec, label, sl, k):
 
 
 def test_log_calibrate_upload_log_again(tmp_path):
-    world = World(motes=1, session="static80,static80", seed=1)
+    ee = tmp_path / "eeprom.json"
+    world = World(motes=1, session="static80,static80", seed=1, eeprom=ee)
     db, cal_path = tmp_path / "e2e.db", tmp_path / "cal.json"
     part2 = world.trajectory.start[1]
     first = _log(world, db, "raw", until=part2, poses=80)
@@ -84,6 +87,10 @@ def test_log_calibrate_upload_log_again(tmp_path):
     assert r.returncode == 0, r.stdout + r.stderr
     up_out = r.stdout
     uploaded_at = world.now
+    # the simulator stopped the moment calibrate --upload exited: started again
+    # on the same EEPROM file, the mote boots with the new set (issue 29)
+    rebooted = World(motes=1, session="idle", seed=1, duration=1.0, eeprom=ee).motes[1].cal
+    assert rebooted.version == 1 and rebooted.active_calset() == world.motes[1].cal.active_calset()
     assert logged_to < uploaded_at < part2 + 60
     second = _log(world, db, "after", until=world.duration, poses=12)
     assert second.guide.done
@@ -93,7 +100,9 @@ def test_log_calibrate_upload_log_again(tmp_path):
     assert "mote 1: version 0 in force" in up_out
     assert "commit: accepted" in up_out and "read-back: 102 bytes identical" in up_out
     assert "samples: 3 messages in a row flagged corrected, version low bits 1" in up_out
-    assert "mote 1: calibration version 1 in force and verified (was 0)" in up_out
+    assert "mote 1: calibration version 1 (was 0) in force and verified, and stored (survives " \
+           "a reboot)" in up_out
+    assert "  stored: version 1 written to the EEPROM and read back" in up_out
     cal = U.load_cal(cal_path)
     calset, report = U.build_set(cal, 1, 1)
     assert world.motes[1].cal.active_calset() == calset

@@ -54,6 +54,24 @@ enum {
   NINEDOF_TEMP_PERIOD_MS = 1000,
 };
 
+/* ---------------------------------------------------------------------- */
+/* How messages change                                                     */
+/* ---------------------------------------------------------------------- */
+/* A message only ever grows at its end.  A host decodes a payload of one
+ * of the message's earlier sizes (below: an older image's or host's) with
+ * the fields it lacks absent, and a longer payload (a newer image's) by the
+ * fields it knows, ignoring the rest (MessageSpec.decode in
+ * host/motecal/line/protocol.py).  A reply grows only when its request asks
+ * for it, through a request field appended at the same time, so hosts built
+ * before a change keep working with images built after it, and the other
+ * way round.  tests/test_protocol_header.py checks these sizes against
+ * protocol.py and that each ends at a field. */
+enum {
+  NINEDOF_MOTE_STATUS_SIZE_V1 = 14,   /* before i2c_nacks, bus_resets, chip_reinits */
+  NINEDOF_CAL_QUERY_SIZE_V1 = 3,      /* before flags */
+  NINEDOF_CAL_REPORT_SIZE_V1 = 28,    /* before stored_version, stored_crc, store */
+};
+
 /* Sample message flags */
 enum {
   NINEDOF_FLAG_CORRECTED = 0x01,      /* records are corrected on the mote */
@@ -199,7 +217,16 @@ typedef nx_struct ninedof_cal_commit_ack_msg {
 typedef nx_struct ninedof_cal_query_msg {
   nx_uint16_t mote;
   nx_uint8_t offset;       /* first byte wanted of the set in force */
+  /* Appended with the stored-set report (NINEDOF_CAL_QUERY_SIZE_V1 bytes
+   * before): a host built before sends the query without it, and an image
+   * built before ignores it (it answers the report without the stored set). */
+  nx_uint8_t flags;        /* NINEDOF_QUERY_STORED: answer with the stored set */
 } ninedof_cal_query_msg_t;
+
+/* Query flags */
+enum {
+  NINEDOF_QUERY_STORED = 0x01,  /* the report's stored_* fields are wanted */
+};
 
 typedef nx_struct ninedof_cal_report_msg {
   nx_uint16_t mote;
@@ -208,7 +235,23 @@ typedef nx_struct ninedof_cal_report_msg {
   nx_uint8_t offset;
   nx_uint8_t len;          /* 0 when offset is past the end */
   nx_uint8_t data[NINEDOF_FRAG_DATA];
+  /* Appended with the stored-set report: sent only in reply to a query with
+   * NINEDOF_QUERY_STORED (else the report ends here, at
+   * NINEDOF_CAL_REPORT_SIZE_V1 bytes, as hosts built before expect it). */
+  nx_uint16_t stored_version; /* version of the set the EEPROM holds, written and
+                                 read back: the set a reset or power loss puts in
+                                 force; 0: none (a reset gives raw output, version 0) */
+  nx_uint16_t stored_crc;  /* CRC of that set (0 when none) */
+  nx_uint8_t store;        /* NINEDOF_STORE_*: the EEPROM writer's state */
 } ninedof_cal_report_msg_t;
+
+/* The EEPROM writer's state (ninedof_cal_report_msg.store) */
+enum {
+  NINEDOF_STORE_IDLE = 0,       /* nothing to write: the stored set is the newest it was given */
+  NINEDOF_STORE_WRITING = 1,    /* writing (or about to read back) the set in force */
+  NINEDOF_STORE_FAILED = 2,     /* the set in force was written but did not read back
+                                   right, NINEDOF_STORE_TRIES times: not stored */
+};
 
 /* ---------------------------------------------------------------------- */
 /* Status counters                                                         */
@@ -223,7 +266,7 @@ typedef nx_struct ninedof_mote_status_msg {
   nx_uint16_t i2c_errors;    /* sensor reads that failed */
   nx_uint16_t late;          /* periods whose read had not finished in time */
   /* Appended with the fault handling (ninedof_fault.h); a mote built before
-   * sends the message without them (14 bytes), which the host accepts. */
+   * sends the message without them (NINEDOF_MOTE_STATUS_SIZE_V1 bytes). */
   nx_uint16_t i2c_nacks;     /* I2C operations a chip did not acknowledge */
   nx_uint16_t bus_resets;    /* hung I2C operations aborted, bus cleared */
   nx_uint16_t chip_reinits;  /* chips found with reset registers, configured again */

@@ -44,5 +44,9 @@ void ninedof_calrx_set_dirty(ninedof_calrx_t *rx, uint8_t dirty);
 /* Wire bytes of the set in force (ninedof_calrx_active_len of them) */
 void ninedof_calrx_active(const ninedof_calrx_t *rx, uint8_t *out);
 uint8_t ninedof_calrx_active_len(const ninedof_calrx_t *rx);
+/* The stored set (version 0: none) and the EEPROM writer's state */
+uint16_t ninedof_calrx_stored_version(const ninedof_calrx_t *rx);
+uint16_t ninedof_calrx_stored_crc(const ninedof_calrx_t *rx);
+uint8_t ninedof_calrx_store(const ninedof_calrx_t *rx);
 
 #endif /* NINEDOF_CAL_H */

@@ -138,6 +138,7 @@ static uint8_t commit_apply(ninedof_calrx_t *rx, uint16_t version, uint8_t lengt
     return NINEDOF_CAL_OK;
   set_active(rx, rx->staged, length, &cal);
   rx->dirty = 1;
+  rx->store = NINEDOF_STORE_WRITING;      /* until ninedof_eewriter_check says */
   return NINEDOF_CAL_OK;
 }
 
@@ -163,6 +164,7 @@ static uint8_t handle_commit(ninedof_calrx_t *rx, const ninedof_cal_commit_msg_t
       if (rx->active.sensors != 0 || rx->active.version != version) {
         active_identity(rx, version);
         rx->dirty = 1;
+        rx->store = NINEDOF_STORE_WRITING;
       }
       crc = rx->active_crc;
     }
@@ -178,11 +180,15 @@ static uint8_t handle_commit(ninedof_calrx_t *rx, const ninedof_cal_commit_msg_t
   return (uint8_t)sizeof(*ack);
 }
 
+/* A query of `qlen` bytes: one of NINEDOF_CAL_QUERY_SIZE_V1 bytes (a host
+ * built before the stored-set report) has no flags and gets the report of
+ * that time, NINEDOF_CAL_REPORT_SIZE_V1 bytes. */
 static uint8_t handle_query(ninedof_calrx_t *rx, const ninedof_cal_query_msg_t *m,
-                            uint8_t *reply, uint8_t *reply_type)
+                            uint8_t qlen, uint8_t *reply, uint8_t *reply_type)
 {
   ninedof_cal_report_msg_t *rep = (ninedof_cal_report_msg_t *)reply;
   uint8_t offset = nxp_get_u8(&m->offset);
+  uint8_t stored = qlen >= sizeof(*m) && (nxp_get_u8(&m->flags) & NINEDOF_QUERY_STORED);
   uint8_t len = 0;
 
   if (nxp_get_u16(&m->mote) != rx->my_id)
@@ -200,6 +206,11 @@ static uint8_t handle_query(ninedof_calrx_t *rx, const ninedof_cal_query_msg_t *
   nxp_set_u8(&rep->offset, offset);
   nxp_set_u8(&rep->len, len);
   *reply_type = AM_NINEDOF_CAL_REPORT_MSG;
+  if (!stored)
+    return NINEDOF_CAL_REPORT_SIZE_V1;
+  nxp_set_u16(&rep->stored_version, rx->stored_version);
+  nxp_set_u16(&rep->stored_crc, rx->stored_crc);
+  nxp_set_u8(&rep->store, rx->store);
   return (uint8_t)sizeof(*rep);
 }
 
@@ -217,9 +228,10 @@ uint8_t ninedof_calrx_handle(ninedof_calrx_t *rx, uint8_t am_type,
       return 0;
     return handle_commit(rx, (const ninedof_cal_commit_msg_t *)payload, reply, reply_type);
   case AM_NINEDOF_CAL_QUERY_MSG:
-    if (len < sizeof(ninedof_cal_query_msg_t))
+    if (len < NINEDOF_CAL_QUERY_SIZE_V1)             /* the query of older hosts too */
       return 0;
-    return handle_query(rx, (const ninedof_cal_query_msg_t *)payload, reply, reply_type);
+    return handle_query(rx, (const ninedof_cal_query_msg_t *)payload, len, reply,
+                        reply_type);
   default:
     return 0;
   }
@@ -327,6 +339,8 @@ uint8_t ninedof_calrx_restore(ninedof_calrx_t *rx,
   ninedof_cal_decode(img[used] + 6, len, &cal);
   set_active(rx, img[used] + 6, len, &cal);
   rx->dirty = 0;
+  rx->stored_version = rx->active.version;          /* what a reset brings back */
+  rx->stored_crc = rx->active_crc;
   /* slot 0 spans the old slot 1: after either old slot, write slot 1 */
   *next_slot = (uint8_t)(used == 1 ? 0 : 1);
   *next_generation = (uint16_t)(gen[used] + 1);

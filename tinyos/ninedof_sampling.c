@@ -139,13 +139,14 @@ void ninedof_eewriter_init(ninedof_eewriter_t *w, uint8_t next_slot,
                            uint16_t next_generation)
 {
   w->pos = w->len = 0;
+  w->tries = 0;
   w->slot = next_slot & 1;
   w->generation = next_generation;
 }
 
 uint8_t ninedof_eewriter_busy(const ninedof_eewriter_t *w)
 {
-  return w->pos < w->len;
+  return w->len != 0;
 }
 
 uint8_t ninedof_eewriter_poll(ninedof_eewriter_t *w, ninedof_calrx_t *rx)
@@ -154,8 +155,12 @@ uint8_t ninedof_eewriter_poll(ninedof_eewriter_t *w, ninedof_calrx_t *rx)
     return 0;
   /* restart (same slot, same generation) if a write was in progress */
   w->len = ninedof_calrx_image(rx, w->generation, w->image);
+  w->version = rx->active.version;
+  w->crc = rx->active_crc;
   rx->dirty = 0;
+  rx->store = NINEDOF_STORE_WRITING;
   w->pos = 0;
+  w->tries = 0;
   return 1;
 }
 
@@ -166,9 +171,38 @@ uint8_t ninedof_eewriter_next(ninedof_eewriter_t *w, uint16_t *addr, uint8_t *va
   *addr = (uint16_t)(ninedof_slot_addr(w->slot) + w->pos);
   *value = w->image[w->pos];
   w->pos++;
-  if (w->pos == w->len) {                 /* image complete */
-    w->slot ^= 1;
-    w->generation++;
-  }
   return 1;
+}
+
+uint8_t ninedof_eewriter_pending(const ninedof_eewriter_t *w)
+{
+  return w->len != 0 && w->pos >= w->len;
+}
+
+uint16_t ninedof_eewriter_addr(const ninedof_eewriter_t *w)
+{
+  return ninedof_slot_addr(w->slot);
+}
+
+uint8_t ninedof_eewriter_check(ninedof_eewriter_t *w, ninedof_calrx_t *rx,
+                               const uint8_t *slot_bytes)
+{
+  if (!ninedof_eewriter_pending(w))
+    return 0;
+  if (memcmp(slot_bytes, w->image, w->len) == 0) {
+    rx->stored_version = w->version;      /* a reset now brings this set back */
+    rx->stored_crc = w->crc;
+    rx->store = NINEDOF_STORE_IDLE;
+    w->slot ^= 1;                         /* the next image goes to the other slot */
+    w->generation++;
+    w->len = w->pos = 0;
+    return NINEDOF_EE_STORED;
+  }
+  if (++w->tries < NINEDOF_STORE_TRIES) {
+    w->pos = 0;                           /* again; bytes already right are skipped */
+    return NINEDOF_EE_AGAIN;
+  }
+  rx->store = NINEDOF_STORE_FAILED;
+  w->len = w->pos = 0;
+  return NINEDOF_EE_FAILED;
 }

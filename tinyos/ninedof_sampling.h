@@ -134,31 +134,62 @@ uint8_t ninedof_batch_pack(ninedof_batch_t *b, ninedof_calrx_t *rx,
 /* ---------------------------------------------------------------------- */
 /* Writes the image of the set in force into the slot that does not hold
  * the newest valid image, one byte per step (an EEPROM byte write takes
- * 3.4 ms; sampling goes on meanwhile).  A reset or power loss in the middle
- * leaves a slot with a bad CRC, and boot falls back to the other slot.  A
- * commit during a write restarts the write of the newer image into the same
- * slot. */
+ * 3.4 ms; sampling goes on meanwhile), then reads the slot back: only an
+ * image read back intact is stored (rx->stored_*, the report's stored set),
+ * and only then does the next image go to the other slot.  A reset or power
+ * loss before that leaves the slot with a bad CRC or an older generation,
+ * and boot takes the other slot: the stored set.  A commit during a write
+ * restarts the write of the newer image into the same slot.  An image that
+ * does not read back right is written again (bytes already right are
+ * skipped), NINEDOF_STORE_TRIES times in all; then rx->store =
+ * NINEDOF_STORE_FAILED and the stored set stays the older one. */
+#ifndef NINEDOF_STORE_TRIES
+#define NINEDOF_STORE_TRIES 3
+#endif
+
 typedef struct {
   uint8_t image[NINEDOF_IMAGE_MAX];
-  uint8_t len;                 /* bytes of the image being written */
-  uint8_t pos;                 /* next byte; == len when idle */
+  uint8_t len;                 /* bytes of the image being written; 0 when idle */
+  uint8_t pos;                 /* next byte to hand out; == len: all out, to be checked */
   uint8_t slot;                /* slot being written / to write next */
+  uint8_t tries;               /* writes of this image checked and found wrong */
   uint16_t generation;         /* generation being written / to write next */
+  uint16_t version;            /* the set in the image: its version ... */
+  uint16_t crc;                /* ... and CRC (the report's stored_version, stored_crc) */
 } ninedof_eewriter_t;
 
 /* After ninedof_calrx_restore(): where to write next. */
 void ninedof_eewriter_init(ninedof_eewriter_t *w, uint8_t next_slot,
                            uint16_t next_generation);
 
-/* If rx->dirty, snapshot its image, clear dirty and (re)start writing.
- * Returns 1 if a write was started. */
+/* If rx->dirty, snapshot its image, clear dirty and (re)start writing
+ * (rx->store = NINEDOF_STORE_WRITING).  Returns 1 if a write was started. */
 uint8_t ninedof_eewriter_poll(ninedof_eewriter_t *w, ninedof_calrx_t *rx);
 
 /* The next byte to write: 1 and its EEPROM address and value, or 0 when
- * nothing is left.  Handing out the last byte completes the image: the
- * following write goes to the other slot with the next generation. */
+ * every byte of the image was handed out (or nothing is being written). */
 uint8_t ninedof_eewriter_next(ninedof_eewriter_t *w, uint16_t *addr, uint8_t *value);
 
+/* Every byte was handed out and the image waits for ninedof_eewriter_check:
+ * read w->len bytes at ninedof_eewriter_addr(w) once the last write is done. */
+uint8_t ninedof_eewriter_pending(const ninedof_eewriter_t *w);
+uint16_t ninedof_eewriter_addr(const ninedof_eewriter_t *w);
+
+/* What the EEPROM holds at the slot (w->len bytes, read after the last
+ * write completed), against the image:
+ *   NINEDOF_EE_STORED  the same: rx->stored_* = the image's set, rx->store =
+ *                      NINEDOF_STORE_IDLE, the next image goes to the other
+ *                      slot with the next generation; the writer is idle
+ *   NINEDOF_EE_AGAIN   not the same: the image is written again (next())
+ *   NINEDOF_EE_FAILED  not the same, NINEDOF_STORE_TRIES times: rx->store =
+ *                      NINEDOF_STORE_FAILED, the writer is idle, the stored
+ *                      set and the slot to write next stay as they were
+ * (0 if nothing was pending). */
+enum { NINEDOF_EE_STORED = 1, NINEDOF_EE_AGAIN = 2, NINEDOF_EE_FAILED = 3 };
+uint8_t ninedof_eewriter_check(ninedof_eewriter_t *w, ninedof_calrx_t *rx,
+                               const uint8_t *slot_bytes);
+
+/* A write is under way or waits for its check. */
 uint8_t ninedof_eewriter_busy(const ninedof_eewriter_t *w);
 
 /* EEPROM address of a slot */

@@ -60,7 +60,7 @@ static ninedof_align_t align;
 static uint16_t align_seq;
 static int16_t raw[NINEDOF_BATCH * 9], out[NINEDOF_BATCH * 9];
 static uint8_t bytes[3][6];
-static uint8_t reply[32], rtype;
+static uint8_t reply[sizeof(ninedof_cal_report_msg_t)], rtype;
 static ninedof_calset_t wire;
 static ninedof_cal_frag_msg_t frag;
 static ninedof_cal_commit_msg_t commit;

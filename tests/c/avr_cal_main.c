@@ -34,7 +34,7 @@ static uint8_t wire[NINEDOF_CALSET_MAX];
 static int16_t raw[NINEDOF_BATCH * 9];
 static int16_t out[NINEDOF_BATCH * 9];
 static uint8_t msg[255];
-static uint8_t reply[32];
+static uint8_t reply[sizeof(ninedof_cal_report_msg_t)];
 static uint8_t img0[NINEDOF_IMAGE_MAX], img1[NINEDOF_IMAGE_MAX];
 
 int main(void)

@@ -388,7 +388,7 @@ static void upload(const ninedof_cal_t *cal)
   ninedof_calset_t wire;
   ninedof_cal_frag_msg_t frag;
   ninedof_cal_commit_msg_t commit;
-  uint8_t reply[32], rtype, off;
+  uint8_t reply[sizeof(ninedof_cal_report_msg_t)], rtype, off;
   const uint8_t *bytes = (const uint8_t *)&wire;
 
   ninedof_cal_encode(cal, &wire);
@@ -612,6 +612,29 @@ static uint16_t ee_run(uint16_t limit)
   return n;
 }
 
+/* The writer's read-back of the slot it wrote (as NineDofCalibrationP) */
+static uint8_t ee_check(void)
+{
+  return ninedof_eewriter_check(&ew, &rx, eeprom + ninedof_eewriter_addr(&ew));
+}
+
+/* The stored set the report gives (a query with NINEDOF_QUERY_STORED) */
+static void stored_report(uint16_t *version, uint16_t *crc, uint8_t *store, uint8_t *len)
+{
+  ninedof_cal_query_msg_t q;
+  uint8_t reply[sizeof(ninedof_cal_report_msg_t)], rtype;
+  const ninedof_cal_report_msg_t *rep = (const ninedof_cal_report_msg_t *)reply;
+
+  nxp_set_u16(&q.mote, 3);
+  nxp_set_u8(&q.offset, 0);
+  nxp_set_u8(&q.flags, NINEDOF_QUERY_STORED);
+  *len = ninedof_calrx_handle(&rx, AM_NINEDOF_CAL_QUERY_MSG, (uint8_t *)&q, sizeof(q),
+                              reply, &rtype);
+  *version = nxp_get_u16(&rep->stored_version);
+  *crc = nxp_get_u16(&rep->stored_crc);
+  *store = nxp_get_u8(&rep->store);
+}
+
 static uint8_t boot(ninedof_calrx_t *r, uint8_t *next_slot, uint16_t *next_gen)
 {
   ninedof_calrx_init(r, 3);
@@ -627,23 +650,41 @@ static void test_eeprom(void)
   uint8_t slot, used;
   uint16_t gen;
 
+  uint16_t sv, scrc;
+  uint8_t store, len;
+
   memset(eeprom, 0xFF, sizeof(eeprom));                      /* erased EEPROM */
   used = boot(&r2, &slot, &gen);
   CHECK(used == 0xFF && slot == 0 && gen == 1);
+  CHECK(r2.stored_version == 0 && r2.stored_crc == 0 && r2.store == NINEDOF_STORE_IDLE);
   ninedof_eewriter_init(&ew, slot, gen);
+  CHECK(rx.store == NINEDOF_STORE_WRITING);        /* since the upload's commit */
   CHECK(ninedof_eewriter_poll(&ew, &rx));          /* rx is dirty since the upload */
-  CHECK(!rx.dirty);
-  CHECK(ee_run(1000) == NINEDOF_IMAGE_SIZE && !ninedof_eewriter_busy(&ew));
+  CHECK(!rx.dirty && rx.store == NINEDOF_STORE_WRITING);
+  CHECK(ee_run(1000) == NINEDOF_IMAGE_SIZE);
+  /* every byte written, not yet read back: not stored */
+  CHECK(ninedof_eewriter_busy(&ew) && ninedof_eewriter_pending(&ew));
+  stored_report(&sv, &scrc, &store, &len);
+  CHECK(len == sizeof(ninedof_cal_report_msg_t) && len == 33);
+  CHECK(sv == 0 && scrc == 0 && store == NINEDOF_STORE_WRITING);
+  CHECK(ee_check() == NINEDOF_EE_STORED && !ninedof_eewriter_busy(&ew));
+  stored_report(&sv, &scrc, &store, &len);
+  CHECK(sv == 0x25 && scrc == rx.active_crc && store == NINEDOF_STORE_IDLE);
+  CHECK(ee_check() == 0 && ee_run(10) == 0);       /* nothing pending */
   used = boot(&r2, &slot, &gen);
   CHECK(used == 0 && slot == 1 && gen == 2 && r2.active.version == 0x25);
   CHECK(r2.active_crc == rx.active_crc);
+  CHECK(r2.stored_version == 0x25 && r2.stored_crc == rx.active_crc);   /* boot: stored */
 
-  /* a second set goes to slot 1; power cut half-way keeps the first set */
+  /* a second set goes to slot 1; power cut half-way keeps the first set,
+   * and until the write is read back the first is the one reported stored */
   ninedof_cal_identity(&cal, 3, 0x26);
   cal.sensors = 1u << NINEDOF_SENSOR_GYRO;
   upload(&cal);
   CHECK(ninedof_eewriter_poll(&ew, &rx));
-  CHECK(ee_run(50) == 50 && ninedof_eewriter_busy(&ew));
+  CHECK(ee_run(50) == 50 && ninedof_eewriter_busy(&ew) && !ninedof_eewriter_pending(&ew));
+  stored_report(&sv, &scrc, &store, &len);
+  CHECK(sv == 0x25 && store == NINEDOF_STORE_WRITING);
   used = boot(&r2, &slot, &gen);
   CHECK(used == 0 && r2.active.version == 0x25 && slot == 1 && gen == 2);
 
@@ -652,12 +693,42 @@ static void test_eeprom(void)
   upload(&cal);
   CHECK(ninedof_eewriter_poll(&ew, &rx));
   CHECK(ee_run(1000) == NINEDOF_IMAGE_SIZE);
+  /* written but not read back when the power goes: boot takes slot 1 (a
+   * whole image), though the mote never said it was stored */
+  CHECK(ee_check() == NINEDOF_EE_STORED && rx.stored_version == 0x27);
   used = boot(&r2, &slot, &gen);
   CHECK(used == 1 && r2.active.version == 0x27 && slot == 0 && gen == 3);
   CHECK(ninedof_calrx_flags(&r2) == (0x70 | NINEDOF_FLAG_CORRECTED));
 
   /* nothing to do when nothing changed */
   CHECK(!ninedof_eewriter_poll(&ew, &rx) && ee_run(1000) == 0);
+
+  /* an EEPROM that does not keep a byte: read back wrong, written again,
+   * NINEDOF_STORE_TRIES times, then failed; the stored set stays 0x27, and
+   * the next set goes to the same slot with the same generation */
+  cal.version = 0x28;
+  upload(&cal);
+  CHECK(ninedof_eewriter_poll(&ew, &rx));
+  {
+    uint8_t t;
+    for (t = 1; t <= NINEDOF_STORE_TRIES; t++) {
+      CHECK(ee_run(1000) == NINEDOF_IMAGE_SIZE);
+      eeprom[NINEDOF_EEPROM_SLOT0 + 40] ^= 0x10;   /* the cell does not hold it */
+      CHECK(ee_check() == (t < NINEDOF_STORE_TRIES ? NINEDOF_EE_AGAIN : NINEDOF_EE_FAILED));
+    }
+  }
+  CHECK(!ninedof_eewriter_busy(&ew) && rx.store == NINEDOF_STORE_FAILED);
+  stored_report(&sv, &scrc, &store, &len);
+  CHECK(sv == 0x27 && store == NINEDOF_STORE_FAILED && rx.active.version == 0x28);
+  used = boot(&r2, &slot, &gen);
+  CHECK(used == 1 && r2.active.version == 0x27 && slot == 0 && gen == 3);
+  cal.version = 0x29;                              /* the next commit: written again */
+  upload(&cal);
+  CHECK(rx.store == NINEDOF_STORE_WRITING && ninedof_eewriter_poll(&ew, &rx));
+  CHECK(ee_run(1000) == NINEDOF_IMAGE_SIZE && ee_check() == NINEDOF_EE_STORED);
+  CHECK(rx.stored_version == 0x29 && rx.store == NINEDOF_STORE_IDLE);
+  used = boot(&r2, &slot, &gen);
+  CHECK(used == 0 && r2.active.version == 0x29 && slot == 1 && gen == 4);
   out_c('D');
   out_hex(eeprom + NINEDOF_EEPROM_SLOT0, NINEDOF_IMAGE_SIZE);
   out_c(';');
@@ -671,7 +742,7 @@ static void test_eeprom(void)
   memset(eeprom, 0xFF, sizeof(eeprom));
   ninedof_calrx_image(&rx, 7, eeprom + NINEDOF_EEPROM_LEGACY1);
   used = boot(&r2, &slot, &gen);
-  CHECK(used == 2 && slot == 1 && gen == 8 && r2.active.version == 0x27);
+  CHECK(used == 2 && slot == 1 && gen == 8 && r2.active.version == 0x29);
   CHECK(NINEDOF_EEPROM_SLOT0 + NINEDOF_IMAGE_MAX <= NINEDOF_EEPROM_SLOT1 &&
         NINEDOF_EEPROM_SLOT1 + NINEDOF_IMAGE_MAX <= 0x1000 &&
         NINEDOF_IMAGE_MAX <= NINEDOF_EEPROM_SLOT_SIZE);

@@ -19,6 +19,23 @@ CONFIRM_GAP = 64             # the next frame may follow a suspect one this far 
 TEMP_WAIT_MAX = 64           # temperature readings kept until a mote's first samples
 
 
+# The mote status message's fields -> link counters (link_stats columns,
+# sessions.store.LINK_COUNTERS): each field as "mote_" + its name, but the
+# set in force's two and the fields that are no counters.  A field appended
+# to the message (docs/CONTRIBUTING.md, "How to add a status field") needs
+# no change here, only its column; test_status_counters.py checks that
+# every field has one.
+STATUS_RENAMED = {"version": "cal_version", "sensors": "cal_sensors"}
+STATUS_NOT_COUNTERS = ("seq", "reserved")
+
+
+def status_counter(field: str) -> str | None:
+    """The link counter a status message field goes to (None: none)."""
+    if field in STATUS_NOT_COUNTERS:
+        return None
+    return STATUS_RENAMED.get(field, "mote_" + field)
+
+
 def _wrapdiff(a, b):
     """a - b in 16-bit sequence space, in -32768..32767."""
     return (np.asarray(a, np.int64) - b + 32768) % 65536 - 32768
@@ -250,17 +267,14 @@ class MoteLink:
         return self.c["samples"] > 0 or self.c["status_msgs"] > 0
 
     def status(self, msg: dict) -> None:
+        """The mote's latest status counters; the fields an older mote's
+        message lacks are absent, and their counters keep what they had."""
         c = self.c
         c["status_msgs"] += 1
-        c["mote_dropped"] = msg["dropped"]
-        c["mote_send_fail"] = msg["send_fail"]
-        c["mote_i2c_errors"] = msg["i2c_errors"]
-        c["mote_late"] = msg["late"]
-        c["cal_version"] = msg["version"]
-        c["cal_sensors"] = msg["sensors"]
-        for k in P.MOTE_STATUS_FAULTS:       # absent from an older mote's message
-            if k in msg:
-                c["mote_" + k] = msg[k]
+        for k, v in msg.items():
+            name = status_counter(k)
+            if name is not None:
+                c[name] = v
 
 
 @dataclass

@@ -2,13 +2,15 @@
 BaseStation and the radio, then verified (the protocol: ``upload.uploader``).
 
     motecal upload cal.json --port URL [--mote ID] [--version N] [--timeout S] [--retries N]
+                            [--store-timeout S]
     motecal upload cal.json --dry-run [--mote ID] [--version N]
     motecal upload --show [cal.json] --port URL --mote ID
     motecal upload --reset --port URL --mote ID [--version N]
 
 Errors are one line on stderr: bad input exits 2, a set that cannot be
 represented or that the mote's own checks would refuse exits 3, and an
-upload that fails (no answer, rejected, verification failed) exits 1.
+upload that fails (no answer, rejected, verification failed, not stored in
+the mote's EEPROM within --store-timeout) exits 1.
 """
 from __future__ import annotations
 
@@ -19,8 +21,8 @@ from ..line import sources as S
 from ..upload.calfile import build_set, cal_from_board, check_set, load_cal
 from ..upload.describe import dry_run_lines, show_lines
 from ..upload.link import DEFAULT_RETRIES, DEFAULT_TIMEOUT, Link
-from ..upload.uploader import (MAX_VERSION, Options, Result, Uploader, check_cal, choose_version,
-                               summary, upload_cal)
+from ..upload.uploader import (MAX_VERSION, STORE_WAIT, NotStored, Options, Result, Uploader,
+                               check_cal, choose_version, summary, upload_cal)
 from .args import baud_rate, int_range, mote_id, positive
 from .upload_screen import PlainProgress, make_progress
 
@@ -58,6 +60,10 @@ def register(sub) -> None:
                    help=f"seconds to wait for each reply of the mote ({DEFAULT_TIMEOUT:g})")
     p.add_argument("--retries", type=int_range("whole number", 0, 10_000), default=DEFAULT_RETRIES,
                    help=f"repeats of a message that gets no reply ({DEFAULT_RETRIES})")
+    p.add_argument("--store-timeout", dest="store_timeout", type=positive(float, 3600),
+                   default=STORE_WAIT,
+                   help="seconds to wait until the mote reports the set stored in its "
+                        f"EEPROM, so that it survives a reset ({STORE_WAIT:g})")
     p.add_argument("--force", action="store_true",
                    help="upload a calibration the quality gate refused, or under a "
                         "--version not above the one in force")
@@ -88,7 +94,8 @@ def run(args) -> int:
         check_set(build_set(cal, mote, args.version or 1, not args.no_temp)[0], mote, cal.path)
         return 0
     opts = Options(timeout=args.timeout, retries=args.retries, version=args.version,
-                   force=args.force, temperature=not args.no_temp)
+                   force=args.force, temperature=not args.no_temp,
+                   store_wait=args.store_timeout)
     if not (args.show or args.reset):
         check_cal(cal, mote, opts)
     spec = S.parse_port(args.port, args.baud)
@@ -122,7 +129,7 @@ def _reset(source, mote, opts) -> int:
         version = choose_version(mote, old.version, opts)
         progress.note(f"mote {mote}: version {old.version} in force; reset to raw output, "
                       f"version {version}")
-        res = up.reset(version, old.version, opts.verify_wait)
+        res = up.reset(version, old.version, opts.verify_wait, opts.store_wait)
         res.seconds = link.clock() - t0
     finally:
         progress.close()
@@ -164,6 +171,9 @@ def calibrate_step(args):
             print(f"  uploading to mote {board.mote} through {spec}", flush=True)
             with _open(spec) as source:
                 res = upload_cal(source, cal, cal.mote, opts, progress=make_progress())
+        except NotStored as e:              # in force on the mote, not in its EEPROM
+            raise UserError(f"calibration saved ({where}) and in force on mote {board.mote}, "
+                            f"but not stored there: {e}", exit_code=e.exit_code) from None
         except UserError as e:              # same exit status, saying what was done
             raise UserError(f"calibration saved ({where}), not uploaded: {e}",
                             exit_code=e.exit_code) from None

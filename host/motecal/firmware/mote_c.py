@@ -34,7 +34,8 @@ from ..line import protocol as P
 SRC_DIR = Path(os.environ.get("MOTECAL_TINYOS", Path(__file__).resolve().parent / "csrc"))
 CFLAGS = ("-std=c99", "-O2", "-shared", "-fPIC", "-Wall", "-Wextra")
 E_FORMAT = next(c for c, (n, _) in P.CAL_REASONS.items() if n == "NINEDOF_CAL_E_FORMAT")
-REPLY_MAX = 32          # >= the largest reply (ninedof_cal_report_msg, 28 bytes)
+E_FRAG = next(c for c, (n, _) in P.CAL_REASONS.items() if n == "NINEDOF_CAL_E_FRAG")
+REPLY_MAX = 64          # >= the largest reply (ninedof_cal_report_msg, 33 bytes)
 
 _lock = threading.Lock()
 _lib = None
@@ -130,10 +131,17 @@ def _declare(lib):
         "ninedof_calrx_set_dirty": (None, [c.c_void_p, c.c_uint8]),
         "ninedof_calrx_active": (None, [c.c_void_p, u8p]),
         "ninedof_calrx_active_len": (c.c_uint8, [c.c_void_p]),
+        "ninedof_calrx_stored_version": (c.c_uint16, [c.c_void_p]),
+        "ninedof_calrx_stored_crc": (c.c_uint16, [c.c_void_p]),
+        "ninedof_calrx_store": (c.c_uint8, [c.c_void_p]),
+        "ninedof_status_payload": (c.c_uint8, [c.POINTER(c.c_uint16), c.c_void_p, u8p]),
         "ninedof_eewriter_size": (c.c_size_t, []),
         "ninedof_eewriter_init": (None, [c.c_void_p, c.c_uint8, c.c_uint16]),
         "ninedof_eewriter_poll": (c.c_uint8, [c.c_void_p, c.c_void_p]),
         "ninedof_eewriter_next": (c.c_uint8, [c.c_void_p, c.POINTER(c.c_uint16), u8p]),
+        "ninedof_eewriter_pending": (c.c_uint8, [c.c_void_p]),
+        "ninedof_eewriter_addr": (c.c_uint16, [c.c_void_p]),
+        "ninedof_eewriter_check": (c.c_uint8, [c.c_void_p, c.c_void_p, c.c_char_p]),
         "ninedof_eewriter_busy": (c.c_uint8, [c.c_void_p]),
         "ninedof_slot_addr": (c.c_uint16, [c.c_uint8]),
     }
@@ -324,6 +332,21 @@ class CalReceiver:
         """CRC-16 of the set in force."""
         return int(self._lib.ninedof_calrx_crc(self._rx))
 
+    @property
+    def stored_version(self) -> int:
+        """Version of the set the EEPROM holds, written and read back (what a
+        reset puts in force); 0: none."""
+        return int(self._lib.ninedof_calrx_stored_version(self._rx))
+
+    @property
+    def stored_crc(self) -> int:
+        return int(self._lib.ninedof_calrx_stored_crc(self._rx))
+
+    @property
+    def store(self) -> int:
+        """The EEPROM writer's state (protocol.STORE_*)."""
+        return int(self._lib.ninedof_calrx_store(self._rx))
+
     def active_calset(self) -> bytes:
         """Wire bytes of the set in force (what read-back returns)."""
         buf = (ctypes.c_uint8 * P.CALSET_TEMP_SIZE)()
@@ -359,12 +382,66 @@ class CalReceiver:
 
 
 # --------------------------------------------------------------------------
+# An image built before the temperature terms, for the simulator
+# --------------------------------------------------------------------------
+def handle_as_pre_temperature_image(rx: CalReceiver, am_type: int, payload: bytes):
+    """``rx.handle`` as an image built before the temperature terms answers:
+    its receiver took no set longer than the plain one, so a fragment that
+    reaches past byte 102 gets NINEDOF_CAL_E_FRAG and stages nothing, and it
+    knew nothing of the stored-set report (a query gets the report of that
+    time, ``P.CAL_REPORT.earlier[0]`` bytes, whatever it asks for).  Everything
+    else is the same code: the simulator's ``--no-temp`` motes."""
+    payload = bytes(payload)
+    if am_type == P.AM_NINEDOF_CAL_FRAG_MSG and len(payload) >= P.CAL_FRAG.size:
+        m = P.CAL_FRAG.unpack(payload[:P.CAL_FRAG.size])
+        if m["mote"] == rx.mote_id and m["version"] and 0 < m["len"] <= P.NINEDOF_FRAG_DATA \
+                and m["offset"] + m["len"] > P.CALSET_SIZE:
+            return P.AM_NINEDOF_CAL_FRAG_ACK_MSG, P.CAL_FRAG_ACK.pack(
+                mote=rx.mote_id, version=m["version"], offset=m["offset"], status=E_FRAG)
+    if am_type == P.AM_NINEDOF_CAL_QUERY_MSG:
+        payload = payload[:P.CAL_QUERY.earlier[0]]
+    return rx.handle(am_type, payload)
+
+
+# --------------------------------------------------------------------------
+# The status message as the firmware packs it (ninedof_status_pack)
+# --------------------------------------------------------------------------
+STATUS_COUNTERS = ("seq", "dropped", "send_fail", "i2c_errors", "late", "i2c_nacks",
+                   "bus_resets", "chip_reinits")
+_raw_rx: "CalReceiver | None" = None
+
+
+def status_payload(receiver: "CalReceiver | None" = None, **counters) -> bytes:
+    """The payload of a ``ninedof_mote_status_msg``, packed by the firmware's
+    ``ninedof_status_pack`` (tinyos/ninedof_sampling.c) from the counters
+    (``STATUS_COUNTERS``, each wrapped to 16 bits; missing ones are 0) and
+    the set in force of ``receiver`` (None: the raw set, version 0)."""
+    global _raw_rx
+    unknown = set(counters) - set(STATUS_COUNTERS)
+    if unknown:
+        raise TypeError(f"unknown status counters {sorted(unknown)}")
+    lib = library()
+    if receiver is None:
+        if _raw_rx is None:
+            _raw_rx = CalReceiver(0)
+        receiver = _raw_rx
+    vals = (ctypes.c_uint16 * len(STATUS_COUNTERS))(
+        *(int(counters.get(k, 0)) & 0xFFFF for k in STATUS_COUNTERS))
+    out = (ctypes.c_uint8 * REPLY_MAX)()
+    n = lib.ninedof_status_payload(vals, receiver._rx, out)
+    return bytes(out[:n])
+
+
+# --------------------------------------------------------------------------
 # The firmware's background EEPROM writer (tinyos/ninedof_sampling.c)
 # --------------------------------------------------------------------------
 class EepromWriter:
     """Writes the set in force into the EEPROM slots one byte per step, as
     the firmware does (an EEPROM byte write takes 3.4 ms while sampling goes
-    on).  ``eeprom`` is a bytearray standing for the chip's EEPROM."""
+    on), then reads the slot back (``check``): only then is the set stored
+    (``CalReceiver.stored_version``).  ``eeprom`` is a bytearray standing
+    for the chip's EEPROM (any object with item access: a test's EEPROM
+    that drops writes makes the check fail)."""
 
     BYTE_TIME_S = 0.0034
     SIZE = 4096                        # ATmega1281 EEPROM
@@ -390,7 +467,13 @@ class EepromWriter:
 
     @property
     def busy(self) -> bool:
+        """A write is under way or waits for its check."""
         return bool(self._lib.ninedof_eewriter_busy(self._w))
+
+    @property
+    def pending(self) -> bool:
+        """Every byte is written: the image waits for ``check``."""
+        return bool(self._lib.ninedof_eewriter_pending(self._w))
 
     def step(self) -> bool:
         """Write one byte; False when nothing was left to write."""
@@ -399,3 +482,15 @@ class EepromWriter:
             return False
         self.eeprom[addr.value] = value.value
         return True
+
+    def check(self) -> int:
+        """Read the slot back and compare (``ninedof_eewriter_check``):
+        ``STORED``, ``AGAIN`` (written again: ``step`` on) or ``FAILED``; 0
+        when nothing waited for a check."""
+        if not self.pending:
+            return 0
+        a = int(self._lib.ninedof_eewriter_addr(self._w))
+        back = bytes(self.eeprom[a:a + self.rx._image_size])
+        return int(self._lib.ninedof_eewriter_check(self._w, self.rx._rx, back))
+
+    STORED, AGAIN, FAILED = 1, 2, 3         # NINEDOF_EE_*

@@ -109,21 +109,48 @@ class Field:
 
 @dataclass(frozen=True)
 class MessageSpec:
-    """Layout of one fixed-size nx_struct message."""
+    """Layout of one fixed-size nx_struct message.
+
+    Messages only grow at their end (tinyos/NineDofMsg.h, "How messages
+    change").  ``earlier`` holds the sizes the message had before, oldest
+    first (the header's ``NINEDOF_<NAME>_SIZE_V<n>``); ``decode`` takes a
+    payload of the current size, of an earlier one (an older image's or
+    host's: the fields it lacks are absent from the dict) or longer (a newer
+    image's: the fields known here, the rest ignored), and nothing else.
+    """
     name: str                  # struct name in the header, e.g. ninedof_cal_frag_msg
     am_type: int | None
     fields: tuple[Field, ...]
+    earlier: tuple[int, ...] = ()
     _struct: struct.Struct = field(init=False, repr=False, compare=False)
+    _layouts: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        fmt = ">" + "".join(f"{f.count}{f.fmt}" if f.count > 1 and f.fmt != "B"
-                            else (f"{f.count}s" if f.count > 1 else f.fmt)
-                            for f in self.fields)
-        object.__setattr__(self, "_struct", struct.Struct(fmt))
+        def fmt(fields):
+            return ">" + "".join(f"{f.count}{f.fmt}" if f.count > 1 and f.fmt != "B"
+                                 else (f"{f.count}s" if f.count > 1 else f.fmt)
+                                 for f in fields)
+        object.__setattr__(self, "_struct", struct.Struct(fmt(self.fields)))
+        # size -> (fields, struct) of every layout the message has had
+        layouts, at = {}, 0
+        for n in range(len(self.fields) + 1):
+            if at in self.earlier or n == len(self.fields):
+                head = self.fields[:n]
+                layouts[at] = (head, struct.Struct(fmt(head)))
+            if n < len(self.fields):
+                at += self.fields[n].size
+        if set(self.earlier) - set(layouts) or list(self.earlier) != sorted(self.earlier):
+            raise ValueError(f"{self.name}: earlier sizes {self.earlier} must end at fields, "
+                             "oldest first")
+        object.__setattr__(self, "_layouts", layouts)
 
     @property
     def size(self) -> int:
         return self._struct.size
+
+    def fields_since(self, size: int) -> tuple[str, ...]:
+        """Names of the fields appended after the layout of ``size`` bytes."""
+        return tuple(f.name for f in self.fields[len(self._layouts[size][0]):])
 
     def pack(self, **values) -> bytes:
         args = []
@@ -141,17 +168,35 @@ class MessageSpec:
                 args.extend(int(x) for x in v)
         return self._struct.pack(*args)
 
-    def unpack(self, payload: bytes) -> dict:
-        if len(payload) != self.size:
-            raise ValueError(f"{self.name}: {len(payload)} bytes, expected {self.size}")
-        vals = list(self._struct.unpack(payload))
+    def decode(self, payload: bytes) -> dict | None:
+        """The fields of a payload of this message's current size, of one of
+        its ``earlier`` sizes (the fields appended since are absent), or
+        longer (what follows the fields known here is ignored); None for any
+        other length."""
+        n = len(payload)
+        if n >= self.size:
+            fields, st = self.fields, self._struct
+            payload = payload[:self.size]
+        elif n in self._layouts:
+            fields, st = self._layouts[n]
+        else:
+            return None
+        vals = list(st.unpack(payload))
         out = {}
-        for f in self.fields:
+        for f in fields:
             if f.count == 1 or f.fmt == "B":
                 out[f.name] = vals.pop(0)
             else:
                 out[f.name] = tuple(vals[:f.count])
                 del vals[:f.count]
+        return out
+
+    def unpack(self, payload: bytes) -> dict:
+        """``decode``, raising ValueError for a length it does not take."""
+        out = self.decode(payload)
+        if out is None:
+            sizes = ", ".join(map(str, self.earlier + (self.size,)))
+            raise ValueError(f"{self.name}: {len(payload)} bytes, expected {sizes} or more")
         return out
 
 
@@ -204,21 +249,26 @@ CAL_COMMIT = MessageSpec("ninedof_cal_commit_msg", AM_NINEDOF_CAL_COMMIT_MSG, (
 CAL_COMMIT_ACK = MessageSpec("ninedof_cal_commit_ack_msg", AM_NINEDOF_CAL_COMMIT_ACK_MSG, (
     _f("mote", U16), _f("version", U16), _f("crc", U16), _f("status", U8),
     _f("sensors", U8)))
+# The query grew a flags byte and the report the stored set (firmware that
+# reports what its EEPROM holds): a query with QUERY_STORED gets the longer
+# report; without it, or from an image built before, the report ends after
+# `data` (CAL_REPORT_SIZE_V1 bytes) and decodes without the stored_* keys.
+QUERY_STORED = 0x01
+STORE_IDLE, STORE_WRITING, STORE_FAILED = 0, 1, 2
 CAL_QUERY = MessageSpec("ninedof_cal_query_msg", AM_NINEDOF_CAL_QUERY_MSG, (
-    _f("mote", U16), _f("offset", U8)))
+    _f("mote", U16), _f("offset", U8), _f("flags", U8)), earlier=(3,))
 CAL_REPORT = MessageSpec("ninedof_cal_report_msg", AM_NINEDOF_CAL_REPORT_MSG, (
     _f("mote", U16), _f("version", U16), _f("crc", U16), _f("offset", U8),
-    _f("len", U8), _f("data", U8, NINEDOF_FRAG_DATA)))
+    _f("len", U8), _f("data", U8, NINEDOF_FRAG_DATA), _f("stored_version", U16),
+    _f("stored_crc", U16), _f("store", U8)), earlier=(28,))
 MOTE_STATUS = MessageSpec("ninedof_mote_status_msg", AM_NINEDOF_MOTE_STATUS_MSG, (
     _f("seq", U16), _f("version", U16), _f("sensors", U8), _f("reserved", U8),
     _f("dropped", U16), _f("send_fail", U16), _f("i2c_errors", U16), _f("late", U16),
-    _f("i2c_nacks", U16), _f("bus_resets", U16), _f("chip_reinits", U16)))
+    _f("i2c_nacks", U16), _f("bus_resets", U16), _f("chip_reinits", U16)), earlier=(14,))
 # The three fault counters were appended (firmware with the board's fault
 # handling); a mote built before sends the message without them, which
 # decode_message accepts: its dict has no such keys.
-MOTE_STATUS_FAULTS = ("i2c_nacks", "bus_resets", "chip_reinits")
-MOTE_STATUS_V1 = MessageSpec("ninedof_mote_status_msg", AM_NINEDOF_MOTE_STATUS_MSG,
-                             MOTE_STATUS.fields[:-len(MOTE_STATUS_FAULTS)])
+MOTE_STATUS_FAULTS = MOTE_STATUS.fields_since(14)
 BS_STATUS = MessageSpec("ninedof_bs_status_msg", AM_NINEDOF_BS_STATUS_MSG, (
     _f("radio_rx", U16), _f("radio_drops", U16), _f("serial_rx", U16),
     _f("serial_drops", U16), _f("radio_fail", U16), _f("serial_fail", U16)))
@@ -657,15 +707,16 @@ def unpack_samples(payload: bytes) -> Samples | None:
 
 
 def decode_message(am: AMPacket):
-    """Decode an AM packet's payload by type: Samples, a dict, or None."""
+    """Decode an AM packet's payload by type: Samples, a dict, or None.  A
+    fixed message of an older or newer layout decodes by the rule of
+    ``MessageSpec.decode`` (fields it lacks absent, fields not known here
+    ignored)."""
     if am.am_type == AM_NINEDOF_SAMPLES_MSG:
         return unpack_samples(am.payload)
     spec = FIXED_MESSAGES.get(am.am_type)
-    if spec is MOTE_STATUS and len(am.payload) == MOTE_STATUS_V1.size:
-        spec = MOTE_STATUS_V1              # a mote built before the fault counters
-    if spec is None or len(am.payload) != spec.size:
+    if spec is None:
         return None
-    return spec.unpack(am.payload)
+    return spec.decode(am.payload)          # an older or newer layout too (MessageSpec)
 
 
 def message_frame(spec: MessageSpec, *, dest: int, src: int = 0,

@@ -38,7 +38,10 @@
     time, ``board_temperature``), their count, and the seq of the newest.
     ``temperature=False`` is an image built before that message: it sends none.
   - Calibration: frames addressed to this mote (or broadcast) go to
-    ``CalReceiver.handle`` (the firmware's C code through ctypes); the reply
+    ``CalReceiver.handle`` (the firmware's C code through ctypes; an image
+    built before the temperature terms, ``temperature=False``, answers as
+    ``mote_c.handle_as_pre_temperature_image``: it refuses a set with
+    temperature terms and does not report the stored set); the reply
     goes to the frame's AM source from its own buffer, sent as a sample
     message is (ack, 2 retries, EBUSY: again);
     a reply while the previous one is still on its way is not sent
@@ -47,10 +50,20 @@
   from that sender is dropped (UniqueLayer).
 * Correction: samples are corrected with ``CalReceiver.correct`` and
   flagged with ``CalReceiver.flags()``.  Without it: raw records, flags 0.
+* Status: ``ninedof_status_pack`` of the firmware (``mote_c.status_payload``)
+  packs the message from the mote's counters and the set in force; the
+  counters the simulation has no cause for (``i2c_errors``, ``late`` and the
+  bus fault counters) are 0.
 * EEPROM: an accepted set is persisted by the firmware's own background
   writer (``mote_c.EepromWriter``, one byte per 3.4 ms while sampling goes
-  on) into the mote's EEPROM, which a World can keep in a file across runs;
-  at boot the set in force is restored from it, as the firmware does.
+  on, about 0.37 s for a plain set and 0.58 s for one with temperature
+  terms) into the mote's EEPROM, which a World can keep in a file across
+  runs, then read back: only then is it stored (the file written, and the
+  report's stored set says so).  The simulation advances only as its reader
+  reads: a run stopped before the write completed keeps the older set in the
+  file, as a mote reset or switched off within that time does.  At boot the
+  set in force is restored from it, as the firmware does; ``reboot()``
+  models a reset in the running world.
 """
 from __future__ import annotations
 
@@ -108,13 +121,6 @@ def board_temperature(sampler):
     return lambda t: np.full(np.shape(t), DEFAULT_TEMP_C)
 
 
-def _cal_value(cal, name):
-    v = getattr(cal, name, None)
-    if callable(v):
-        v = v()
-    return v
-
-
 class SimMote:
     def __init__(self, net, mote_id: int, sampler, clock_ppm: float, rng, *,
                  batch: int, rate_hz: float, duration: float, cal=None,
@@ -149,7 +155,9 @@ class SimMote:
             from ..firmware.mote_c import EepromWriter
             self.ee = EepromWriter(cal, eeprom)        # restores the set in force
         self._ee_writing = False
-        self.eeprom_writes = 0                        # images completed
+        self._boots = 0                               # reboot() count: stale writer steps
+        self.eeprom_writes = 0                        # images written and read back
+        self.reboots = 0
         self._flags = int(cal.flags()) if cal is not None else 0   # changes only in handle()
         self.mac = Mac(self.id, net.channel, rng, max_retries=MAX_RETRIES)
         net.channel.attach(self.id, self)
@@ -292,12 +300,16 @@ class SimMote:
             return
         if self._unique.repeat(f):                   # a repeat of the frame it has
             return
-        reply = self.cal.handle(f.am_type, bytes(f.payload))
+        if self._temp_reads:
+            reply = self.cal.handle(f.am_type, bytes(f.payload))
+        else:                                      # an image before the temperature terms
+            from ..firmware.mote_c import handle_as_pre_temperature_image
+            reply = handle_as_pre_temperature_image(self.cal, f.am_type, bytes(f.payload))
         self._flags = int(self.cal.flags())
         if self.ee is not None:
             if self.ee.poll() and not self._ee_writing:
                 self._ee_writing = True
-                self.loop.at(self.loop.now + self.ee.BYTE_TIME_S, self._ee_step, None)
+                self.loop.at(self.loop.now + self.ee.BYTE_TIME_S, self._ee_step, self._boots)
         elif getattr(self.cal, "dirty", False):   # a stand-in receiver: persisted at once
             self.cal.mark_persisted()
         if reply:
@@ -309,30 +321,51 @@ class SimMote:
             self.replies += 1
             self._kick()
 
-    def _ee_step(self, _) -> None:
-        """One EEPROM byte write of the background writer."""
-        if self.ee.step() and self.ee.busy:
-            self.loop.at(self.loop.now + self.ee.BYTE_TIME_S, self._ee_step, None)
+    def _ee_step(self, boot) -> None:
+        """One EEPROM byte write of the background writer; once every byte is
+        written (the last write done: one byte time after it started), the
+        slot read back and checked."""
+        if boot != self._boots:                     # the mote was reset meanwhile
             return
+        if self.ee.step():
+            self.loop.at(self.loop.now + self.ee.BYTE_TIME_S, self._ee_step, boot)
+            return
+        if self.ee.pending:
+            # the file first: the receiver reports the set stored only after this
+            self.net.eeprom_written(self.id)
+            if self.ee.check() == self.ee.AGAIN:
+                self.loop.at(self.loop.now + self.ee.BYTE_TIME_S, self._ee_step, boot)
+                return
+            self.eeprom_writes += 1
         self._ee_writing = False
-        self.eeprom_writes += 1
-        self.net.eeprom_written(self.id)
+
+    def reboot(self) -> None:
+        """A reset of the mote (its RESET pin, or power lost and back): the
+        EEPROM keeps what was written of it, the calibration state is lost
+        and restored from the EEPROM at boot (a write under way stops), as
+        the firmware does.  Simplified: the sample clock, its sequence
+        numbers and the radio carry on (the firmware restarts them)."""
+        self._boots += 1
+        if self.cal is None or self.ee is None:
+            return
+        from ..firmware.mote_c import EepromWriter
+        self.cal = type(self.cal)(self.id)
+        self.ee = EepromWriter(self.cal, self.ee.eeprom)
+        self._ee_writing = False
+        self._flags = int(self.cal.flags())
+        self._temp_mean = False
+        self._temp_latest = None
+        self.reboots += 1
 
     # ------------------------------------------------------------------ status
     def _status(self, _) -> None:
         now = self.loop.now
         if now >= self.duration:
             return
-        version = sensors = 0
-        if self.cal is not None:
-            v = _cal_value(self.cal, "version")
-            version = int(v) if v is not None else (int(self.cal.flags()) >> P.FLAG_VERSION_SHIFT)
-            s = _cal_value(self.cal, "sensors")
-            sensors = int(s) if s is not None else 0
-        payload = P.MOTE_STATUS.pack(
-            seq=self.generated() & 0xFFFF, version=version & 0xFFFF, sensors=sensors,
-            dropped=self.dropped & 0xFFFF, send_fail=self.send_fail & 0xFFFF,
-            i2c_errors=0, late=0, i2c_nacks=0, bus_resets=0, chip_reinits=0)
+        from ..firmware.mote_c import CalReceiver, status_payload
+        rx = self.cal if isinstance(self.cal, CalReceiver) else None
+        payload = status_payload(rx, seq=self.generated(), dropped=self.dropped,
+                                 send_fail=self.send_fail)
         if self.status_msg is not None:               # the last one is still on its way
             self.status_dropped += 1
         else:

@@ -1,6 +1,6 @@
 """A calibration to a mote (``motecal upload``): cal.json -> the mote's
-fixed-point set -> fragments, commit, read-back and sample check over the
-BaseStation.
+fixed-point set -> fragments, commit, read-back, sample check and the wait
+until the mote reports the set stored in its EEPROM, over the BaseStation.
 
 * ``calfile``  -- cal.json read and checked (``CalFile``, ``load_cal``), the
   set built and checked by the mote's own C code (``build_set``, ``check_set``);
@@ -14,7 +14,7 @@ from .calfile import (CalFile, build_set, cal_from_board, check_set, load_cal,  
 from .describe import dry_run_lines, show_lines  # noqa: F401
 from .link import (SERIAL_ACK_TIMEOUT, SERIAL_RETRIES, Link, LinkStats, NoAnswer,  # noqa: F401
                    NullProgress, Rejected, UploadFailed)
-from .uploader import (MAX_VERSION, VERIFY_MESSAGES, InForce, NoTemperature, Options,  # noqa: F401
-                       Result,
+from .uploader import (MAX_VERSION, OLD_IMAGE_WAIT, STORE_WAIT, VERIFY_MESSAGES,  # noqa: F401
+                       InForce, NoTemperature, NotStored, Options, Result, StoreCheck,
                        Uploader, check_cal, describe_flags, flags_for, fragments, next_version,
                        sensor_names, summary, upload_cal)

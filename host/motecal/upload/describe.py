@@ -22,6 +22,7 @@ def show_lines(inf: InForce, cal: CalFile | None = None) -> list[str]:
     cs = inf.calset
     lines = [f"mote {inf.mote}: calibration version {inf.version} in force "
              f"(CRC 0x{inf.crc:04x}), corrected: {sensor_names(cs.mask)}"]
+    lines += stored_lines(inf)
     if cs.mote != inf.mote:
         lines.append(f"  (the set names mote {cs.mote})")
     for name in P.SENSORS:
@@ -48,6 +49,25 @@ def show_lines(inf: InForce, cal: CalFile | None = None) -> list[str]:
         lines.append(f"  {'equals' if same else 'differs from'} {cal.path} "
                      f"(quantised for mote {inf.mote}, version {inf.version})")
     return lines
+
+
+def stored_lines(inf: InForce) -> list[str]:
+    """What the mote's EEPROM holds, when it is not the set in force (or
+    when the image does not say)."""
+    if not inf.reports_stored:
+        return ["  stored in its EEPROM: not reported (firmware built before the stored-set "
+                "report)"]
+    if inf.stored:
+        return []
+    held = (f"version {inf.stored_version} (CRC 0x{inf.stored_crc:04x})"
+            if inf.stored_version else "no set")
+    after = (f"version {inf.stored_version}" if inf.stored_version
+             else "raw output, version 0")
+    why = {P.STORE_WRITING: f"version {inf.version} is being written",
+           P.STORE_FAILED: f"writing version {inf.version} failed: the EEPROM did not read "
+                           "back what was written"}.get(inf.store, "")
+    return [f"  stored in its EEPROM: {held}, not the set in force"
+            + (f" ({why})" if why else "") + f": after a reset the mote has {after}"]
 
 
 def dry_run_lines(cal: CalFile, mote: int, version: int | None,

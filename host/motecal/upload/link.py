@@ -134,6 +134,12 @@ class Link:
                     self.stats.replies += 1
                     self._replies.append((am.src, am.am_type, msg))
 
+    def wait(self, seconds: float) -> None:
+        """Read on (replies, sample flags) for ``seconds`` of the link's clock."""
+        end = self.clock() + seconds
+        while self.clock() < end:
+            self.pump()
+
     # -- sending ------------------------------------------------------------------
     def _send(self, am: P.AMPacket, what: str) -> None:
         """One AM packet onto the serial line, repeated until the BaseStation acks it."""

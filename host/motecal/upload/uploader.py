@@ -18,6 +18,13 @@ Protocol (messages of ``tinyos/NineDofMsg.h``), one message at a time:
    sent byte for byte.
 5. The mote's next sample messages must carry the corrected flag and the
    version's low 4 bits.
+6. Stored: CAL_QUERY (with QUERY_STORED) -> CAL_REPORT every STORE_POLL s
+   until the report's stored set (what the mote's EEPROM holds, written and
+   read back: what a reset or power loss puts in force) is the new set, for
+   at most ``Options.store_timeout`` s; only then does the upload succeed.
+   An image built before the stored-set report answers without it: the
+   upload waits OLD_IMAGE_WAIT s (longer than its EEPROM write) and says
+   that storage was not reported.
 
 Transport.  Each message goes to the serial line as a 0x44 frame with a
 sequence byte; the BaseStation acknowledges it with a 0x43 frame (SerialP).
@@ -46,6 +53,16 @@ from .link import (DEFAULT_RETRIES, DEFAULT_TIMEOUT, Link, LinkStats, NoAnswer, 
 VERIFY_WAIT = 2.0            # s: for the mote's sample messages after the commit
 VERIFY_MESSAGES = 3          # consecutive sample messages with the new flags
 VERIFY_STALE_MAX = 12        # old-flag messages tolerated first (queued before the commit)
+OTHER_VERSION_REPORTS = 2    # read-back reports of another version tolerated (late replies)
+# The EEPROM write: one byte per 4 ms tick, an image of up to 170 bytes
+# (164-byte set + 6), read back, written again if wrong (3 tries): 0.7 s
+# once, about 2 s at most on the mote's clock.  The wait counts the host's
+# clock: the emulator on a busy machine runs at 0.2x real time (the release
+# check's slowest mote reported its set stored 3.5 s after the commit), so
+# the default leaves room for that; a write that fails is reported at once.
+STORE_WAIT = 10.0            # s: for the set to be stored (--store-timeout)
+STORE_POLL = 0.1             # s between queries of the stored set
+OLD_IMAGE_WAIT = 1.0         # s: an image that does not report it (one write: <= 0.7 s)
 MAX_VERSION = 0xFFFF
 E_FRAG = next(c for c, (n, _) in P.CAL_REASONS.items() if n == "NINEDOF_CAL_E_FRAG")
 
@@ -70,6 +87,11 @@ def choose_version(mote: int, in_force: int, opts: "Options") -> int:
     return opts.version
 
 
+class NotStored(UploadFailed):
+    """The set is in force, but the mote did not report it stored in its
+    EEPROM: a reset or power loss brings back the set stored before."""
+
+
 class NoTemperature(Rejected):
     """The mote's image predates the temperature terms (it refused bytes
     past the plain set)."""
@@ -87,15 +109,56 @@ def fragments(calset: bytes) -> list[tuple[int, bytes]]:
 # --------------------------------------------------------------------------
 @dataclass
 class InForce:
-    """What a mote has in force (from CAL_REPORTs)."""
+    """What a mote has in force (from CAL_REPORTs), and what its EEPROM holds."""
     mote: int
     version: int
     crc: int
     data: bytes | None = None          # the whole set, when read
+    stored_version: int | None = None  # the stored set (0: none); None: not reported
+    stored_crc: int | None = None
+    store: int | None = None           # the EEPROM writer's state (P.STORE_*)
+
+    @classmethod
+    def of(cls, mote: int, report: dict, data: bytes | None = None) -> "InForce":
+        return cls(mote, report["version"], report["crc"], data,
+                   report.get("stored_version"), report.get("stored_crc"),
+                   report.get("store"))
 
     @property
     def calset(self) -> FP.Calset | None:
         return FP.unpack_calset(self.data) if self.data is not None else None
+
+    @property
+    def reports_stored(self) -> bool:
+        """The image reports its stored set (built with the stored-set report)."""
+        return self.stored_version is not None
+
+    @property
+    def stored(self) -> bool:
+        """The set in force is the set stored: a reset keeps it.  Raw output,
+        version 0 (what a mote has at boot with no valid set) needs nothing
+        stored: a reset gives it again."""
+        if not self.reports_stored:
+            return False
+        if self.version == 0 and self.stored_version == 0:
+            return True
+        return (self.stored_version, self.stored_crc) == (self.version, self.crc)
+
+
+def stored_text(version: int | None) -> str:
+    """What a reset brings back, for messages."""
+    if version is None:
+        return "the set stored before"
+    return f"version {version}" if version else "no stored set (raw output, version 0)"
+
+
+@dataclass
+class StoreCheck:
+    """The wait for the new set to be stored (step 6)."""
+    reported: bool                     # the image reports its stored set
+    seconds: float = 0.0               # from the commit to the report saying stored
+    waited: float = 0.0                # the wait itself
+    polls: int = 0
 
 
 @dataclass
@@ -122,6 +185,7 @@ class Result:
     samples: SampleCheck | None = None
     seconds: float = 0.0
     stats: LinkStats = field(default_factory=LinkStats)
+    stored: StoreCheck | None = None
 
 
 def flags_for(version: int, sensors: int) -> int:
@@ -150,27 +214,39 @@ class Uploader:
 
     # -- read ----------------------------------------------------------------------
     def query(self, offset: int, what: str | None = None, match=lambda m: True) -> dict:
+        """One CAL_REPORT; it has the stored_* keys when the image reports them."""
         return self.link.request(P.CAL_QUERY, P.AM_NINEDOF_CAL_REPORT_MSG,
                                  what or f"the query at offset {offset}",
                                  match=lambda m: m["offset"] == offset and match(m),
-                                 mote=self.mote, offset=offset)
+                                 mote=self.mote, offset=offset, flags=P.QUERY_STORED)
 
     def in_force(self) -> InForce:
-        r = self.query(0, "the query of the version in force")
-        return InForce(self.mote, r["version"], r["crc"])
+        return InForce.of(self.mote, self.query(0, "the query of the version in force"))
 
     def read_set(self, expect_version: int | None = None, attempts: int = 3) -> InForce:
         """The whole set in force, CAL_REPORT by CAL_REPORT, checked against its CRC.
 
-        ``expect_version``: only reports of that version count (older ones
-        still travelling are ignored).
+        ``expect_version``: only reports of that version count (a late one of
+        another version is asked again, OTHER_VERSION_REPORTS times; then the
+        mote has another set in force, and UploadFailed says so).
         """
-        match = (lambda m: True) if expect_version is None else \
-            (lambda m: m["version"] == expect_version)
+        def pick(off, what):
+            """The report at ``off``; one of another version than expected is
+            a late reply of an earlier query, or, again and again, a mote that
+            restarted: then it fails at once, saying so."""
+            for _ in range(1 + OTHER_VERSION_REPORTS):
+                r = self.query(off, what)
+                if expect_version is None or r["version"] == expect_version:
+                    return r
+            raise UploadFailed(
+                f"mote {self.mote} reports version {r['version']} (CRC 0x{r['crc']:04x}) in "
+                f"force, not version {expect_version} (did it restart?); its EEPROM holds "
+                f"{stored_text(r.get('stored_version'))}")
+
         for _ in range(attempts):
             data = bytearray()
             head = None
-            first = self.query(0, "read-back 1 (offset 0)", match)
+            first = last = pick(0, "read-back 1 (offset 0)")
             # the set's format byte (header byte 5) gives its length
             size = P.CALSET_SIZES.get(first["data"][5]) if first["len"] > 5 else None
             if size is None:
@@ -182,7 +258,8 @@ class Uploader:
             self.progress.task("read-back", len(pieces))
             for i, (off, chunk) in enumerate(pieces):
                 r = first if off == 0 else \
-                    self.query(off, f"read-back {i + 1}/{len(pieces)} (offset {off})", match)
+                    pick(off, f"read-back {i + 1}/{len(pieces)} (offset {off})")
+                last = r
                 if r["len"] != len(chunk):
                     raise UploadFailed(f"mote {self.mote} reports {r['len']} bytes at offset "
                                        f"{off}, expected {len(chunk)}: not this protocol's "
@@ -198,7 +275,7 @@ class Uploader:
                 if P.crc16(bytes(data)) != head[1]:
                     raise UploadFailed(f"mote {self.mote}: the set read back does not match "
                                        f"its CRC 0x{head[1]:04x}")
-                return InForce(self.mote, head[0], head[1], bytes(data))
+                return InForce.of(self.mote, last, bytes(data))
         raise UploadFailed(f"mote {self.mote}: the set in force kept changing while it was "
                            "read back")
 
@@ -298,13 +375,66 @@ class Uploader:
             self.link.pump()
         return chk
 
+    def wait_stored(self, version: int, crc: int, timeout: float = STORE_WAIT,
+                    since: float | None = None) -> StoreCheck:
+        """Step 6: query until the mote reports the set (``version``, ``crc``)
+        stored in its EEPROM, for at most ``timeout`` s (``since``: the
+        commit's time, for the figure printed).  NotStored when its write
+        failed or did not complete in time, UploadFailed when another set is
+        in force by then (the mote restarted?).  An image that does not report
+        its stored set: waits OLD_IMAGE_WAIT s and returns ``reported`` False."""
+        clock = self.link.clock
+        t0 = clock()
+        since = t0 if since is None else since
+        deadline = t0 + timeout
+        chk = StoreCheck(True)
+        while True:
+            inf = InForce.of(self.mote, self.query(0, "the query of the stored set"))
+            chk.polls += 1
+            if not inf.reports_stored:
+                self.link.wait(OLD_IMAGE_WAIT)
+                chk.reported, chk.waited = False, clock() - t0
+                self.progress.note(
+                    f"  stored: not reported by mote {self.mote}'s firmware (an image built "
+                    f"before the stored-set report); waited {OLD_IMAGE_WAIT:g} s, longer than "
+                    "its EEPROM write")
+                return chk
+            if (inf.version, inf.crc) != (version, crc):
+                raise UploadFailed(
+                    f"mote {self.mote} has version {inf.version} (CRC 0x{inf.crc:04x}) in force "
+                    f"now, not version {version}: did it restart before version {version} was "
+                    f"stored? Its EEPROM holds {stored_text(inf.stored_version)}")
+            if inf.stored:
+                chk.seconds, chk.waited = clock() - since, clock() - t0
+                self.progress.note(f"  stored: version {version} written to the EEPROM and "
+                                   f"read back, {chk.seconds:.2f} s after the commit; a reset "
+                                   "keeps it")
+                return chk
+            if inf.store == P.STORE_FAILED:
+                raise NotStored(
+                    f"mote {self.mote}: version {version} is in force and verified but not "
+                    f"stored: its EEPROM did not read back what was written; after a reset or "
+                    f"power loss it comes back with {stored_text(inf.stored_version)} "
+                    "(a failing EEPROM?)")
+            if clock() >= deadline:
+                raise NotStored(
+                    f"mote {self.mote}: version {version} is in force and verified but not "
+                    f"stored: its EEPROM write did not complete within {timeout:g} s; after a "
+                    f"reset or power loss it comes back with "
+                    f"{stored_text(inf.stored_version)}; keep it powered, then check with "
+                    "`motecal upload --show`")
+            self.link.wait(min(STORE_POLL, max(0.0, deadline - clock())))
+
     # -- the checked paths ------------------------------------------------------
-    def upload(self, calset: bytes, previous: int, verify_wait: float = VERIFY_WAIT) -> Result:
-        """Stage, commit, read back and check the samples; raises on any failure."""
+    def upload(self, calset: bytes, previous: int, verify_wait: float = VERIFY_WAIT,
+               store_wait: float = STORE_WAIT) -> Result:
+        """Stage, commit, read back, check the samples and wait until the set
+        is stored; raises on any failure."""
         t0 = self.link.clock()
         cs = FP.unpack_calset(calset)
         crc = P.crc16(calset)
         self.stage(calset, cs.version)
+        t_commit = self.link.clock()
         try:
             ack = self.apply(cs.version, crc, len(calset))
         except NoAnswer as e:
@@ -320,11 +450,13 @@ class Uploader:
         self.progress.note(f"  read-back: {len(calset)} bytes identical, CRC 0x{back.crc:04x}")
         chk = self.check_samples(flags_for(cs.version, cs.mask), verify_wait)
         self._note_samples(chk)
+        stored = self.wait_stored(cs.version, crc, store_wait, since=t_commit)
         return Result(self.mote, cs.version, crc, ack["sensors"], previous, True, chk,
-                      self.link.clock() - t0, self.link.stats)
+                      self.link.clock() - t0, self.link.stats, stored)
 
-    def reset(self, version: int, previous: int, verify_wait: float = VERIFY_WAIT) -> Result:
-        """Back to raw output with ``version``; verified like an upload."""
+    def reset(self, version: int, previous: int, verify_wait: float = VERIFY_WAIT,
+              store_wait: float = STORE_WAIT) -> Result:
+        """Back to raw output with ``version``; verified and stored like an upload."""
         t0 = self.link.clock()
         try:
             ack = self.commit(version, 0, action=P.CAL_RESET)
@@ -346,8 +478,9 @@ class Uploader:
         self.progress.note(f"  read-back: raw set, version {back.version}")
         chk = self.check_samples(flags_for(version, 0), verify_wait)
         self._note_samples(chk)
+        stored = self.wait_stored(version, back.crc, store_wait, since=t0)
         return Result(self.mote, version, back.crc, 0, previous, True, chk,
-                      self.link.clock() - t0, self.link.stats)
+                      self.link.clock() - t0, self.link.stats, stored)
 
     def _after_lost_ack(self, error: NoAnswer, version: int, crc: int, took, sensors: int):
         """No commit ack came (every repeat lost): the mote may have applied the
@@ -395,6 +528,7 @@ class Options:
     retries: int = DEFAULT_RETRIES
     version: int | None = None
     verify_wait: float = VERIFY_WAIT
+    store_wait: float = STORE_WAIT     # --store-timeout
     force: bool = False
     temperature: bool = True           # False (--no-temp): the plain set, no temperature terms
 
@@ -426,7 +560,7 @@ def upload_cal(source: S.Source, cal: CalFile, mote: int, opts: Options = Option
                       f"uploading version {version} ({len(calset)} bytes, "
                       f"{len(fragments(calset))} fragments, CRC 0x{P.crc16(calset):04x}"
                       + (f"; temperature terms: {', '.join(temp)}" if temp else "") + ")")
-        res = up.upload(calset, old.version, opts.verify_wait)
+        res = up.upload(calset, old.version, opts.verify_wait, opts.store_wait)
         res.seconds = link.clock() - t0
     finally:
         progress.close()
@@ -434,7 +568,14 @@ def upload_cal(source: S.Source, cal: CalFile, mote: int, opts: Options = Option
 
 
 def summary(res: Result, what: str = "calibration") -> str:
+    """The last line: in force (verified), and stored (survives a reboot),
+    or that the mote's firmware does not report it."""
     st = res.stats
-    return (f"mote {res.mote}: {what} version {res.version} in force and verified "
-            f"(was {res.previous}); {st.messages} messages, {st.retries} repeated, "
+    if res.stored is None or res.stored.reported:
+        stored = "and stored (survives a reboot)"
+    else:
+        stored = (f"stored: not reported by its firmware (waited {res.stored.waited:.1f} s, "
+                  "longer than its EEPROM write)")
+    return (f"mote {res.mote}: {what} version {res.version} (was {res.previous}) in force and "
+            f"verified, {stored}; {st.messages} messages, {st.retries} repeated, "
             f"{st.serial_retries} serial repeats, {res.seconds:.2f} s")

@@ -16,11 +16,14 @@
  * An accepted set is written to the internal EEPROM in the background
  * (ninedof_eewriter, ninedof_sampling.c), one byte per 4 ms, while
  * sampling continues, into the slot that does not hold the newest valid
- * image; at boot (Init) the valid image with the newer generation goes in
- * force.  A reset in the middle of a write leaves that slot with a bad
- * CRC, and the other one wins.
+ * image, and read back; at boot (Init) the valid image with the newer
+ * generation goes in force.  A reset in the middle of a write leaves that
+ * slot with a bad CRC, and the other one wins.  The set the EEPROM holds
+ * (read back intact) is what a query with NINEDOF_QUERY_STORED reports as
+ * stored: the host waits for it before it tells the user the set survives
+ * a reset.
  *
- * LED: yellow on while a set is being written to EEPROM (~0.4 s).
+ * LED: yellow on while a set is being written to EEPROM (up to ~0.7 s).
  *
  * @author motecal
  */
@@ -91,7 +94,10 @@ implementation
     }
   }
 
-  /* One EEPROM byte per tick; bytes already equal are skipped. */
+  /* One EEPROM byte per tick; bytes already equal are skipped.  When every
+   * byte is written (the last write done: eeprom_is_ready), the slot is
+   * read back and checked: only then is the set stored, and the report
+   * says so (ninedof_eewriter_check). */
   event void EepromTimer.fired() {
     uint16_t addr;
     uint8_t value;
@@ -102,6 +108,12 @@ implementation
         eeprom_write_byte((uint8_t *)addr, value);   /* 3.3 ms, in hardware */
         return;
       }
+    }
+    if (ninedof_eewriter_pending(&eewriter)) {
+      uint8_t back[NINEDOF_IMAGE_MAX];
+      eeprom_read_block(back, (const void *)ninedof_eewriter_addr(&eewriter), eewriter.len);
+      if (ninedof_eewriter_check(&eewriter, &rx, back) == NINEDOF_EE_AGAIN)
+        return;                                      /* written again from the next tick */
     }
     call EepromTimer.stop();
     call Leds.led2Off();

@@ -51,8 +51,13 @@ demodeps:
 	@$(if $(call missing,$(DEMO_PACKAGES)),$(call apt_install,$(call missing,$(DEMO_PACKAGES))),true)
 
 # --- the two commands -----------------------------------------------------
+# in parallel (pytest-xdist): one worker per core, a test module at a time on a
+# worker, modules with slow tests first (tests/conftest.py); TEST_JOBS=0: all in
+# this process
+TEST_JOBS ?= auto
 test: venv sysdeps
-	$(PY) -m pytest -q -p no:cacheprovider $(PYTEST_ARGS) tests
+	$(PY) -m pytest -q -p no:cacheprovider -n $(TEST_JOBS) --dist loadfile --no-loadscope-reorder \
+	  $(PYTEST_ARGS) tests
 
 demo: venv demodeps
 	$(PY) scripts/demo.py --out $(DEMO_DIR)

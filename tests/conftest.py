@@ -97,7 +97,10 @@ class _MeasuredGuard:
     def _under(self, p) -> bool:
         if isinstance(p, int) or p is None:
             return False
-        s = os.path.abspath(os.fsdecode(p))
+        s = os.fsdecode(p)
+        if s.startswith("file:"):                # sqlite's URI form
+            s = s[5:].split("?")[0]
+        s = os.path.abspath(s)
         return any(s == r or s.startswith(r + os.sep) for r in self.roots)
 
     def _mentions(self, cmd) -> bool:
@@ -205,7 +208,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
 def pytest_configure(config):
-    config.addinivalue_line("markers", "slow: takes more than a few seconds")
+    config.addinivalue_line("markers", "slow: takes more than a few seconds (in a "
+                            "parallel run it starts first)")
     # hypothesis keeps caches (.hypothesis/) in the working folder: tests write
     # only in their own temporary folders, so point it at one
     if "HYPOTHESIS_STORAGE_DIRECTORY" not in os.environ:
@@ -223,8 +227,8 @@ def measured():
     return need_measured()
 
 
-# Real database servers (Debian's packages, make sysdeps), one per test run,
-# each in its own temporary folder (dbservers.py).  Not installed or not
+# Real database servers (Debian's packages, make sysdeps), one per test run
+# (per worker in a parallel run), each in its own temporary folder (dbservers.py).  Not installed or not
 # starting: the tests that need them fail (they are part of the set-up).
 @pytest.fixture(scope="session")
 def pg_url():
@@ -246,3 +250,29 @@ def mariadb():
     except dbservers.ServerError as e:
         pytest.fail(str(e))
 
+
+# --- parallel runs (make test: pytest-xdist, -n auto --dist loadfile) -------
+# Each worker is a process of its own: its session fixtures (the database
+# servers above, each in its own temporary folder, MariaDB's TCP on a free
+# port), module fixtures, module-level caches and tmp_path are its own.  A test
+# module is one work unit (loadfile): its module fixtures and caches are built
+# once, on one worker.  (--dist loadgroup would split modules further, but it
+# does not group with pytest 9.2's node ids: pytest-xdist issue 1386.)
+# Here the modules that hold a test marked slow are handed out first, larger
+# modules first within each kind, so the workers end together on short modules;
+# the order inside a module is kept, and outside xdist nothing is reordered.
+# No test depends on this: run alone or in another order it gives the same
+# result.
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    if not hasattr(config, "workerinput"):       # not an xdist worker: as collected
+        return
+    size: dict = {}
+    slow: set = set()
+    for it in items:
+        mod = getattr(it, "module", None)
+        size[mod] = size.get(mod, 0) + 1
+        if it.get_closest_marker("slow") is not None:
+            slow.add(mod)
+    items.sort(key=lambda it: (getattr(it, "module", None) not in slow,
+                               -size[getattr(it, "module", None)]))       # stable

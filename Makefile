@@ -1,7 +1,8 @@
 # motecal: `make demo` and `make test` do all set-up on a fresh Debian machine.
 #
 #   make demo    the main job end to end on the simulator (sqlite), ends with a report
-#   make test    every test: Python (pytest), C logic with gcc, and avr-gcc + simavr
+#   make test    every test: Python (pytest), C logic with gcc, and avr-gcc + simavr,
+#                in parallel on every core
 #   make bench   benchmarks: measured figures next to the goals (not pass/fail),
 #                written to bench/RESULTS.md and README.md's goals table
 

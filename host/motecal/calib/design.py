@@ -422,11 +422,12 @@ def poses_needed(stats: PoseStats, scales: dict, targets: Targets = Targets(), *
     None where even all the poses do not.  Only ``sensors`` are judged (the
     magnetometer is left out when its calibration came from a sweep).
 
-    ``curve`` keeps the promise after every number of poses from
-    ``MIN_POSES`` on (the report draws it): ``k``, and per sensor the
+    ``curve`` keeps the promise at ``CURVE_POINTS`` numbers of poses ``k``
+    from ``MIN_POSES`` to all of them (the report draws it): per sensor the
     promised error of the first k poses in the order taken (``in_order``)
-    and of the first k of the greedy selection (``best_subset``, run to
-    every pose; ``order`` the pose labels in the order it chose them)."""
+    and of the first k of the greedy selection (``best_subset``; the
+    selection runs to every pose, ``order`` the labels in the order it chose
+    them)."""
     K = len(stats)
     out = {"poses": K, "targets": {"accel_g": targets.accel_g, "mag_rel": targets.mag_rel,
                                    "gyro_dps": targets.gyro_dps},
@@ -534,13 +535,13 @@ class Planner:
 
 
 def session_poses_needed(board, data, targets: Targets = Targets(),
-                         q: float = CONFIDENCE) -> dict | None:
+                         q: float = CONFIDENCE, keep: bool = True) -> dict | None:
     """``poses_needed`` for a calibrated board (``calibrate_board``'s result)
     and its session (one mote): judged on the sensors its static poses
     calibrated (the magnetometer only when its calibration came from the
     poses, set O, not from a sweep).  Kept in ``cal.json`` under the
-    accelerometer's ``quality["poses_needed"]``; None without an
-    accelerometer calibration from poses."""
+    accelerometer's ``quality["poses_needed"]`` (``keep``: the report asks
+    without keeping); None without an accelerometer calibration from poses."""
     if board.accel is None or not (data.label >= 1).any():
         return None
     sensors = ["accel"]
@@ -550,7 +551,8 @@ def session_poses_needed(board, data, targets: Targets = Targets(),
         sensors.append("gyro")
     st = pose_stats(data.raw, data.label)
     out = poses_needed(st, data.scales, targets, sensors=tuple(sensors), q=q)
-    board.accel.quality["poses_needed"] = out
+    if keep:
+        board.accel.quality["poses_needed"] = out
     return out
 
 
@@ -562,7 +564,8 @@ def describe_poses_needed(pn: dict) -> list[str]:
     fmt = {"accel": lambda b: f"accel {b * 1e3:.3g} mg", "mag": lambda b: f"mag {b * 1e2:.3g} %",
            "gyro": lambda b: f"gyro {b:.3g} deg/s"}
     want = ", ".join(names[s] for s in pn["sensors"])
-    have = ", ".join(fmt[s](b) for s, b in pn["bounds_all"].items() if b is not None)
+    have = ", ".join(fmt[s](pn["bounds_all"][s]) for s in pn["sensors"]
+                     if pn["bounds_all"].get(s) is not None)     # one order, also from JSON
     lines = [f"  poses needed (promised error at {pn['confidence']:.0%} on fresh directions, "
              f"targets {want}):"]
     if pn["in_order"] is None:

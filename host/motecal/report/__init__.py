@@ -92,19 +92,22 @@ def _commit_out(tmp: Path, out: Path) -> None:
 
 
 def write_report(store, session, out_dir, mote: int | None = None, *, cal=None,
-                 seed: int = 0, log=None) -> Path:
+                 seed: int = 0, log=None, diagnosis_report=None) -> Path:
     """Write the report of ``session`` (a name in ``store``, or a SessionData
     with ``store`` None) into ``out_dir``; returns the path of index.html.
 
     ``cal`` is a calibration to show (a ``BoardCalibration``, its JSON dict or
     a cal.json path); without it the latest calibration stored for the mote is
     used, and without that the board is calibrated now (full model, ``seed``).
-    ``log`` is called with one-line progress messages.
+    ``log`` is called with one-line progress messages.  ``diagnosis_report``
+    is a ``motecal diagnose --report`` folder whose evidence pictures the
+    diagnosis section shows (copied into the report).
     """
     from .build import build_report
     out, tmp = _prepare_out(out_dir)
     try:
-        build_report(store, session, tmp, mote=mote, cal=cal, seed=seed, log=log)
+        build_report(store, session, tmp, mote=mote, cal=cal, seed=seed, log=log,
+                     diagnosis_report=diagnosis_report)
         _commit_out(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -63,7 +63,8 @@ def render(title: str, meta: list[tuple[str, str]], sections: list[Section],
     out.append("<nav>" + "".join(f'<a href="#{escape(s.anchor)}">{escape(s.title)}</a>'
                                  for s in sections) + "</nav>")
     for s in sections:
-        out.append(f'<h2 id="{escape(s.anchor)}">{escape(s.title)}</h2>')
+        out.append(f'<section id="{escape(s.anchor)}">')
+        out.append(f'<h2>{escape(s.title)}</h2>')
         if s.intro:
             out.append(f"<p>{escape(s.intro)}</p>")
         for href, text in s.links:
@@ -85,5 +86,6 @@ def render(title: str, meta: list[tuple[str, str]], sections: list[Section],
         if s.notes:
             out.append('<ul class="notes">' + "".join(f"<li>{escape(n)}</li>" for n in s.notes)
                        + "</ul>")
+        out.append("</section>")
     out += ["</body>", "</html>"]
     return "\n".join(out) + "\n"

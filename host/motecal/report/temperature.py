@@ -388,10 +388,8 @@ def part(mr, out: Path) -> Part:
             charts = sensor_charts(sd)
             if tm is not None:
                 ex = tm.extra or {}
-                head = (f"term from {' + '.join(ex.get('sets', []))}; held-out rms "
-                        f"{ex.get('heldout_rms_before', float('nan')):.3g} -> "
-                        f"{ex.get('heldout_rms_after', float('nan')):.3g} {sc.unit} without "
-                        f"-> with it")
+                head = (f"held-out rms {ex.get('heldout_rms_before', float('nan')):.3g} -> "
+                        f"{ex.get('heldout_rms_after', float('nan')):.3g} {sc.unit}")
             else:
                 head = "no temperature term: " + (settings.get("not_fitted", {}).get(name)
                                                   or "not fitted")
@@ -411,7 +409,8 @@ def part(mr, out: Path) -> Part:
                    if name == "mag" else "")
                 + ("Per-axis points from poses or a sweep: readings within 30 deg of that "
                    "axis, magnitude error / its share. " if sd.mag_T is not None else "")
-                + f"Calibrate: {model or head}."))
+                + f"Calibrate: {model or head}; the title's held-out rms is without -> with "
+                  f"the term."))
             view.append((f"{NAMES[name].lower()} against temperature", charts))
     sec = H.Section(f"temperature-mote{m}", f"Temperature, mote {m}",
                     "What calibrate fitted against the board temperature, from the stored "

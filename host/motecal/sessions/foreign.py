@@ -30,7 +30,10 @@ import numpy as np
 from . import floatlog as F
 from ..errors import UserError
 from ..inputs import check_input_file, read_input_text
-from .importer import _fail, _finish, _read_text_lines, _session, add_note, input_paths
+from .cells import _fail, _read_text_lines
+from .imported import _session, add_note
+from .importer import input_paths
+from .labelling import _finish
 from .session import LABEL_ROT, SENSOR_SLICES, UNITS
 from .still import StillThresholds, segment_recording
 
@@ -88,12 +91,12 @@ def _convert(path, vals: dict, units: dict, scales: dict, chip_scales: dict, gra
 
 
 def _chip_scales(chip) -> dict:
-    from .importer import parse_chip_overrides
+    from .chips import parse_chip_overrides
     return {s: sc for s, (_, sc) in parse_chip_overrides(chip).items()}
 
 
 def _apply_scales(data, lsbs: dict, chip):
-    from .importer import parse_chip_overrides
+    from .chips import parse_chip_overrides
     names = {s: n for s, (n, _) in parse_chip_overrides(chip).items()}
     source = data.meta.get("scale_from", {})
     for s in SENSOR_SLICES:

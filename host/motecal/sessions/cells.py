@@ -5,6 +5,7 @@ lines.  A bad one is one UserError naming the file and the line
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +33,7 @@ def _number(tok: str, path, line, what: str, allow_empty=False) -> float:
         v = float(tok)
     except ValueError:
         raise _fail(path, line, f"{what} is not a number: {tok!r}") from None
-    if not np.isfinite(v):
+    if not math.isfinite(v):
         raise _fail(path, line, f"{what} is not a finite number: {tok!r}")
     return v
 

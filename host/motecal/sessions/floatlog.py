@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from .cells import _number
 from .options import option_parts
 from .session import LABEL_ROT, SENSOR_SLICES, UNITS
 
@@ -248,16 +249,8 @@ def parse_float_log(path, lines: list[str], ncol: int, fail) -> tuple[np.ndarray
         toks = re.split(r"[\s,;]+", s)
         if len(toks) != ncol:
             raise fail(path, lineno, f"expected {ncol} numbers, found {len(toks)}")
-        vals = []
-        for j, tok in enumerate(toks, start=1):
-            try:
-                v = float(tok)
-            except ValueError:
-                raise fail(path, lineno, f"column {j} is not a number: {tok!r}") from None
-            if not np.isfinite(v):
-                raise fail(path, lineno, f"column {j} is not a finite number: {tok!r}")
-            vals.append(v)
-        rows.append(vals)
+        rows.append([_number(tok, path, lineno, f"column {j}")
+                     for j, tok in enumerate(toks, start=1)])
         where.append(lineno)
     if not rows:
         raise fail(path, len(lines) or 1, "no samples")

@@ -30,7 +30,7 @@ import numpy as np
 from . import floatlog as F
 from ..errors import UserError
 from ..inputs import check_input_file, read_input_text
-from .cells import _fail, _read_text_lines
+from .cells import _fail, _number, _read_text_lines
 from .imported import _session, add_note
 from .importer import input_paths
 from .labelling import _finish
@@ -150,16 +150,7 @@ def read_imucal_annotated(path, *, rate_hz=None, chip=None, scale=None, units=No
             k = int(float(row[col["samples"]]))
         except ValueError:
             raise _fail(path, lineno, f"samples is not a number: {row[col['samples']]!r}") from None
-        v = []
-        for c in ACC_COLS + GYR_COLS:
-            tok = row[col[c]].strip()
-            try:
-                x = float(tok)
-            except ValueError:
-                raise _fail(path, lineno, f"{c} is not a number: {tok!r}") from None
-            if not np.isfinite(x):
-                raise _fail(path, lineno, f"{c} is not a finite number: {tok!r}")
-            v.append(x)
+        v = [_number(row[col[c]], path, lineno, c) for c in ACC_COLS + GYR_COLS]
         parts.append(part)
         samples.append(k)
         vals.append(v)
@@ -278,16 +269,7 @@ def read_imucal_session(path, sections_path=None, *, rate_hz=None, chip=None, sc
         if len(row) != len(header):
             raise _fail(path, lineno, f"expected {len(header)} columns, found {len(row)}")
         lines_of.append(lineno)
-        v = []
-        for name, tok in zip(cols, row[1:]):
-            try:
-                x = float(tok)
-            except ValueError:
-                raise _fail(path, lineno, f"{name} is not a number: {tok.strip()!r}") from None
-            if not np.isfinite(x):
-                raise _fail(path, lineno, f"{name} is not a finite number: {tok.strip()!r}")
-            v.append(x)
-        vals.append(v)
+        vals.append([_number(tok, path, lineno, name) for name, tok in zip(cols, row[1:])])
     if not vals:
         raise _fail(path, len(lines), "no samples after the header")
     vals = np.array(vals)

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import UserError
 from .options import option_parts
+from .ranges import check_scale
 from .session import (ADXL345_LSB_PER_G, HMC5883L_LSB_PER_GAUSS, ITG3200_LSB_PER_DPS,
                       NOMINAL_CHIPS, NOMINAL_SCALES)
 
@@ -57,7 +58,7 @@ def parse_chip_overrides(chip) -> dict:
                 raise UserError(f"--chip {part}: scale must be a positive number of LSB per unit")
             if sensor is None:
                 raise UserError(f"--chip {part}: give the sensor, e.g. mag={name}:{scale_text}")
-            out[sensor] = (chipname, scale)
+            out[sensor] = (chipname, check_scale(sensor, scale, f"--chip {part}"))
             continue
         owners = [s for s, chips in CHIP_SCALES.items() if chipname in chips]
         if sensor is None:

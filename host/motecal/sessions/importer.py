@@ -28,7 +28,7 @@ from .session import SessionData
 # The readers and their parts live in one module each; they are all reachable
 # from here, as before the split (callers use ``importer.read_csv`` etc.).
 from .cells import (CSV_TEMP, SEQ_MAX, T_MAX, TEMP_RANGE_C, _count, _fail,  # noqa: F401
-                    _integer, _number, _read_bytes, _read_text_lines, _where, temperature_cell)
+                    _integer, _number, _where, numbered_lines, temperature_cell, text_chunks)
 from .chips import (CHIP_SCALES, CLIP_COUNTS, SENSOR_ALIASES, _chips_for,  # noqa: F401
                     normalise_chip, parse_chip_overrides)
 from .imported import (IMPORT_MOTE, SOURCE_SEP, _clipped, _sensor_counts,  # noqa: F401

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import UserError
 from .chips import parse_chip_overrides
-from .imported import _clipped, _sensor_counts, add_note
+from .imported import _clipped, _sensor_counts, add_note, check_imported
 from .session import LABEL_ROT, UNITS, SessionData
 from .still import StillThresholds, segment_recording, window_rows
 
@@ -117,6 +117,7 @@ def _finish(data: SessionData, chip, kind, parts, has_labels=False,
         data.meta["chips_from"] = "--chip " + ", ".join(
             f"{s}={n}" for s, (n, _) in sorted(overrides.items()))
     data.meta["samples"] = _sensor_counts(data.raw)
+    check_imported(data)
     data.meta["clipped"] = _clipped(data.raw, data.chips)
     data.meta["units"] = dict(UNITS)
     if has_labels:

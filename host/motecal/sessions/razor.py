@@ -10,9 +10,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
-from .cells import _count, _fail, _read_bytes, _read_text_lines
+from ..inputs import check_input_file
+from .cells import BLOCK_BYTES, Rows, _count, _fail, byte_blocks, numbered_lines
 from .imported import SOURCE_SEP, _session, add_note
 from .labelling import _finish
+from .ranges import ZERO_RUN, check_zero_runs
 from .session import SENSOR_SLICES, SessionData
 
 RAZOR_RATE_HZ = 50.0            # Razor AHRS firmware output: one sample every 20 ms
@@ -27,12 +29,11 @@ _RAZOR_COLS = {"A": slice(0, 3), "G": slice(3, 6), "M": slice(6, 9)}
 
 
 def _parse_razor_text(path) -> tuple[np.ndarray, int | None]:
-    lines = _read_text_lines(path)
-    samples = []
-    cur = np.full(9, np.nan)
+    samples = Rows(9)
+    cur = [np.nan] * 9
     expect = 0                        # index into A, M, G
     start_line = None
-    for lineno, line in enumerate(lines, start=1):
+    for lineno, line in numbered_lines(path):
         s = line.strip()
         if not s:
             continue
@@ -53,12 +54,12 @@ def _parse_razor_text(path) -> tuple[np.ndarray, int | None]:
         cur[_RAZOR_COLS[key]] = vals
         expect += 1
         if expect == 3:
-            samples.append(cur)
-            cur = np.full(9, np.nan)
+            samples.add(cur)
+            cur = [np.nan] * 9
             expect = 0
-    if not samples:
+    if not len(samples):
         raise _fail(path, 1, "no complete Razor AHRS sample (#A-R=, #M-R=, #G-R= lines)")
-    raw = np.array(samples)
+    raw = samples.array()
     # an incomplete last sample (capture stopped mid-sample) is dropped, noted by caller
     return raw, (start_line if expect else None)
 
@@ -107,25 +108,47 @@ def _be_float32(buf: bytes) -> np.ndarray:
         return np.frombuffer(buf, ">f4").astype(np.float64)
 
 
+SAMPLE_BYTES = 12                   # x, y, z big-endian float32
+
+
 def _float_values(path) -> np.ndarray:
-    buf = _read_bytes(path)
-    if len(buf) == 0:
+    """The (x, y, z) counts of a float log, read in blocks: a value that is not
+    an integer count, or a run of ``ranges.ZERO_RUN`` samples of exactly zero
+    (120 MB of zero bytes is no magnetometer log), stops at once with the
+    sample and byte."""
+    if Path(path).is_dir():
+        raise UserError(f"{path}: is a directory, expected a file")
+    check_input_file(path)
+    size = Path(path).stat().st_size
+    if size == 0:
         raise UserError(f"{path}: empty file: no float32 samples")
-    whole = len(buf) // 12
-    if len(buf) % 12:
+    whole = size // SAMPLE_BYTES
+    if size % SAMPLE_BYTES:
         raise UserError(f"{path}: sample {whole + 1} (byte {whole * 12}): truncated float file, "
-                        f"{len(buf)} bytes is not a whole number of 12-byte samples "
+                        f"{size} bytes is not a whole number of 12-byte samples "
                         f"(3 big-endian float32)")
-    x = _be_float32(buf).reshape(-1, 3)
-    with np.errstate(invalid="ignore"):
-        bad = ~np.isfinite(x).all(axis=1) | (np.abs(x) > 32768).any(axis=1) \
-            | (x != np.round(x)).any(axis=1)
-    if bad.any():
-        k = int(np.flatnonzero(bad)[0])
-        raise UserError(f"{path}: sample {k + 1} (byte {k * 12}): not raw integer counts "
-                        f"({', '.join(f'{v:g}' for v in x[k])}); not a big-endian float32 "
-                        f"triplet file?")
-    return x
+    out, carry, k0, tail = Rows(3), b"", 0, np.empty((0, 3))
+    for buf in byte_blocks(path, BLOCK_BYTES - BLOCK_BYTES % SAMPLE_BYTES):
+        buf = carry + buf
+        cut = len(buf) - len(buf) % SAMPLE_BYTES
+        buf, carry = buf[:cut], buf[cut:]
+        x = _be_float32(buf).reshape(-1, 3)
+        with np.errstate(invalid="ignore"):
+            bad = ~np.isfinite(x).all(axis=1) | (np.abs(x) > 32768).any(axis=1) \
+                | (x != np.round(x)).any(axis=1)
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise UserError(f"{path}: sample {k0 + k + 1} (byte {(k0 + k) * 12}): not raw integer "
+                            f"counts ({', '.join(f'{v:g}' for v in x[k])}); not a big-endian "
+                            f"float32 triplet file?")
+        joined = np.vstack([tail, x])
+        first = k0 - len(tail)
+        check_zero_runs(joined, "mag", lambda j: f"{path}: sample {first + j + 1} "
+                        f"(byte {(first + j) * 12})")
+        tail = joined[-(ZERO_RUN - 1):]
+        out.extend(x)
+        k0 += len(x)
+    return out.array()
 
 
 def read_razor_float(path, chip="hmc5883l", kind="auto") -> SessionData:

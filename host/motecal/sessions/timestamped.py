@@ -9,10 +9,11 @@ import numpy as np
 
 from ..errors import UserError
 from ..line.protocol import ITG3200_TEMP_AT_OFFSET_C, ITG3200_TEMP_LSB_PER_C, ITG3200_TEMP_OFFSET
-from .cells import _count, _fail, _number, _read_text_lines, temperature_cell
+from .cells import T_MAX, Rows, _count, _fail, _number, numbered_lines, temperature_cell
 from .chips import CHIP_SCALES, normalise_chip
 from .imported import SOURCE_SEP, _session, add_note
 from .labelling import _finish
+from .ranges import check_rate
 from .session import NOMINAL_CHIPS, NOMINAL_SCALES, SENSOR_SLICES, SessionData, rate_from_times
 
 TIMESTAMPED_FRAME = "as recorded: chip axes of each sensor as written in the file"
@@ -77,30 +78,37 @@ def _timestamped_header(path, line: str):
 
 
 def _parse_timestamped(path):
-    lines = _read_text_lines(path)
-    if not lines or not lines[0].strip():
+    lines = numbered_lines(path)
+    first = next(lines, None)
+    if first is None or not first[1].strip():
         raise _fail(path, 1, "empty file: no header")
-    idx, sensors, chips, temp = _timestamped_header(path, lines[0])
+    idx, sensors, chips, temp = _timestamped_header(path, first[1])
     ncol = 1 + len(idx) + (temp is not None)
-    t, vals, temps = [], [], []
-    for lineno, line in enumerate(lines[1:], start=2):
+    rows, last = Rows(ncol), 1                       # t, the counts (, degrees C)
+    for lineno, line in lines:
+        last = lineno
         if not line.strip():
             continue
         parts = line.split(",")
         if len(parts) != ncol:
             raise _fail(path, lineno, f"expected {ncol} columns, found {len(parts)}")
-        t.append(_number(parts[0], path, lineno, "t_s"))
+        t = _number(parts[0], path, lineno, "t_s")
+        if abs(t) > T_MAX:
+            raise _fail(path, lineno, f"t_s must be within +-{T_MAX:g} s, not {parts[0].strip()!r}")
         parts = parts[1:]
+        cells = []
         if temp is not None:
             col, name, (factor, offset), _ = temp
-            temps.append(temperature_cell(parts.pop(col), path, lineno, name, factor, offset))
-        vals.append([_count(p, path, lineno, f"column {j + 2}") for j, p in enumerate(parts)])
-    if not t:
-        raise _fail(path, len(lines), "no samples after the header")
-    raw = np.full((len(t), 9), np.nan)
-    raw[:, idx] = np.array(vals)
-    celsius = np.array(temps, float) if temp is not None else None
-    return np.array(t), raw, sensors, chips, celsius, (temp[3] if temp else None)
+            cells = [temperature_cell(parts.pop(col), path, lineno, name, factor, offset)]
+        rows.add([t] + [_count(p, path, lineno, f"column {j + 2}") for j, p in enumerate(parts)]
+                 + cells)
+    x = rows.array()
+    if not len(x):
+        raise _fail(path, last, "no samples after the header")
+    raw = np.full((len(x), 9), np.nan)
+    raw[:, idx] = x[:, 1:1 + len(idx)]
+    celsius = x[:, -1].copy() if temp is not None else None
+    return x[:, 0].copy(), raw, sensors, chips, celsius, (temp[3] if temp else None)
 
 
 def _timestamped_files(dir_or_files) -> list[Path]:
@@ -148,7 +156,8 @@ def read_timestamped(dir_or_files, chip=None, kind="auto") -> SessionData:
             r = rate_from_times(np.sort(t))
             if r is None:
                 raise _fail(f, 2, "timestamps do not span any time: cannot measure the rate")
-            rates[s] = round(r, 3)
+            rates[s] = round(check_rate(r, f"{f}: the rate its times give",
+                                        "(is t_s in seconds?)"), 3)
         chips.update(fchips)
         ts.append(t)
         raws.append(raw)

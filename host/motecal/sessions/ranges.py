@@ -141,7 +141,7 @@ def tables() -> list[tuple[str, str, str]]:
              ("--gravity", GRAVITY.text(), GRAVITY.why),
              ("--angle-deg (magnitude)", ANGLE_DEG.text(), ANGLE_DEG.why),
              ("--rate-dps (--rpm x 6)", TURN_DPS.text(), TURN_DPS.why)]
-    rows += [(f"a float log's {s} reading", f"|value| <= {r.hi:g} {r.unit}",
+    rows += [(f"a float log's {s} reading", f"within +-{r.hi:g} {r.unit} per axis",
               r.why + f"; up to {ABSURD_MAX_FRACTION:.0%} of the lines beyond it are left "
               "out and named in the notes, more stop the import")
              for s, r in READING_MAX.items()]

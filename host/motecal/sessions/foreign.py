@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -284,6 +285,7 @@ def read_imucal_session(path, sections_path=None, *, rate_hz=None, chip=None, sc
 # What the sketches that feed MotionCal print (Adafruit's sensor calibration
 # examples): accel m/s^2 * 8192 / 9.8, gyro deg/s * 16, mag uT * 10.
 MOTIONCAL_SCALES = {"accel": 8192.0 * F.G0 / 9.8, "gyro": 16.0, "mag": 1000.0}
+RAW_LINE = re.compile(r"Raw:\s*-?\d")           # a Raw: message, behind any log prefix
 
 
 def read_motioncal(path, *, rate_hz=None, scale=None, chip=None, kind="auto"):
@@ -355,7 +357,7 @@ def detect_text(lines: list[str], text: str = "") -> str | None:
         return "imucal-session"
     if F.looks_like_float_log(lines):
         return "float-log"
-    if any("Raw:" in s for s in lines[:50]):             # anywhere, as MotionCal finds it
+    if any(RAW_LINE.search(s) for s in lines[:50]):      # anywhere, as MotionCal finds it
         return "motioncal"
     return None
 

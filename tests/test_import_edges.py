@@ -376,3 +376,29 @@ def test_ranges_are_printed_in_help_and_docs(tmp_path):
         assert rng in out, rng
         assert rng in doc, f"docs/import.md lacks the range {rng} ({what})"
     assert json.dumps(R.ZERO_RUN) in doc
+
+
+def test_motioncal_is_not_a_comment_that_says_raw(tmp_path):
+    p = tmp_path / "c.csv"
+    p.write_text("# Raw: data of mote 1\nmote,seq,t,label,ax,ay,az,gx,gy,gz,mx,my,mz\n"
+                 "1,0,0,,1,2,3,4,5,6,7,8,9\n")
+    assert foreign.detect(p) is None                    # the project CSV's reader takes it
+    assert foreign.detect_text(["I (5) imu: Raw:1,2,3,4,5,6,7,8,9"]) == "motioncal"
+
+
+def test_timestamped_run_with_absurd_times_keeps_memory_bounded(tmp_path):
+    """A run whose last rows sit 1e9 s after the others: the stillness grid
+    is built per stretch between pauses (it asked for 1.46 TiB before)."""
+    run = tmp_path / "run"
+    run.mkdir()
+    mag = ["t_s,mag_x,mag_y,mag_z  (HMC5883L)"] + \
+        [f"{i / 77:.4f},{100 + i % 3},200,{300 - i % 2}" for i in range(200)] + ["1e9,100,200,300"]
+    mpu = ["t_s,acc_x,acc_y,acc_z,gyr_x,gyr_y,gyr_z  (MPU6050)"] + \
+        [f"{i / 99:.4f},{i % 3},0,16384,1,2,{i % 2}" for i in range(260)] + ["2e9,0,0,16384,1,2,3"]
+    (run / "hmc5883l_counts.csv").write_text("\n".join(mag) + "\n")
+    (run / "mpu6050_counts.csv").write_text("\n".join(mpu) + "\n")
+    db = tmp_path / "d.db"
+    rc, out, err = motecal("import", run, "--db", db, "--session", "r")
+    assert rc == 0, err
+    d = stored(db, "r")
+    assert len(d) == 462 and d.t.max() == 2e9

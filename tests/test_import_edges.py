@@ -120,6 +120,7 @@ OPTION_CASES = [
     (["--angle-deg", "6.28"], ["--angle-deg", "10..3600"]),
     (["--rpm", "1e300"], ["--rpm", "1..4000 deg/s"]),
     (["--rate-dps", "0.001"], ["--rate-dps", "1..4000 deg/s"]),
+    (["--columns", "accel,acc"], ["--columns accel,acc: a sensor named twice"]),
 ]
 
 
@@ -402,3 +403,20 @@ def test_timestamped_run_with_absurd_times_keeps_memory_bounded(tmp_path):
     assert rc == 0, err
     d = stored(db, "r")
     assert len(d) == 462 and d.t.max() == 2e9
+
+
+def test_out_of_memory_is_one_line_and_stores_nothing(tmp_path, monkeypatch):
+    """A recording too long for the machine (a 204 MB float log of plausible
+    counts under a 4 GB limit ran out of memory in the labelling): one line,
+    exit 1, the database as it was."""
+    from motecal.sessions import labelling
+
+    def no_memory(*a, **k):
+        raise MemoryError("Unable to allocate 389. MiB")
+    monkeypatch.setattr(labelling, "assign_labels", no_memory)
+    log = write_lines(tmp_path / "m_acc.txt", freeimu_acc(300))
+    db = make_db(tmp_path / "d.db")
+    before = digest(db)
+    rc, out, err = motecal("import", log, "--db", db, "--session", "s")
+    assert rc == 1 and err.count("\n") == 1 and "out of memory" in err, err
+    assert digest(db) == before

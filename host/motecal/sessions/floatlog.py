@@ -258,7 +258,10 @@ def sensors_of_file(path, columns=None) -> list[str]:
     ``...mag...``, as FreeIMU-cal names them)."""
     if columns:
         items = columns if isinstance(columns, (list, tuple)) else str(columns).split(",")
-        return [_sensor(c, "--columns") for c in items if str(c).strip()]
+        out = [_sensor(c, "--columns") for c in items if str(c).strip()]
+        if len(set(out)) != len(out):
+            raise UserError(f"--columns {columns}: a sensor named twice")
+        return out
     name = Path(path).name.lower()
     found = [s for key, s in FILE_SENSOR if key in name]
     if len(found) != 1:

@@ -299,7 +299,7 @@ def test_streamed_csv_names_the_same_line(tmp_path, small_chunks, line, words):
     p.write_text(p.read_text() + line + "\n" + "1,241,1.93,,1,2,3,4,5,6,7,8,9\n")
     with pytest.raises(UserError) as e:
         read_csv(p)
-    assert str(e.value) == f"{p}: {words}" or words in str(e.value), str(e.value)
+    assert str(e.value).startswith(f"{p}: {words}"), str(e.value)
 
 
 def test_fast_csv_block_agrees_with_the_cell_by_cell_reader():

@@ -77,8 +77,8 @@ def calibrate_board(data: SessionData, *, model: str | None = None, groups=None,
     motes = data.motes
     if len(motes) != 1:
         raise UserError(f"session {data.name} holds motes {motes}: calibrate one mote at a time")
-    labelled = labelled_poses(data)
     data, found = poses_from_stillness(data)
+    labelled = labelled_poses(data)
     whole, tc = data, None
     if data.has_temp:                    # issue 16: holds fit the temperature terms only
         tc = temperature_content(data)

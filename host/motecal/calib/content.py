@@ -189,7 +189,8 @@ def poses_from_stillness(data: SessionData) -> tuple[SessionData, str | None]:
         what = "one orientation" if n <= 1 else f"{n} orientations"
         note = (f"a hold found in the data: {k} still stretch{'es' if k != 1 else ''} in "
                 f"{what} (the recording was unlabelled): still data for the gyroscope")
-        return dataclasses.replace(data, label=label), note
+        return dataclasses.replace(data, label=label,
+                                   meta=dict(data.meta or {}, still_found="hold")), note
     note = (f"static poses found in the data: {k} still stretches covering {n} "
             f"distinct orientations (the recording was labelled {was}); the rows between "
             f"them stay {'the sweep' if was == 'a rotation' else 'unlabelled'}")
@@ -197,11 +198,12 @@ def poses_from_stillness(data: SessionData) -> tuple[SessionData, str | None]:
 
 
 def labelled_poses(data: SessionData) -> bool:
-    """The poses were labelled when recorded or imported (a guided log, an
-    import's one pose per file), not found by ``poses_from_stillness``: data
-    meant for the accelerometer, which a calibrate that cannot use them
-    refuses rather than skips."""
-    return bool((data.label >= 1).any())
+    """The session's poses are poses: labelled when recorded or imported (a
+    guided log, an import's one pose per file) or found in six or more
+    orientations, not a hold ``poses_from_stillness`` found in an unlabelled
+    recording.  Data meant for the accelerometer, which a calibrate that
+    cannot use them refuses rather than skips."""
+    return bool((data.label >= 1).any()) and (data.meta or {}).get("still_found") != "hold"
 
 
 def pose_means(data: SessionData, sensor: str, rows=None) -> tuple[np.ndarray, np.ndarray]:
@@ -226,7 +228,8 @@ def magnetometer_sets(data: SessionData, limits: GateLimits = LIMITS) -> dict:
     rows (every row of a session without labels), O = the static poses;
     overflowed readings (-4096) left out, sets under 10 rows dropped.  R is
     judged as a sweep (``judge_sweep``), O by its pose means
-    (``judge_poses``)."""
+    (``judge_poses``, asking the gate's hull depth: a set of poses the gate
+    would call too clustered is not fitted)."""
     ok = data.has("mag") & ~(data.sensor("mag") == HMC5883L_OVERFLOW).any(axis=1)
     sets = {}
     if (data.label == LABEL_ROT).any():
@@ -242,7 +245,10 @@ def magnetometer_sets(data: SessionData, limits: GateLimits = LIMITS) -> dict:
         if name == "R":
             j = judge_sweep("mag", data.sensor("mag")[rows] / data.scales["mag"], limits)
         else:
-            j = judge_poses("mag", pose_means(data, "mag", rows)[1], limits)
+            # poses not meant for the magnetometer (the six faces) are fitted
+            # only when the gate could accept them: its own surround limit
+            j = judge_poses("mag", pose_means(data, "mag", rows)[1], limits,
+                            surround=limits.min_hull_depth)
         out[name] = (rows, j)
     return out
 

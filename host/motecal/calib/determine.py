@@ -18,8 +18,11 @@ Static poses (their mean readings in nominal units): the models, richest
 first, and the distinct orientations (at least ``DISTINCT_DEG`` apart) each
 needs around the centre (the origin for the accelerometer, whose offsets are
 small beside 1 g; the centre of the best-fitting sphere for the
-magnetometer, whose hard iron need not be), with the gate's hull depth
-(>= 0.3) in every case:
+magnetometer, whose hard iron need not be), which they must surround (the
+depth of the centre in their convex hull at least ``SURROUND_DEPTH``: poses
+on one side leave the centre undetermined along it; whether they surround it
+well enough for a calibration to be accepted -- hull depth 0.3 -- is the
+gate's to judge):
 
 * ``full`` (offsets, scales, cross-axis terms; 9 parameters): 9;
 * ``offsets+scales`` (the seed paper's model without its angles; the six
@@ -37,7 +40,7 @@ it "covers" every direction).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -56,6 +59,7 @@ ADDS = {"full": "cross-axis terms", "offsets+scales": "scales", "offsets": "offs
 SPREAD = {"full": "spread over the sphere", "offsets+scales": "around the sphere (the six faces)",
           "offsets": "around the sphere"}
 FACE_DEG = 20.0            # a pose within this of a +-axis is that face
+SURROUND_DEPTH = 0.1       # the poses' hull holds the centre this deep (the gate asks 0.3)
 SWEEP_RADIUS_NOISE = 10.0  # a sweep's sphere radius is at least this many noise sd
 
 
@@ -142,9 +146,13 @@ def on_faces(dirs) -> bool:
     return bool(len(d)) and bool((np.abs(d).max(axis=1) >= np.cos(np.deg2rad(FACE_DEG))).all())
 
 
-def judge_poses(sensor: str, means, lim: GateLimits = LIMITS) -> Judgement:
+def judge_poses(sensor: str, means, lim: GateLimits = LIMITS,
+                surround: float = SURROUND_DEPTH) -> Judgement:
     """What static poses determine: ``means`` (K, 3) are the poses' mean
-    readings in nominal units (g, gauss); see the module doc."""
+    readings in nominal units (g, gauss); see the module doc.  ``surround``:
+    the hull depth asked (the magnetometer's pose sets ask the gate's own
+    before they are fitted, ``content.magnetometer_sets``)."""
+    lim = replace(lim, min_hull_depth=surround)
     x = np.asarray(means, float).reshape(-1, 3)
     x = x[np.isfinite(x).all(axis=1)]
     if sensor == "mag":

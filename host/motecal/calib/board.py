@@ -21,6 +21,18 @@ Which rows are used
   80 % of the sphere's equal-area cells) is not fitted: a gate warning when another set is;
   when none is, the reason the magnetometer is refused -- or, in a session
   without a rotation sweep, left out with a warning (``settings["skipped"]``).
+
+Which model
+-----------
+Each sensor's data are judged before any fit (``content.judge_poses`` /
+``content.magnetometer_sets``, the one judgement of ``calib.determine``):
+without ``model`` the richest model they determine is fitted, and a sensor
+they determine nothing of is not fitted at all (a hold in one orientation:
+skipped; labelled poses: refused).  The choice and why are in
+``settings["models"]`` and the sensor's first note; the orientations the
+fitted model needs go to its quality for the gate.  A magnitude fit takes
+at most ``MAX_POSE_SAMPLES`` of a pose and ``MAX_SWEEP_SAMPLES`` of a sweep
+(``bounded_rows``), and notes a polish, refit or GA that reached its bound.
 """
 from __future__ import annotations
 

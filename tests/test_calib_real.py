@@ -96,9 +96,18 @@ def test_razor_accel_and_gyro_sane(measured, board):
     assert np.allclose(bias, still.mean(axis=0))        # the bias is the mean ...
     assert np.all(np.abs(np.array(gy.extra["bias_eq6"]) - bias) < 0.05)   # eq. 6 close to it
     assert gy.mse_after < gy.mse_before / 10
-    # the full model needs more orientations than six: refused with that reason
-    full = calibrate_board(d, seed=0, gyro_matrix=False, kfold=0)
-    assert any("accel: too few distinct orientations: 6" in r
+    # with no model given, the six faces determine offsets and scales: the
+    # same fit, said so (calib.determine)
+    auto = calibrate_board(d, seed=0)
+    assert auto.accel.model == "paper(offsets+scales)" and gate.decide(auto).accepted
+    assert np.array_equal(auto.accel.A, acc.A) and np.array_equal(auto.accel.c, acc.c)
+    assert auto.accel.notes[0] == ("offsets and scales from 6 faces; cross-axis terms need at "
+                                   "least 9 orientations spread over the sphere: add poses to "
+                                   "fit them")
+    assert auto.settings["models"]["accel"]["determined"] == "offsets+scales"
+    # the full model, forced, needs more orientations than six: refused with that reason
+    full = calibrate_board(d, model="full", seed=0, gyro_matrix=False, kfold=0)
+    assert any("accel: too few distinct orientations: 6 (at least 9 for full" in r
                for r in gate.decide(full).reasons)
 
 

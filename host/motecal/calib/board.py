@@ -21,6 +21,18 @@ Which rows are used
   80 % of the sphere's equal-area cells) is not fitted: a gate warning when another set is;
   when none is, the reason the magnetometer is refused -- or, in a session
   without a rotation sweep, left out with a warning (``settings["skipped"]``).
+
+Which model
+-----------
+Each sensor's data are judged before any fit (``content.judge_poses`` /
+``content.magnetometer_sets``, the one judgement of ``calib.determine``):
+without ``model`` the richest model they determine is fitted, and a sensor
+they determine nothing of is not fitted at all (a hold in one orientation:
+skipped; labelled poses: refused).  The choice and why are in
+``settings["models"]`` and the sensor's first note; the orientations the
+fitted model needs go to its quality for the gate.  A magnitude fit takes
+at most ``MAX_POSE_SAMPLES`` of a pose and ``MAX_SWEEP_SAMPLES`` of a sweep
+(``bounded_rows``), and notes a polish, refit or GA that reached its bound.
 """
 from __future__ import annotations
 
@@ -31,11 +43,12 @@ import numpy as np
 from .. import __version__
 from ..errors import UserError
 from ..maths.sphere import coverage, distinct_directions, unit
-from ..sessions.session import (HMC5883L_OVERFLOW, LABEL_NONE, LABEL_ROT, NOMINAL_CHIPS, UNITS,
-                                SessionData)
+from ..sessions.session import NOMINAL_CHIPS, UNITS, SessionData
 from ..sessions.still import StillThresholds
 from . import fit as _fit
-from .content import poses_from_stillness, temperature_content
+from .content import (MIN_POSE_ORIENTATIONS, ORIENTATIONS_NEEDED, Judgement, judge_poses,
+                      labelled_poses, magnetometer_sets, model_key, pose_means,
+                      poses_from_stillness, temperature_content)
 from . import gate as _gate
 from . import gyro as _gyro
 from . import rotations as _rotations
@@ -46,6 +59,8 @@ from .result import BoardCalibration, Param, SensorCalibration
 
 MIN_SWEEP = 200
 KFOLD = 5
+MAX_POSE_SAMPLES = 1000      # a fit takes at most this many samples of a pose (evenly spaced) ...
+MAX_SWEEP_SAMPLES = 20000    # ... and of a sweep: what carries the information (module doc)
 
 ANGLE_NOTE = ("the paper's angles only multiply the scales (an exact re-parametrisation of "
               "offset and scale): they cannot represent misalignment and are not "
@@ -59,17 +74,23 @@ def _seeds(seed):
     return int(seed), ss.spawn(3)
 
 
-def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed=None,
+def calibrate_board(data: SessionData, *, model: str | None = None, groups=None, seed=None,
                     gauge: str | None = None, field: float | None = None,
                     gyro_matrix: bool = True, kfold: int = KFOLD,
                     ga_options: GAOptions = GAOptions(),
                     still: StillThresholds = StillThresholds(),
-                    created: str | None = None) -> BoardCalibration:
-    """Calibrate every sensor of one mote's session (see the module doc)."""
+                    created: str | None = None,
+                    mag_data: SessionData | None = None) -> BoardCalibration:
+    """Calibrate every sensor of one mote's session (see the module doc).
+    ``model`` None fits, per sensor, the richest model the data determine
+    (``content.judge_poses`` / ``judge_sweep``); "full" or "paper" (with
+    ``groups``) forces one.  ``mag_data``: the magnetometer from this
+    session of the same board instead (its sweep or poses)."""
     motes = data.motes
     if len(motes) != 1:
         raise UserError(f"session {data.name} holds motes {motes}: calibrate one mote at a time")
     data, found = poses_from_stillness(data)
+    labelled = labelled_poses(data)
     whole, tc = data, None
     if data.has_temp:                    # issue 16: holds fit the temperature terms only
         tc = temperature_content(data)
@@ -78,33 +99,45 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
     created = created or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
     board = BoardCalibration(mote=motes[0], session=data.name, created=created,
                              tool=f"motecal {__version__}")
-    board.settings = {"model": model, "params": list(groups) if groups else None,
+    board.settings = {"model": model or "auto", "params": list(groups) if groups else None,
                       "seed": seed, "gauge": gauge, "field_gauss": field,
                       "gyro_matrix": bool(gyro_matrix), "kfold": kfold,
-                      "skipped": {}, "insufficient": {}}
+                      "skipped": {}, "insufficient": {}, "models": {}}
     if found:
         board.settings["poses_found"] = found
+    if data.meta.get("axis_frame"):
+        board.settings["axis_frame"] = data.meta["axis_frame"]
     chips = dict(NOMINAL_CHIPS)
     chips.update(data.chips or {})
 
-    # accelerometer -------------------------------------------------------------
+    # accelerometer: judged before any fit (content.judge_poses) ------------------
     acc_rows = (data.label >= 1) & data.has("accel")
     if not data.has("accel").any():
         board.settings["skipped"]["accel"] = "no accelerometer data in the session"
     elif not acc_rows.any():
         board.settings["skipped"]["accel"] = "no static poses in the session"
-    elif len(np.unique(data.label[acc_rows])) < 2:
-        # a still hold (one orientation) is what a gyroscope bias is recorded
-        # with: it determines the gyro, not the accelerometer -- left out
-        board.settings["skipped"]["accel"] = ("a still hold in one orientation: it determines "
-                                              "the gyroscope bias, not the accelerometer "
-                                              "(that needs several orientations)")
     else:
-        mdl = make_model("accel", model, groups)
-        board.accel = _magnitude_sensor(
-            "accel", mdl, data.sensor("accel")[acc_rows], data.label[acc_rows],
-            data.scales["accel"], chips["accel"], s_acc, seed, ga_options, kfold,
-            dataset="O", still_limit=still.accel_g)
+        j = judge_poses("accel", pose_means(data, "accel")[1])
+        meant = labelled or j.orientations >= MIN_POSE_ORIENTATIONS
+        if j.orientations <= 1:
+            # a still hold (one orientation) is what a gyroscope bias is recorded
+            # with: it determines the gyro, not the accelerometer -- left out
+            board.settings["skipped"]["accel"] = (
+                "a still hold in one orientation: it determines the gyroscope bias (and the "
+                "temperature terms), not the accelerometer (that needs several orientations)")
+        elif j.model is None:            # not fitted, whatever --model says
+            if meant:
+                board.settings["insufficient"]["accel"] = j.text()
+            else:
+                board.settings["skipped"]["accel"] = f"a hold in the data: {j.text()}"
+        else:
+            fam, grp = (model, groups) if model else (j.family, j.groups)
+            mdl = make_model("accel", fam, grp)
+            board.accel = _magnitude_sensor(
+                "accel", mdl, data.sensor("accel")[acc_rows], data.label[acc_rows],
+                data.scales["accel"], chips["accel"], s_acc, seed, ga_options, kfold,
+                dataset="O", still_limit=still.accel_g)
+            _record_choice(board, "accel", j, fam, grp, given=model is not None)
 
     # gyroscope ----------------------------------------------------------------------
     gyr_rows = (data.label >= 1) & data.has("gyro")
@@ -119,11 +152,18 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
                                   ga_options, kfold, gyro_matrix, still)
         _rotations.refine_board(board, data)     # known turns / turntable runs, if listed
 
-    # magnetometer ----------------------------------------------------------------
-    all_sets = mag_data_sets(data)
-    sets = {k: rows for k, (rows, why) in all_sets.items() if why is None}
-    unfit = [f"set {k} not fitted: {why}" for k, (_, why) in all_sets.items() if why]
-    if not data.has("mag").any():
+    # magnetometer: each set judged before any fit (content.magnetometer_sets) ------
+    md = data if mag_data is None else mag_data
+    if mag_data is not None:
+        board.settings["mag_session"] = mag_data.name
+        mchips = dict(NOMINAL_CHIPS)
+        mchips.update(mag_data.chips or {})
+        chips["mag"] = mchips["mag"]
+    all_sets = magnetometer_sets(md)
+    sets = {k: (rows, j) for k, (rows, j) in all_sets.items() if j.model is not None}
+    unfit = [f"set {k} not fitted: {j.why_not()}" for k, (_, j) in all_sets.items()
+             if j.model is None]
+    if not md.has("mag").any():
         board.settings["skipped"]["mag"] = "no magnetometer data in the session"
     elif not sets:
         why = "; ".join(unfit) if all_sets else "needs a rotation sweep or static poses"
@@ -133,17 +173,22 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
             board.settings["skipped"]["mag"] = ("no rotation sweep, and the static poses "
                                                 f"cannot determine it ({why})")
     else:
-        main = "R" if "R" in sets and sets["R"].sum() >= MIN_SWEEP else "O"
+        main = "R" if "R" in sets and sets["R"][0].sum() >= MIN_SWEEP else "O"
         if main not in sets:
             main = next(iter(sets))
-        mgroups, mnote = (mag_groups(groups, gauge, field) if model == "paper"
-                          else (groups, None))
-        for name, rows in sets.items():
-            mdl = make_model("mag", model, mgroups, gauge=gauge, field=field)
+        mnote = None
+        for name, (rows, j) in sets.items():
+            if model:
+                fam = model
+                mgroups, mnote = (mag_groups(groups, gauge, field) if model == "paper"
+                                  else (groups, None))
+            else:
+                fam, mgroups = j.family, j.groups
+            mdl = make_model("mag", fam, mgroups, gauge=gauge, field=field)
             sc = _magnitude_sensor(
-                "mag", mdl, data.sensor("mag")[rows],
-                data.label[rows] if name == "O" else None,
-                data.scales["mag"], chips["mag"], s_mag, seed, ga_options, kfold,
+                "mag", mdl, md.sensor("mag")[rows],
+                md.label[rows] if name == "O" else None,
+                md.scales["mag"], chips["mag"], s_mag, seed, ga_options, kfold,
                 dataset=name, still_limit=still.mag_gauss)
             board.mag_sets[name] = {
                 "dataset": name, "n_samples": sc.n_samples, "model": sc.model,
@@ -153,6 +198,7 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
                 "validation": sc.validation, "used": name == main}
             if name == main:
                 board.mag = sc
+                _record_choice(board, "mag", j, fam, mgroups, given=model is not None)
         if unfit:
             board.mag.quality.setdefault("warnings", []).extend(unfit)
         if mnote:
@@ -163,31 +209,33 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
     return board
 
 
+def _record_choice(board, sensor: str, j: Judgement, family: str, groups, given: bool):
+    """The model fitted for ``sensor``, what the data determine and why, in
+    ``settings["models"]`` and the sensor's notes; the orientations that
+    model needs go to its quality for the gate (static poses only)."""
+    key = model_key(family, groups)
+    sc = getattr(board, sensor)
+    entry = {"model": family, "params": list(groups) if groups else None, "key": key,
+             "determined": j.model, "given": bool(given), "why": j.text()}
+    board.settings["models"][sensor] = entry
+    if given:
+        line = f"model {key} (--model); the data determine: {j.text()}"
+    else:
+        line = j.text()
+    sc.notes.insert(0, line)
+    if j.dataset == "O" and key in ORIENTATIONS_NEEDED:
+        sc.quality["orientations_needed"] = ORIENTATIONS_NEEDED[key]
+
+
 def mag_data_sets(data: SessionData, limits: _gate.GateLimits = _gate.LIMITS) -> dict:
     """Every magnetometer data set of the session, ``{"R": (mask, why), "O":
     (mask, why)}`` (see the module doc; overflowed readings left out, sets
     under 10 rows dropped).  ``why`` is None for a set that can determine a
-    model, else why it cannot: the quality gate's orientation, hull and
-    coverage limits applied before the fit (``gate.set_metrics``), at least
-    ``min_orientations`` static poses for O and ``min_mag_coverage`` of the
-    sphere for R."""
-    ok = data.has("mag") & ~(data.sensor("mag") == HMC5883L_OVERFLOW).any(axis=1)
-    sets = {}
-    if (data.label == LABEL_ROT).any():
-        sets["R"] = ok & (data.label == LABEL_ROT)
-    elif not (data.label >= 1).any():
-        sets["R"] = ok & (data.label == LABEL_NONE)
-    if (data.label >= 1).any():
-        sets["O"] = ok & (data.label >= 1)
-    out = {}
-    for name, rows in sets.items():
-        if rows.sum() < 10:
-            continue
-        u = data.sensor("mag")[rows] / data.scales["mag"]
-        q = _gate.set_metrics(u, data.label[rows] if name == "O" else None)
-        why = _gate.coverage_reasons(q, limits.min_orientations, limits)
-        out[name] = (rows, "; ".join(why) if why else None)
-    return out
+    model, else why it cannot: the one judgement, ``content.magnetometer_sets``
+    (the quality gate's orientation, hull and coverage limits applied before
+    the fit)."""
+    return {k: (rows, None if j.model else j.why_not())
+            for k, (rows, j) in magnetometer_sets(data, limits).items()}
 
 
 def mag_sets(data: SessionData) -> dict:
@@ -216,19 +264,59 @@ def kfold_validation(mdl: MagnitudeModel, theta, u, label, k: int, need: int) ->
     if label is not None and len(np.unique(label)) - int(np.ceil(len(np.unique(label)) / k)) < need:
         return {"k": k, "groups": kind, "mse_heldout": None,
                 "note": "too few orientations to leave any out"}
-    sq = 0.0
+    sq, bound = 0.0, 0
     for f in range(k):
         te = fold == f
         if not te.any() or te.all():
             continue
-        th, _ = _fit.polish(mdl, theta, u[~te])
+        th, nfev = _fit.polish(mdl, theta, u[~te])
+        bound += nfev >= _fit.polish_limit(len(theta))
         r = mdl.residuals(th, u[te])
         sq += float(r @ r)
-    return {"k": k, "groups": kind, "mse_heldout": sq / len(u)}
+    out = {"k": k, "groups": kind, "mse_heldout": sq / len(u)}
+    if bound:
+        out["note"] = (f"{bound} of {k} held-out refits stopped at the least-squares bound "
+                       f"({_fit.polish_limit(len(theta))} evaluations): their error may be "
+                       f"overstated")
+    return out
+
+
+def bounded_rows(label, n: int) -> np.ndarray | None:
+    """Rows a magnitude fit takes (issue 31): at most ``MAX_POSE_SAMPLES`` of
+    each static pose and ``MAX_SWEEP_SAMPLES`` of a sweep (``label`` None),
+    evenly spaced over each, so a longer hold of the same pose costs no more
+    once its mean is known far better than the pose-to-pose scatter (the
+    adaptive planner's own limit on samples per pose); None when nothing is
+    left out."""
+    if label is None:
+        if n <= MAX_SWEEP_SAMPLES:
+            return None
+        return np.unique(np.linspace(0, n - 1, MAX_SWEEP_SAMPLES).round().astype(np.int64))
+    label = np.asarray(label)
+    labs, inv, cnt = np.unique(label, return_inverse=True, return_counts=True)
+    if cnt.max() <= MAX_POSE_SAMPLES:
+        return None
+    keep = np.zeros(n, bool)
+    for i, c in enumerate(cnt):
+        idx = np.flatnonzero(inv == i)
+        if c > MAX_POSE_SAMPLES:
+            idx = idx[np.unique(np.linspace(0, c - 1, MAX_POSE_SAMPLES).round().astype(np.int64))]
+        keep[idx] = True
+    return np.flatnonzero(keep)
 
 
 def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss, seed,
                       ga_options, kfold, dataset, still_limit) -> SensorCalibration:
+    bound_note = None
+    keep = bounded_rows(label, len(counts))
+    if keep is not None:
+        total = len(counts)
+        counts = counts[keep]
+        label = None if label is None else label[keep]
+        bound_note = (f"fitted on {len(keep)} of {total} samples: at most "
+                      + (f"{MAX_POSE_SAMPLES} per pose" if label is not None
+                         else f"{MAX_SWEEP_SAMPLES} of the sweep")
+                      + ", evenly spaced (the rest repeat what these carry)")
     u = counts / lsb
     fr = _fit.ga_fit(mdl, u, label, seed=ss, options=ga_options)
     A, c, H = mdl.affine(fr.theta)
@@ -253,6 +341,14 @@ def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss,
             if mdl.gauge == "det" else f"field magnitude given: {mdl.field:g} gauss"))
     if fr.note:
         notes.append(fr.note)
+    if bound_note:
+        notes.append(bound_note)
+    if fr.ga_stop == "max_gen":
+        notes.append(f"the GA stopped at its bound of {ga_options.max_gen} generations "
+                     f"(the polish started from its best)")
+    if fr.polish_nfev >= _fit.polish_limit(mdl.d):
+        notes.append(f"the least-squares polish stopped at its bound of "
+                     f"{_fit.polish_limit(mdl.d)} evaluations: the fit may not be converged")
     # quality metrics
     q = {"identifiable_params": fr.ident.rank, "rms_rel": float(np.sqrt(fr.mse)) / H,
          "condition": fr.ident.condition}
@@ -270,6 +366,8 @@ def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss,
         q["coverage"] = coverage(v)
     validation = kfold_validation(mdl, fr.theta, u, label, kfold, fr.ident.rank)
     validation["mse_fit"] = fr.mse
+    if validation.get("note") and validation.get("mse_heldout") is not None:
+        notes.append(f"validation: {validation['note']}")
     sc = SensorCalibration(
         sensor=sensor, unit=UNITS[sensor], chip=chip, lsb_per_unit=float(lsb),
         model=mdl.family if mdl.family == "full" else f"paper({'+'.join(mdl.groups)})",

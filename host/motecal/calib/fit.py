@@ -92,6 +92,11 @@ def nominal_start(model: MagnitudeModel, u) -> np.ndarray:
 LM_TOL = 1e-12
 
 
+def polish_limit(d: int) -> int:
+    """The polish's bound on residual evaluations for ``d`` parameters."""
+    return 60 * (d + 1)
+
+
 def polish(model: MagnitudeModel, theta0, u, max_nfev=None):
     """Levenberg-Marquardt (MINPACK, analytic Jacobian) on every sample.
     Returns (theta, nfev).
@@ -107,7 +112,7 @@ def polish(model: MagnitudeModel, theta0, u, max_nfev=None):
     MINPACK, whose steps on one read uninitialised memory: the same input gave
     results differing in the last bits from run to run."""
     theta0 = np.asarray(theta0, float)
-    max_nfev = max_nfev or 60 * (len(theta0) + 1)
+    max_nfev = max_nfev or polish_limit(len(theta0))
     keep = independent_columns(model.jacobian(theta0, u)) if model.redundant else None
     if keep is None or keep.all():
         res = least_squares(model.residuals, theta0, jac=model.jacobian, args=(u,),

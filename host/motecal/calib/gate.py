@@ -215,7 +215,10 @@ def _check_sensor(name, sc, lim: GateLimits, reasons, warnings):
         if why:
             warnings.append(f"mag: {why}")
     unit_ = sc.unit
-    need = max(lim.min_orientations, int(q.get("identifiable_params", 0)))
+    # the orientations the chosen model needs (calib.determine, recorded by
+    # calibrate_board); else at least the identifiable parameters
+    need = q.get("orientations_needed") or max(lim.min_orientations,
+                                              int(q.get("identifiable_params", 0)))
     reasons += [f"{name}: {r}" for r in coverage_reasons(q, need, lim, model=sc.model)]
     if q.get("not_still"):
         bad = q["not_still"]

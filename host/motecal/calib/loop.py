@@ -51,11 +51,18 @@ SPAN_ITER = 3              # spans found again from the calibration without them
 def sensor_model(sensor: str, settings: dict):
     """The magnitude model ``calibrate_board`` fitted for ``sensor`` (accel,
     mag) with ``settings`` (the board's)."""
-    model, groups = settings.get("model", "full"), settings.get("params")
+    chosen = (settings.get("models") or {}).get(sensor)
+    if chosen:                     # the model fitted (chosen by calib.determine, or given)
+        model, groups = chosen["model"], chosen.get("params")
+    else:
+        model, groups = settings.get("model") or "full", settings.get("params")
+        model = "full" if model == "auto" else model
     groups = tuple(groups) if groups else None
     if sensor == "accel":
         return make_model("accel", model, groups)
     gauge, field = settings.get("gauge"), settings.get("field_gauss")
+    if chosen:
+        return make_model("mag", model, groups, gauge=gauge, field=field)
     mg = mag_groups(groups, gauge, field)[0] if model == "paper" else groups
     return make_model("mag", model, mg, gauge=gauge, field=field)
 

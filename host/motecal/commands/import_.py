@@ -1,25 +1,45 @@
 """``motecal import``: measured data files read (``sessions.importer``, and
 other tools' formats by ``sessions.foreign``, docs/interop.md) and saved as
-one session; nothing is written when a file is bad."""
+one session; nothing is written when a file is bad.  Files of different
+formats go into one session, each read by its own reader; ``--append`` adds
+files to a stored session (``sessions.combine``)."""
 from __future__ import annotations
 
 import argparse
 
+import numpy as np
+
+from ..errors import UserError
 from ..sessions import ranges
+from ..sessions.combine import append
 from ..sessions.foreign import FORMATS as FOREIGN, read_session
 from ..sessions.importer import FORMATS, KINDS, summary
 from ..sessions.store import open_store
 
 
 def run(args) -> int:
+    if args.append and args.replace:
+        raise UserError("--append adds to a session, --replace replaces it: give one")
     data = read_session(args.files, fmt=args.format, chip=args.chip or None, kind=args.kind,
                         units=args.units or None, scale=args.scale or None,
                         gravity=args.gravity, rate_hz=args.rate_hz,
                         rate_dps=args.rate_dps or None, rpm=args.rpm or None,
                         columns=args.columns, angle_deg=args.angle_deg)
     data.name = args.session
-    with open_store(args.db, create=True) as store:
-        store.save_session(data, replace=args.replace)
+    # --append continues a session: the database and the session must be there already
+    with open_store(args.db, create=not args.append) as store:
+        if args.append:
+            if not store.session_exists(args.session):
+                raise UserError(f"session {args.session!r} does not exist in {args.db}: "
+                                "--append continues a session (see motecal sessions; leave "
+                                "--append out to start one)")
+            old = store.load_session(args.session)
+            added = len(data)
+            data = append(old, data)
+            store.append_session(data, data.select(np.arange(len(old), len(data))))
+            print(f"Appended {added} rows to session '{args.session}' ({len(old)} before).")
+        else:
+            store.save_session(data, replace=args.replace)
     print(summary(data))
     for line in (data.meta.get("rounding") or {}).values():
         print(f"  {line}")
@@ -48,6 +68,9 @@ def register(subparsers) -> None:
                    help="static (still segments are poses), rotation (all rows 'rot'), "
                         "idle, or auto (decided from stillness; default)")
     p.add_argument("--replace", action="store_true", help="replace an existing session")
+    p.add_argument("--append", action="store_true",
+                   help="add the files to an existing session (same board: its motes, chips "
+                        "and scales; no rows twice)")
     g = p.add_argument_group("float inputs and other tools' formats (docs/interop.md)")
     g.add_argument("--units", action="append", default=[], metavar="si|counts|SENSOR=UNIT",
                    help="units of float values: si (m/s^2, rad/s, uT), counts, or per sensor, "

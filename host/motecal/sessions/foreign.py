@@ -441,9 +441,13 @@ def read_session(paths, fmt: str = "auto", chip=None, kind: str = "auto", **opts
         if all(f is None for f in found.values()):
             fmt = "native"
         elif any(f is None for f in found.values()):
-            from .importer import detect_format
-            listing = "; ".join(f"{p}: {f or detect_format(p)}" for p, f in found.items())
-            raise UserError(f"files of different formats in one session ({listing})")
+            # native and other tools' files together: each group by its own
+            # reader, put together as separate recordings (sessions.combine)
+            from .combine import combine
+            native = [p for p, f in found.items() if f is None]
+            other = {p: f for p, f in found.items() if f is not None}
+            return combine([read_native(native, fmt="auto", chip=chip, kind=kind),
+                            read_any(list(other), other, chip=chip, kind=kind, **given)])
     elif fmt in NATIVE:
         found, fmt = None, "native:" + fmt
     elif fmt in FORMATS:

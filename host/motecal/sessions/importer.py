@@ -122,34 +122,68 @@ def input_paths(paths) -> list[Path]:
 def read_any(paths, fmt: str = "auto", chip=None, kind: str = "auto") -> SessionData:
     """Read one session from ``paths`` (files, or a timestamped run directory).
 
-    ``fmt`` is ``auto`` (detected from content) or one of ``FORMATS``; every file
-    of a session must be in the same format.  ``chip`` overrides chips/scales
-    (see :func:`parse_chip_overrides`); ``kind`` as in :func:`assign_labels`.
+    ``fmt`` is ``auto`` (detected from each file's content) or one of
+    ``FORMATS`` for every file.  Files of different formats are read each by
+    its own reader (the Razor text files together, one pose per file) and
+    put together as separate recordings (``sessions.combine``).  ``chip``
+    overrides chips/scales (see :func:`parse_chip_overrides`); ``kind`` as
+    in :func:`assign_labels`.
     """
     paths = input_paths(paths)
     if fmt not in ("auto",) + FORMATS:
         raise UserError(f"unknown format {fmt!r} (auto, {', '.join(FORMATS)})")
     if kind not in KINDS:
         raise UserError(f"unknown kind {kind!r} ({', '.join(KINDS)})")
-    if fmt == "auto":
-        found = {p: detect_format(p) for p in paths}
-        kinds = sorted(set(found.values()))
-        if len(kinds) > 1:
-            listing = "; ".join(f"{p}: {f}" for p, f in found.items())
-            raise UserError(f"files of different formats in one session ({listing})")
-        fmt = kinds[0]
+    found = {p: detect_format(p) for p in paths} if fmt == "auto" else {p: fmt for p in paths}
+    groups: dict[str, list] = {}
+    for p, f in found.items():
+        groups.setdefault(f, []).append(p)
+    if len(groups) == 1 and fmt != "auto":
+        return _read_format(fmt, paths, chip, kind, mixed=False)
+    parts = [_read_format(f, ps, chip, kind, mixed=len(groups) > 1) for f, ps in groups.items()]
+    if len(parts) == 1:
+        return parts[0]
+    from .combine import combine
+    return combine(parts)
+
+
+def _read_format(fmt: str, paths: list, chip, kind: str, mixed: bool) -> SessionData:
+    """The files of one format as one session part (``read_any``); in a
+    mixed import a chip override applies only to the formats that have
+    that sensor."""
+    if mixed and chip:
+        chip = _chip_for_format(fmt, chip)
     if fmt == "csv":
         if len(paths) != 1:
-            raise UserError("csv: import one CSV file per session")
+            if not mixed:
+                raise UserError("csv: import one CSV file per session")
+            from .combine import combine
+            return combine([_read_format(fmt, [p], chip, kind, mixed) for p in paths])
         data = read_csv(paths[0], chip=chip, kind=kind)
     elif fmt == "razor-text":
         data = read_razor_text(paths, chip=chip, kind=kind)
     elif fmt == "razor-float":
         if len(paths) != 1:
-            raise UserError("razor-float: import one float file per session")
+            if not mixed:
+                raise UserError("razor-float: import one float file per session")
+            from .combine import combine
+            return combine([_read_format(fmt, [p], chip, kind, mixed) for p in paths])
         data = read_razor_float(paths[0], chip=chip, kind=kind)
     else:
         data = read_timestamped(paths, chip=chip, kind=kind)
     data.meta["format"] = fmt
+    for f in data.meta.get("files") or []:
+        if isinstance(f, dict):
+            f.setdefault("format", fmt)
     return data
 
+
+def _chip_for_format(fmt: str, chip):
+    """--chip overrides for the sensors a format holds (a Razor float log is
+    a magnetometer alone: --chip accel=... does not apply to it)."""
+    if fmt != "razor-float":
+        return chip
+    kept = [part for part in option_parts(chip)
+            if SENSOR_ALIASES.get(part.partition("=")[0].strip().lower(), "mag") == "mag"
+            or "=" not in part]
+    return kept or None

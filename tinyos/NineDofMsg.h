@@ -3,7 +3,7 @@
  *
  * Included by the nesC firmware (tinyos/, basestation/), by the plain C
  * logic files (through nx_plain.h, which gives nx types to gcc/avr-gcc), and
- * parsed by the host: host/motecal/protocol.py declares the same layouts and
+ * parsed by the host: host/motecal/line/protocol.py declares the same layouts and
  * tests/test_protocol_header.py fails if the two ever differ.  TinyOS's MIG
  * can generate Java/Python classes from it (mig python -target=iris
  * NineDofMsg.h ninedof_samples_msg).

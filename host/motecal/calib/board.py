@@ -34,10 +34,10 @@ from ..maths.sphere import coverage, distinct_directions, unit
 from ..sessions.session import (HMC5883L_OVERFLOW, LABEL_NONE, LABEL_ROT, NOMINAL_CHIPS, UNITS,
                                 SessionData)
 from ..sessions.still import StillThresholds
-from . import fit as _fit
 from .content import poses_from_stillness, temperature_content
 from . import gate as _gate
 from . import gyro as _gyro
+from . import robust as _robust
 from . import rotations as _rotations
 from . import thermal as _thermal
 from .ga import GAOptions
@@ -104,7 +104,8 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
         board.accel = _magnitude_sensor(
             "accel", mdl, data.sensor("accel")[acc_rows], data.label[acc_rows],
             data.scales["accel"], chips["accel"], s_acc, seed, ga_options, kfold,
-            dataset="O", still_limit=still.accel_g)
+            dataset="O", still_limit=still.accel_g,
+            rows=np.flatnonzero(acc_rows), times=data.sample_times()[acc_rows])
 
     # gyroscope ----------------------------------------------------------------------
     gyr_rows = (data.label >= 1) & data.has("gyro")
@@ -144,13 +145,15 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
                 "mag", mdl, data.sensor("mag")[rows],
                 data.label[rows] if name == "O" else None,
                 data.scales["mag"], chips["mag"], s_mag, seed, ga_options, kfold,
-                dataset=name, still_limit=still.mag_gauss)
+                dataset=name, still_limit=still.mag_gauss,
+                rows=np.flatnonzero(rows), times=data.sample_times()[rows])
             board.mag_sets[name] = {
                 "dataset": name, "n_samples": sc.n_samples, "model": sc.model,
                 "field_gauss": sc.field_gauss, "field_std": sc.field_std,
                 "mse_before": sc.mse_before, "mse_after": sc.mse_after,
                 "min_after": sc.min_after, "max_after": sc.max_after,
-                "validation": sc.validation, "used": name == main}
+                "validation": sc.validation, "used": name == main,
+                "set_aside": {k: sc.set_aside.get(k) for k in ("count", "of", "fraction")}}
             if name == main:
                 board.mag = sc
         if unfit:
@@ -207,35 +210,60 @@ def _kfold_groups(label, n, k):
     return (np.arange(n) * k) // max(n, 1), "time blocks"
 
 
-def kfold_validation(mdl: MagnitudeModel, theta, u, label, k: int, need: int) -> dict:
-    """Held-out error: refit (LM from the full fit) without each fold of
-    orientations and evaluate on it."""
+def kfold_validation(mdl: MagnitudeModel, theta, u, label, k: int, need: int,
+                     keep=None) -> dict:
+    """Held-out error: refit without each fold of orientations (least
+    squares from the full fit on the training readings it kept, ``keep``)
+    and evaluate on the fold -- a trimmed error: the mean squared residual
+    of the held-out readings within ``robust.REJECT_SD`` robust sd (of the
+    full fit's residuals; a pose's readings from their pose's median), and
+    the fraction of held-out readings beyond (``heldout_set_aside``).  A
+    plain mean would be made of the glitches (each counts with its square)
+    and say nothing of the readings the calibration is for."""
     if k < 2:
         return {}
     fold, kind = _kfold_groups(label, len(u), k)
     if label is not None and len(np.unique(label)) - int(np.ceil(len(np.unique(label)) / k)) < need:
         return {"k": k, "groups": kind, "mse_heldout": None,
                 "note": "too few orientations to leave any out"}
-    sq = 0.0
+    lim = _robust.REJECT_SD * _robust.robust_sd(
+        _robust.deviations(mdl.residuals(theta, u), label))
+    sq, n_in, n_out = 0.0, 0, 0
     for f in range(k):
         te = fold == f
         if not te.any() or te.all():
             continue
-        th, _ = _fit.polish(mdl, theta, u[~te])
+        tr = ~te if keep is None else ~te & keep
+        th, _ = _robust.polish(mdl, theta, u[tr])
         r = mdl.residuals(th, u[te])
-        sq += float(r @ r)
-    return {"k": k, "groups": kind, "mse_heldout": sq / len(u)}
+        e = _robust.deviations(r, None if label is None else label[te])
+        if label is None:        # a sweep's held-out block: judged from the training fit's median
+            e = r - float(np.median(mdl.residuals(th, u[tr])))
+        ok = np.abs(e) <= lim if lim > 0 else np.ones(len(r), bool)
+        sq += float(r[ok] @ r[ok])
+        n_in += int(ok.sum())
+        n_out += int((~ok).sum())
+    return {"k": k, "groups": kind, "mse_heldout": sq / max(n_in, 1),
+            "heldout_set_aside": n_out / max(n_in + n_out, 1)}
 
 
 def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss, seed,
-                      ga_options, kfold, dataset, still_limit) -> SensorCalibration:
+                      ga_options, kfold, dataset, still_limit, rows=None,
+                      times=None) -> SensorCalibration:
+    """One accelerometer or magnetometer data set, fitted robustly
+    (``robust.ga_fit``: readings far off are set aside, ``set_aside``); the
+    error after, the magnitudes after and the quality metrics are of the
+    readings kept, ``rms_rel_all`` of every reading."""
     u = counts / lsb
-    fr = _fit.ga_fit(mdl, u, label, seed=ss, options=ga_options)
+    rf = _robust.ga_fit(mdl, u, label, seed=ss, options=ga_options)
+    fr, keep = rf.fit, rf.keep
     A, c, H = mdl.affine(fr.theta)
     H = float(H)
     mag_b = np.linalg.norm(u, axis=1)
     v = u @ A.T + c
-    mag_a = np.linalg.norm(v, axis=1)
+    mag_all = np.linalg.norm(v, axis=1)
+    mag_a = mag_all[keep]
+    aside = _robust.set_aside_record(keep, times, rows, rf.scale, rel=mag_all / H - 1.0)
     if sensor == "accel":
         mse_before = float(np.mean((mag_b - 1.0) ** 2))
     else:                      # no calibration: the best constant field for the raw readings
@@ -244,6 +272,8 @@ def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss,
     for p, val, sd, ok in zip(mdl.params, fr.theta, fr.std, fr.ident.identifiable):
         params.append(Param(p.name, float(val), float(sd), p.unit, bool(ok)))
     notes = [fr.ident.note()]
+    if aside["count"]:
+        notes.append(_robust.set_aside_text(aside, mdl.unit))
     if "angles" in mdl.groups:
         notes.append(ANGLE_NOTE)
     if sensor == "mag":
@@ -253,22 +283,29 @@ def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss,
             if mdl.gauge == "det" else f"field magnitude given: {mdl.field:g} gauss"))
     if fr.note:
         notes.append(fr.note)
-    # quality metrics
+    # quality metrics (of the readings kept: a pose's or the sweep's readings
+    # set aside are not what the calibration is judged on; how many were is)
     q = {"identifiable_params": fr.ident.rank, "rms_rel": float(np.sqrt(fr.mse)) / H,
+         "rms_rel_all": float(np.sqrt(rf.mse_all)) / H,
+         "robust_sd_rel": rf.scale / H, "set_aside_frac": aside["fraction"],
+         "set_aside_longest_s": aside["longest_s"],
          "condition": fr.ident.condition}
     if label is not None:
+        lk = label[keep]
         poses = np.unique(label)
-        means = np.array([v[label == p].mean(axis=0) for p in poses])
+        means = np.array([v[keep & (label == p)].mean(axis=0) if (keep & (label == p)).any()
+                          else v[label == p].mean(axis=0) for p in poses])
         q["distinct_orientations"] = distinct_directions(means)
         q["hull_depth"] = _gate.hull_depth(means)
-        spread = _gate.pose_spread(counts / lsb, label)
+        spread = _gate.pose_spread(u[keep], lk)
         q["worst_pose_sd"] = max(spread.values()) if spread else 0.0
         q["not_still"] = [p for p, s in spread.items() if s > still_limit]
         q["still_limit"] = still_limit
-    else:                      # a sweep: how much of the sphere it covers
-        q["hull_depth"] = _gate.hull_depth(v[:: max(1, len(v) // 2000)])
-        q["coverage"] = coverage(v)
-    validation = kfold_validation(mdl, fr.theta, u, label, kfold, fr.ident.rank)
+    else:                      # a sweep: how much of the sphere the kept readings cover
+        vk = v[keep]
+        q["hull_depth"] = _gate.hull_depth(vk[:: max(1, len(vk) // 2000)])
+        q["coverage"] = coverage(vk)
+    validation = kfold_validation(mdl, fr.theta, u, label, kfold, fr.ident.rank, keep)
     validation["mse_fit"] = fr.mse
     sc = SensorCalibration(
         sensor=sensor, unit=UNITS[sensor], chip=chip, lsb_per_unit=float(lsb),
@@ -279,8 +316,11 @@ def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss,
         n_samples=len(u), n_poses=0 if label is None else len(np.unique(label)),
         dataset=dataset, rank=fr.ident.rank, notes=notes, validation=validation, quality=q,
         ga={"seed": seed, "generations": fr.ga_generations, "evaluations": fr.ga_evaluations,
-            "stop": fr.ga_stop, "polish_nfev": fr.polish_nfev, "trace": fr.trace},
-        gauge=mdl.gauge)
+            "stop": fr.ga_stop, "polish_nfev": fr.polish_nfev, "trace": fr.trace,
+            "objective": "robust scale (biweight M-scale of |v|/H - 1), then least squares on "
+                         f"the readings within {_robust.REJECT_SD:g} robust sd",
+            "route": rf.route, "robust_scale": {k: float(x) for k, x in rf.scales.items()}},
+        gauge=mdl.gauge, set_aside=aside)
     Mj = mdl.affine_jacobian(fr.theta)[:12]          # d (A nominal, c) / d theta
     Mj[:9] /= lsb                                      # A per count, as sc.A
     sc.affine_cov = Mj @ fr.cov @ Mj.T

@@ -40,6 +40,7 @@ from . import gyro as _gyro
 from . import robust as _robust
 from . import rotations as _rotations
 from . import thermal as _thermal
+from . import worth as _worth
 from .ga import GAOptions
 from .models import MagnitudeModel, mag_groups, make_model
 from .result import BoardCalibration, Param, SensorCalibration
@@ -163,6 +164,7 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
             board.mag.quality.setdefault("warnings", []).append(mnote)
     if tc is not None:
         _thermal.attach(board, whole, data, tc)
+    _worth.attach(board)                 # tilt / heading error in degrees (issue 25)
     return board
 
 
@@ -347,6 +349,11 @@ def _recording_parts(data) -> np.ndarray:
 def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matrix,
                  still) -> SensorCalibration:
     lsb = data.scales["gyro"]
+    keep = _robust.inliers_3d(data.sensor("gyro")[rows] / lsb, data.label[rows])
+    aside = _robust.set_aside_record(keep, data.sample_times()[rows], np.flatnonzero(rows))
+    sel = np.flatnonzero(rows)[keep]            # still rates kept: glitches set aside
+    rows = np.zeros(len(data), bool)
+    rows[sel] = True
     counts = data.sensor("gyro")[rows]
     label = data.label[rows]
     g = counts / lsb
@@ -358,7 +365,9 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
     G = np.eye(3)
     params = [Param(f"b_{a}", float(v), float(s), "deg/s") for a, v, s in zip("xyz", b, bm.std)]
     notes = ["bias: mean of the still rates; std = the larger of sample sd / sqrt(n) and the "
-             "scatter of the pose means",
+             "scatter of the pose means"] + (
+        [_robust.set_aside_text(aside, "of the still rates") + " (on any axis, from their pose's "
+         "median)"] if aside["count"] else []) + [
              "the paper's eq. 6 (GA + exact minimiser) gives b = ("
              + ", ".join(f"{v:.4f}" for v in bf.b) + ") deg/s, ("
              + ", ".join(f"{v:+.4f}" for v in bf.b - b) + ") from the mean (its minimiser "
@@ -386,9 +395,16 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
                                  data.sensor("gyro"), grav, data.meta.get("rate_hz") or 125.0,
                                  part=_recording_parts(data))
         if len(moves) >= _gyro.MIN_MOVES:
-            mf = _gyro.fit_matrix(moves, b, b_cov=np.diag(bm.std ** 2), dirs=dirs,
-                                  dirs_cov=accel.affine_cov)
+            mf, mkeep = _gyro.fit_matrix_robust(moves, b, b_cov=np.diag(bm.std ** 2), dirs=dirs,
+                                                dirs_cov=accel.affine_cov)
+            if not mkeep.all():
+                bad = [f"{m.pose0}->{m.pose1}" for m, k in zip(moves, mkeep) if not k]
+                notes.append(f"moves set aside from the scale and misalignment fit: {len(bad)} "
+                             f"of {len(moves)} (their gravity direction error beyond "
+                             f"{_robust.REJECT_SD:g} robust sd: a glitch or a knock in the move): "
+                             + ", ".join(bad[:8]) + (" ..." if len(bad) > 8 else ""))
             extra["matrix_fit"] = {"moves": mf.n_moves, "rank": mf.rank,
+                                   "moves_set_aside": int((~mkeep).sum()),
                                    "rms_deg_before": float(np.rad2deg(mf.rms_before)),
                                    "rms_deg_after": float(np.rad2deg(mf.rms_after)),
                                    "std_from": {k: v.tolist() for k, v in mf.std_parts.items()}}
@@ -419,6 +435,7 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
     q = {"not_still": [p for p, s in spread.items() if s > still.gyro_dps],
          "still_limit": still.gyro_dps,
          "worst_pose_sd": max(spread.values()) if spread else 0.0,
+         "set_aside_frac": aside["fraction"], "set_aside_longest_s": aside["longest_s"],
          "warnings": warnings}
     validation = {}
     if kfold >= 2 and len(np.unique(label)) >= 2:
@@ -441,4 +458,4 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
         notes=notes, validation=validation, quality=q,
         ga={"seed": seed, "generations": bf.ga_generations, "stop": bf.ga_stop,
             "trace": bf.trace},
-        extra=extra)
+        extra=extra, set_aside=aside)

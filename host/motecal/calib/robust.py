@@ -87,10 +87,22 @@ def inliers(r, c: float = REJECT_SD, groups=None) -> np.ndarray:
     group's, see ``deviations``); all when the scale is 0 (identical
     residuals)."""
     e = deviations(r, groups)
-    s = float(MAD_SD * np.median(np.abs(e))) if len(e) else 0.0
+    s = _scale_of_deviations(e)
     if not s > 0:
         return np.ones(len(e), bool)
     return np.abs(e) <= c * s
+
+
+def _scale_of_deviations(e) -> float:
+    """1.4826 x the median |e|; when more than half the deviations are 0
+    (whole counts of a quiet sensor: the median is every other reading),
+    1.2533 x the mean |e| instead (the sd for normal noise, from the mean
+    absolute deviation)."""
+    a = np.abs(np.asarray(e, float))
+    if not len(a):
+        return 0.0
+    s = float(MAD_SD * np.median(a))
+    return s if s > 0 else float(1.2533 * np.mean(a))
 
 
 def capped_sq(r, scale: float, c: float = REJECT_SD) -> np.ndarray:
@@ -184,7 +196,7 @@ def concentrate(model: MagnitudeModel, theta, u, c: float = REJECT_SD,
         nfev += n
     r = model.residuals(theta, u)
     keep = inliers(r, c, groups)
-    return Concentrated(theta, keep, robust_sd(deviations(r, groups)), nfev, steps)
+    return Concentrated(theta, keep, _scale_of_deviations(deviations(r, groups)), nfev, steps)
 
 
 def cauchy_rounds(model: MagnitudeModel, theta, u, rounds: int = CAUCHY_ROUNDS):
@@ -257,7 +269,7 @@ def _bounded(model, theta, u, lo, hi, groups=None):
                         bounds=(c - 3 * h, c + 3 * h), xtol=LM_TOL, ftol=LM_TOL, gtol=1e-15)
     r = model.residuals(res.x, u)
     return Concentrated(res.x, inliers(r, groups=groups),
-                        robust_sd(deviations(r, groups)), res.nfev, 1)
+                        _scale_of_deviations(deviations(r, groups)), res.nfev, 1)
 
 
 def ga_fit(model: MagnitudeModel, u, label=None, *, seed=None,
@@ -310,7 +322,7 @@ def lm_fit(model: MagnitudeModel, u, label=None) -> RobustFit:
 # ---------------------------------------------------------------------------
 # what was set aside, in the user's terms
 # ---------------------------------------------------------------------------
-STRETCH_GAP_S = 0.25        # readings set aside this close together form one stretch
+STRETCH_GAP = 3             # readings set aside at most this many readings apart form one stretch
 STRETCH_MIN = 5             # a stretch has at least this many readings; fewer are single readings
 MAX_STRETCH_S = 5.0         # the gate's limit on one stretch set aside (bench_robust shows 0-3 s)
 
@@ -326,10 +338,12 @@ def runs(mask) -> list[tuple[int, int]]:
 def set_aside_record(keep, t=None, rows=None, scale: float | None = None,
                      threshold_sd: float = REJECT_SD, rel=None) -> dict:
     """What a fit set aside, for ``cal.json`` and the summary: how many of
-    how many, the threshold, the stretches (readings set aside within
-    ``STRETCH_GAP_S`` of each other, at least ``STRETCH_MIN``: start and end
-    in s, count, and -- given ``rel``, each reading's relative magnitude
-    error -- their median relative error) and the single readings' count,
+    how many, the threshold, the stretches (readings set aside at most
+    ``STRETCH_GAP`` readings apart -- at most two kept between them, so
+    glitches even at 20 % of the readings rarely chain --, at least
+    ``STRETCH_MIN``: start and end in s, count, and -- given ``rel``, each
+    reading's relative magnitude error -- their median relative error) and
+    the single readings' count,
     the longest stretch (s), and the session rows set aside as runs
     ``[first row, count]`` (``rows``: the session row of each reading;
     default the reading's index)."""
@@ -341,7 +355,7 @@ def set_aside_record(keep, t=None, rows=None, scale: float | None = None,
     stretches, singles = [], 0
     if len(out_idx):
         tt = t[out_idx]
-        cut = np.flatnonzero(np.diff(tt) > STRETCH_GAP_S) + 1
+        cut = np.flatnonzero(np.diff(out_idx) > STRETCH_GAP) + 1
         for grp in np.split(np.arange(len(out_idx)), cut):
             if len(grp) >= STRETCH_MIN:
                 st = [float(tt[grp[0]]), float(tt[grp[-1]]), int(len(grp))]
@@ -380,3 +394,13 @@ def set_aside_text(rec: dict, unit: str = "") -> str:
     return (f"set aside {rec['count']} of {rec['of']} readings ({100 * rec['fraction']:.1f} %) "
             f"beyond {rec['threshold_sd']:g} robust sd"
             + (f" ({sd:.3g} {unit})" if sd is not None else "") + f": {what}")
+
+
+def inliers_3d(x, groups=None, c: float = REJECT_SD) -> np.ndarray:
+    """Rows of x (n, 3) within ``c`` robust sd of their group's median on
+    every axis (each axis with its own scale): a gyroscope's still rates."""
+    x = np.asarray(x, float)
+    ok = np.ones(len(x), bool)
+    for a in range(x.shape[1]):
+        ok &= inliers(x[:, a], c, groups)
+    return ok

@@ -53,6 +53,7 @@ BIWEIGHT_B = 0.5
 SCALE_ITER = 12            # fixed-point iterations of the M-scale (start: the MAD)
 CAUCHY_ROUNDS = 3
 MAX_CONCENTRATE = 12
+REFINE_STEPS = 4           # concentration steps the GA's local refinement takes
 
 
 def robust_sd(r) -> float:
@@ -288,8 +289,12 @@ def ga_fit(model: MagnitudeModel, u, label=None, *, seed=None,
     if local:
         cands["local"] = local_fit(model, u, groups=groups)
     red = reduce_samples(u, label)
+
+    def refine(x):                         # a few concentration steps on the reduction
+        th = concentrate(model, x, red.u, max_steps=REFINE_STEPS).theta
+        return th if np.all(np.isfinite(th)) else x
     g = _ga.minimize(lambda P: population_scale(model, P, red.u, red.w), lo, hi, seed=seed,
-                     options=options)
+                     options=options, refine=refine)
     cands["ga"] = concentrate(model, g.x, u, groups=groups, known=cands.get("local"))
     note = ""
     for k, cnd in list(cands.items()):

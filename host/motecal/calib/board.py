@@ -195,6 +195,29 @@ def mag_data_sets(data: SessionData, limits: _gate.GateLimits = _gate.LIMITS) ->
     return out
 
 
+def sweep_reasons(u, t=None, seed: int = 0) -> tuple[list, dict]:
+    """The one decision whether a magnetometer sweep (``u`` nominal units,
+    ``t`` its times) can be calibrated through: the robust fit calibrate
+    makes (``robust.ga_fit``, the full model) and the gate's rules on what
+    it leaves -- the residual of the readings kept, the share set aside and
+    the longest stretch set aside.  Returns (the gate's reasons, empty when
+    it can; {"rms_rel", "rms_rel_all", "set_aside_frac", "longest_s"}).
+    ``diagnose`` calls it for a field disturbance, so both commands give the
+    same answer."""
+    u = np.asarray(u, float)
+    mdl = make_model("mag", "full")
+    rf = _robust.ga_fit(mdl, u, seed=seed)
+    H = float(mdl.affine(rf.theta)[2])
+    rel = np.linalg.norm(u @ mdl.affine(rf.theta)[0].T + mdl.affine(rf.theta)[1], axis=1) / H - 1
+    aside = _robust.set_aside_record(rf.keep, t, None, rf.scale, rel=rel)
+    q = {"rms_rel": float(np.sqrt(rf.fit.mse)) / H, "rms_rel_all": float(np.sqrt(rf.mse_all)) / H,
+         "set_aside_frac": aside["fraction"], "longest_s": aside["longest_s"]}
+    reasons = [r for r in (_gate.residual_reason("mag", q["rms_rel"], set_aside=q["set_aside_frac"]),
+                           _gate.set_aside_reason("mag", q["set_aside_frac"]),
+                           _gate.stretch_reason("mag", aside)) if r]
+    return reasons, q
+
+
 def mag_sets(data: SessionData) -> dict:
     """Rows of each magnetometer data set that can determine a model,
     ``{"O": mask, "R": mask}`` (``mag_data_sets`` without the others)."""

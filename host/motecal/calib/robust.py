@@ -54,6 +54,7 @@ SCALE_ITER = 12            # fixed-point iterations of the M-scale (start: the M
 CAUCHY_ROUNDS = 3
 MAX_CONCENTRATE = 12
 REFINE_STEPS = 4           # concentration steps the GA's local refinement takes
+REFINE_K = 8               # ... on this many of its best individuals, every 5 generations
 
 
 def robust_sd(r) -> float:
@@ -294,7 +295,7 @@ def ga_fit(model: MagnitudeModel, u, label=None, *, seed=None,
         th = concentrate(model, x, red.u, max_steps=REFINE_STEPS).theta
         return th if np.all(np.isfinite(th)) else x
     g = _ga.minimize(lambda P: population_scale(model, P, red.u, red.w), lo, hi, seed=seed,
-                     options=options, refine=refine)
+                     options=options, refine=refine, refine_k=REFINE_K)
     cands["ga"] = concentrate(model, g.x, u, groups=groups, known=cands.get("local"))
     note = ""
     for k, cnd in list(cands.items()):

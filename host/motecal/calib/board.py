@@ -280,8 +280,14 @@ def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss,
     error after, the magnitudes after and the quality metrics are of the
     readings kept, ``rms_rel_all`` of every reading."""
     u = counts / lsb
-    rf = _robust.ga_fit(mdl, u, label, seed=ss, options=ga_options)
-    fr, keep = rf.fit, rf.keep
+    # static poses: a reading off its pose's median vector (on any axis, beyond
+    # the robust sd) is a knock, whether or not it changes the magnitude
+    pre = _robust.inliers_3d(u, label) if label is not None else np.ones(len(u), bool)
+    rf = _robust.ga_fit(mdl, u[pre], None if label is None else label[pre], seed=ss,
+                        options=ga_options)
+    fr = rf.fit
+    keep = np.zeros(len(u), bool)
+    keep[np.flatnonzero(pre)[rf.keep]] = True
     A, c, H = mdl.affine(fr.theta)
     H = float(H)
     mag_b = np.linalg.norm(u, axis=1)
@@ -311,7 +317,7 @@ def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss,
     # quality metrics (of the readings kept: a pose's or the sweep's readings
     # set aside are not what the calibration is judged on; how many were is)
     q = {"identifiable_params": fr.ident.rank, "rms_rel": float(np.sqrt(fr.mse)) / H,
-         "rms_rel_all": float(np.sqrt(rf.mse_all)) / H,
+         "rms_rel_all": float(np.sqrt(np.mean((mag_all - H) ** 2))) / H,
          "robust_sd_rel": rf.scale / H, "set_aside_frac": aside["fraction"],
          "set_aside_longest_s": aside["longest_s"],
          "condition": fr.ident.condition}

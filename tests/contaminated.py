@@ -92,10 +92,13 @@ def sweep(seed: int, rate: float = 0.03, size=(0.1, 0.5), stretch_s: float = 1.0
 
 def poses(seed: int, bumps: int = 3, bump_s: float = 0.3, bump_g: float = 0.4,
           gyro_rate: float = 0.0, gyro_size_dps=(20.0, 80.0), n_poses: int = 80,
-          per_pose_s: float = 1.6, base: str = "general", clean: bool = False) -> Planted:
+          per_pose_s: float = 1.6, base: str = "general", clean: bool = False,
+          move_knock=None) -> Planted:
     """A static session (no sweep) with knocks in some poses' accelerometer
-    readings and glitches in the gyroscope's (module doc); ``clean``: the
-    same board and readings without them."""
+    readings and glitches in the gyroscope's (module doc); ``move_knock``
+    (deg/s, s): the gyroscope off by that much for that long in the middle
+    of the move after pose ``n_poses // 2`` (a knock while turning); ``clean``:
+    the same board and readings without them."""
     traj = make_trajectory("static80", seed, n_poses=n_poses, still_s=per_pose_s,
                            rate_hz=RATE_HZ)
     acc_first = []
@@ -110,6 +113,11 @@ def poses(seed: int, bumps: int = 3, bump_s: float = 0.3, bump_g: float = 0.4,
         if gyro_rate > 0:
             gyro_last.append({"term": "glitch", "rate": gyro_rate, "size_min": gyro_size_dps[0],
                               "size_max": gyro_size_dps[1]})
+        if move_knock is not None:
+            k = n_poses // 2
+            t_move = 0.5 * (float(traj.t0[2 * k - 1]) + float(traj.t0[2 * k]))
+            gyro_last.append({"term": "disturbed_stretch", "size": float(move_knock[0]),
+                              "duration_s": float(move_knock[1]), "start_s": t_move})
     model = _model(base, {"accel": (acc_first, []), "gyro": ([], gyro_last)})
     board = model.board(1, seed)
     t = board.sample_times(traj.duration)

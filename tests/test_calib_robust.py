@@ -193,3 +193,28 @@ def test_knocked_poses_and_gyro_glitches(seed):
     std0 = np.array([q.std for q in bc.gyro.params[:3]])
     assert np.all(np.abs(bias - bias0) < 4 * std0 + 0.01), (bias - bias0, std0)
     assert b.gyro.set_aside["count"] >= 0.8 * (p.glitched & (p.data.label >= 1)).sum()
+
+
+def test_a_knocked_move_is_left_out_of_the_gyro_matrix():
+    """A knock while turning (the gyroscope 40 deg/s off for 0.05 s: 2 deg of
+    rotation that did not happen) in one move of 29: that move is set aside
+    from the scale and misalignment fit, which stays the clean twin's; a
+    move with a lost sample is not used at all (``gyro.find_moves``)."""
+    p = CT.poses(51, bumps=0, n_poses=30, move_knock=(40.0, 0.05))
+    pc = CT.poses(51, bumps=0, n_poses=30, clean=True)
+    b = calibrate_board(p.data, seed=1, kfold=0)
+    bc = calibrate_board(pc.data, seed=1, kfold=0)
+    assert b.gyro.model == "bias+matrix" and bc.gyro.model == "bias+matrix"
+    assert b.gyro.extra["matrix_fit"]["moves_set_aside"] >= 1
+    assert any(n.startswith("moves set aside") and "15->16" in n for n in b.gyro.notes)
+    G = np.array([q.value for q in b.gyro.params[3:]])
+    G0 = np.array([q.value for q in bc.gyro.params[3:]])
+    sd = np.array([q.std for q in bc.gyro.params[3:]])
+    assert np.all(np.abs(G - G0) < 3 * sd), (G - G0) / sd
+    # a lost sample in that move: the move is not integrated at all
+    d = pc.data
+    mid = np.flatnonzero((d.label == 0) & (d.sample_times() > 0))
+    cut = mid[len(mid) // 2]
+    lost = d.select(np.arange(len(d)) != cut)
+    bl = calibrate_board(lost, seed=1, kfold=0)
+    assert bl.gyro.extra["matrix_fit"]["moves"] == bc.gyro.extra["matrix_fit"]["moves"] - 1

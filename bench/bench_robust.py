@@ -73,13 +73,14 @@ def _theta_shape(p, theta):
 # ---------------------------------------------------------------------------
 # the methods
 # ---------------------------------------------------------------------------
-def huber_nominal(u, rounds=3):
-    """LM + Huber from the nominal start: scipy least_squares, loss 'huber',
-    f_scale the MAD-based sd of the residuals, re-estimated each round."""
+def m_nominal(u, loss, rounds=3):
+    """An M-estimator from the nominal start: scipy least_squares with
+    ``loss`` ('huber', 'cauchy'), f_scale the MAD-based sd of the
+    residuals, re-estimated each round."""
     th = F.nominal_start(MDL, u)
     for _ in range(rounds):
         s = R.robust_sd(MDL.residuals(th, u))
-        th = least_squares(MDL.residuals, th, jac=MDL.jacobian, args=(u,), loss="huber",
+        th = least_squares(MDL.residuals, th, jac=MDL.jacobian, args=(u,), loss=loss,
                            f_scale=max(s, 1e-9), method="trf").x
     return th
 
@@ -100,7 +101,8 @@ METHODS = {
     "default (GA + local)": lambda u, s: R.ga_fit(MDL, u, seed=s).theta,
     "GA alone": lambda u, s: R.ga_fit(MDL, u, seed=s, local=False).theta,
     "local (LM+Cauchy+conc.)": lambda u, s: R.lm_fit(MDL, u).theta,
-    "LM + Huber (nominal)": lambda u, s: huber_nominal(u),
+    "LM + Huber (nominal)": lambda u, s: m_nominal(u, "huber"),
+    "LM + Cauchy (nominal)": lambda u, s: m_nominal(u, "cauchy"),
     "DE + concentration": de_robust,
     "algebraic ellipsoid": None,
     "least squares (before)": lambda u, s: F.lm_optimize(MDL, u)[0],
@@ -334,6 +336,89 @@ def section_clean(seeds: int):
 
 
 # ---------------------------------------------------------------------------
+# the threshold: how many robust sd out a reading is set aside
+# ---------------------------------------------------------------------------
+THRESHOLDS = (3.0, 3.5, 4.0, 5.0)
+
+
+def section_threshold(seeds: int):
+    """The concentration's threshold c (readings beyond c robust sd set
+    aside) on clean sweeps (against least squares), on glitchy sweeps, and on
+    the Sensor Stick sweep against its published calibration and against
+    that published fit's own spread (least squares on the sweep's 1-s
+    blocks resampled, 200 times)."""
+    print(f"\n0. The threshold (readings beyond c robust sd set aside), {seeds} sweeps each")
+    rows = []
+    clean = [CT.sweep(600 + s, clean=True) for s in range(seeds)]
+    dirty = [CT.sweep(600 + s, rate=0.10, size=(0.05, 0.6), stretch_s=1.0) for s in range(seeds)]
+    ls = {}
+    for p in clean:
+        ls[id(p)] = F.lm_optimize(MDL, _u(p))[0]
+    e_ls = np.array([_theta_shape(p, ls[id(p)]) for p in clean])
+    stick = _stick()
+    for c in THRESHOLDS:
+        ec = np.array([_theta_shape(p, R.concentrate(MDL, ls[id(p)], _u(p), c=c).theta)
+                       for p in clean])
+        ed = np.array([_theta_shape(p, R.concentrate(MDL, R.lm_fit(MDL, _u(p)).theta, _u(p),
+                                                     c=c).theta) for p in dirty])
+        st = None
+        if stick is not None:
+            u, th0, pub = stick
+            cc = R.concentrate(MDL, th0, u, c=c)
+            st = _against_published(cc.theta, pub) + (1 - cc.keep.mean(),)
+        rows.append((c, np.sqrt(np.mean(ec ** 2) / np.mean(e_ls ** 2)),
+                     100 * np.sqrt(np.mean(ed ** 2)), st))
+    print(f"   {'c':>4} {'clean / LS':>11} {'10 % glitches':>14} {'Stick: centre':>14} "
+          f"{'shape':>9} {'set aside':>10}")
+    for c, rc, rd, st in rows:
+        print(f"   {c:4.1f} {rc:11.4f} {rd:13.4f}% " + (
+            f"{st[0]:11.2f} ct {st[1]:9.2e} {100 * st[2]:9.1f}%" if st else "   (no data)"))
+    if stick is not None:
+        u, th0, pub = stick
+        rng = np.random.default_rng(0)
+        nb = len(u) // 50
+        C, S = [], []
+        for _ in range(200):
+            idx = (rng.integers(0, nb, nb)[:, None] * 50 + np.arange(50)).ravel()
+            th, _ = F.polish(MDL, th0, u[idx])
+            A, c, _ = MDL.affine(th)
+            C.append(-np.linalg.solve(A / LSB, c))
+            S.append(_shape_matrix(A))
+        C, S = np.array(C), np.array(S)
+        print(f"   the published fit's own spread (least squares, 1-s blocks resampled 200 "
+              f"times): centre sd {np.round(C.std(axis=0), 2).tolist()} counts, shape sd "
+              f"{S.std(axis=0).max():.1e} (largest element)")
+
+
+def _shape_matrix(M):
+    w, V = np.linalg.eigh(M.T @ M)
+    Sm = V @ np.diag(np.sqrt(w)) @ V.T
+    return Sm / np.linalg.det(Sm) ** (1 / 3)
+
+
+def _stick():
+    from conftest import MEASURED
+    from motecal.sessions.importer import read_razor_float
+    f = MEASURED / "sensorstick-mag-sweep" / "magnetom.float"
+    if not f.is_file():
+        return None
+    u = read_razor_float(f).sensor("mag") / LSB
+    pub = json.loads((f.parent / "published_calibration.json").read_text())["magnetom.float"]
+    return u, F.lm_optimize(MDL, u)[0], pub
+
+
+def _against_published(theta, pub):
+    """(largest centre difference in counts, largest shape difference) of a
+    fit against the published Razor calibration (as tests/test_calib_real)."""
+    A, c, _ = MDL.affine(theta)
+    centre = -np.linalg.solve(A / LSB, c)
+    dc = float(np.abs(centre - pub["magn_ellipsoid_center"]).max())
+    ds = float(np.abs(_shape_matrix(A) - _shape_matrix(np.array(pub["magn_ellipsoid_transform"])))
+               .max())
+    return dc, ds
+
+
+# ---------------------------------------------------------------------------
 # 3. poses with knocks, gyroscope glitches
 # ---------------------------------------------------------------------------
 def section_poses(seeds: int):
@@ -426,6 +511,7 @@ def main():
     if a.quick:
         a.seeds, a.method_seeds = 3, 2
     t0 = time.perf_counter()
+    section_threshold(max(3, a.seeds // 2))
     section_glitchy(a.seeds)
     section_clean(max(a.seeds, 6))
     section_methods(a.method_seeds)

@@ -79,8 +79,10 @@ def text(w: dict, sd_rel: float) -> str:
                  f"dip of {w['dip_deg']:g} deg (assumed: a sweep does not give it; where it is "
                  f"d, multiply by cos {w['dip_deg']:g} / cos d)")
     return (f"worth: a {w['what']} from one reading is off by about {w['reading_deg']:.2g} deg "
-            f"rms ({where})" + (f"; the calibration itself adds about {own:.2g} deg (its "
-                                "parameters' standard deviations)" if own is not None else ""))
+            f"rms ({where})" + (f"; the calibration itself adds about {own:.2g} deg (from its "
+                                "parameters' standard deviations, which take the readings as "
+                                "independent: more where they are correlated in time)"
+                                if own is not None else ""))
 
 
 def attach(board) -> None:

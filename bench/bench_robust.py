@@ -488,6 +488,12 @@ def section_measured():
               f"{sc.set_aside.get('longest_s', 0):.1f} s; {sc.quality.get('worth_text', '')}")
         for r in dec.reasons:
             print(f"      reason: {r}")
+        um = d.sensor("mag")[d.has("mag")] / d.scales["mag"]
+        th = F.lm_optimize(MDL, um)[0]
+        e = np.abs(MDL.residuals(th, um) / MDL.affine(th)[2])
+        print(f"      least squares (before issue 25): rms {100 * np.sqrt(np.mean(e ** 2)):.1f} %, "
+              f"median |error| {100 * np.median(e):.1f} %, {100 * np.mean(e > 0.1):.0f} % of the "
+              "readings more than 10 % off")
         good += dec.accepted == should
         if rel.startswith("sensorstick"):
             pub = json.loads((base / "sensorstick-mag-sweep" / "published_calibration.json")

@@ -51,8 +51,10 @@ from .content import (MIN_POSE_ORIENTATIONS, ORIENTATIONS_NEEDED, Judgement, jud
                       poses_from_stillness, temperature_content)
 from . import gate as _gate
 from . import gyro as _gyro
+from . import robust as _robust
 from . import rotations as _rotations
 from . import thermal as _thermal
+from . import worth as _worth
 from .ga import GAOptions
 from .models import MagnitudeModel, mag_groups, make_model
 from .result import BoardCalibration, Param, SensorCalibration
@@ -136,7 +138,8 @@ def calibrate_board(data: SessionData, *, model: str | None = None, groups=None,
             board.accel = _magnitude_sensor(
                 "accel", mdl, data.sensor("accel")[acc_rows], data.label[acc_rows],
                 data.scales["accel"], chips["accel"], s_acc, seed, ga_options, kfold,
-                dataset="O", still_limit=still.accel_g)
+                dataset="O", still_limit=still.accel_g,
+                rows=np.flatnonzero(acc_rows), times=data.sample_times()[acc_rows])
             _record_choice(board, "accel", j, fam, grp, given=model is not None)
 
     # gyroscope ----------------------------------------------------------------------
@@ -189,13 +192,15 @@ def calibrate_board(data: SessionData, *, model: str | None = None, groups=None,
                 "mag", mdl, md.sensor("mag")[rows],
                 md.label[rows] if name == "O" else None,
                 md.scales["mag"], chips["mag"], s_mag, seed, ga_options, kfold,
-                dataset=name, still_limit=still.mag_gauss)
+                dataset=name, still_limit=still.mag_gauss,
+                rows=np.flatnonzero(rows), times=md.sample_times()[rows])
             board.mag_sets[name] = {
                 "dataset": name, "n_samples": sc.n_samples, "model": sc.model,
                 "field_gauss": sc.field_gauss, "field_std": sc.field_std,
                 "mse_before": sc.mse_before, "mse_after": sc.mse_after,
                 "min_after": sc.min_after, "max_after": sc.max_after,
-                "validation": sc.validation, "used": name == main}
+                "validation": sc.validation, "used": name == main,
+                "set_aside": {k: sc.set_aside.get(k) for k in ("count", "of", "fraction")}}
             if name == main:
                 board.mag = sc
                 _record_choice(board, "mag", j, fam, mgroups, given=model is not None)
@@ -206,6 +211,7 @@ def calibrate_board(data: SessionData, *, model: str | None = None, groups=None,
             board.mag.quality.setdefault("warnings", []).append(mnote)
     if tc is not None:
         _thermal.attach(board, whole, data, tc)
+    _worth.attach(board)                 # tilt / heading error in degrees (issue 25)
     return board
 
 
@@ -238,6 +244,29 @@ def mag_data_sets(data: SessionData, limits: _gate.GateLimits = _gate.LIMITS) ->
             for k, (rows, j) in magnetometer_sets(data, limits).items()}
 
 
+def sweep_reasons(u, t=None, seed: int = 0) -> tuple[list, dict]:
+    """The one decision whether a magnetometer sweep (``u`` nominal units,
+    ``t`` its times) can be calibrated through: the robust fit calibrate
+    makes (``robust.ga_fit``, the full model) and the gate's rules on what
+    it leaves -- the residual of the readings kept, the share set aside and
+    the longest stretch set aside.  Returns (the gate's reasons, empty when
+    it can; {"rms_rel", "rms_rel_all", "set_aside_frac", "longest_s"}).
+    ``diagnose`` calls it for a field disturbance, so both commands give the
+    same answer."""
+    u = np.asarray(u, float)
+    mdl = make_model("mag", "full")
+    rf = _robust.ga_fit(mdl, u, seed=seed)
+    H = float(mdl.affine(rf.theta)[2])
+    rel = np.linalg.norm(u @ mdl.affine(rf.theta)[0].T + mdl.affine(rf.theta)[1], axis=1) / H - 1
+    aside = _robust.set_aside_record(rf.keep, t, None, rf.scale, rel=rel)
+    q = {"rms_rel": float(np.sqrt(rf.fit.mse)) / H, "rms_rel_all": float(np.sqrt(rf.mse_all)) / H,
+         "set_aside_frac": aside["fraction"], "longest_s": aside["longest_s"]}
+    reasons = [r for r in (_gate.residual_reason("mag", q["rms_rel"], set_aside=q["set_aside_frac"]),
+                           _gate.set_aside_reason("mag", q["set_aside_frac"]),
+                           _gate.stretch_reason("mag", aside)) if r]
+    return reasons, q
+
+
 def mag_sets(data: SessionData) -> dict:
     """Rows of each magnetometer data set that can determine a model,
     ``{"O": mask, "R": mask}`` (``mag_data_sets`` without the others)."""
@@ -255,25 +284,42 @@ def _kfold_groups(label, n, k):
     return (np.arange(n) * k) // max(n, 1), "time blocks"
 
 
-def kfold_validation(mdl: MagnitudeModel, theta, u, label, k: int, need: int) -> dict:
-    """Held-out error: refit (LM from the full fit) without each fold of
-    orientations and evaluate on it."""
+def kfold_validation(mdl: MagnitudeModel, theta, u, label, k: int, need: int,
+                     keep=None) -> dict:
+    """Held-out error: refit without each fold of orientations (least
+    squares from the full fit on the training readings it kept, ``keep``)
+    and evaluate on the fold -- a trimmed error: the mean squared residual
+    of the held-out readings within ``robust.REJECT_SD`` robust sd (of the
+    full fit's residuals; a pose's readings from their pose's median), and
+    the fraction of held-out readings beyond (``heldout_set_aside``).  A
+    plain mean would be made of the glitches (each counts with its square)
+    and say nothing of the readings the calibration is for."""
     if k < 2:
         return {}
     fold, kind = _kfold_groups(label, len(u), k)
     if label is not None and len(np.unique(label)) - int(np.ceil(len(np.unique(label)) / k)) < need:
         return {"k": k, "groups": kind, "mse_heldout": None,
                 "note": "too few orientations to leave any out"}
-    sq, bound = 0.0, 0
+    lim = _robust.REJECT_SD * _robust.robust_sd(
+        _robust.deviations(mdl.residuals(theta, u), label))
+    sq, n_in, n_out, bound = 0.0, 0, 0, 0
     for f in range(k):
         te = fold == f
         if not te.any() or te.all():
             continue
-        th, nfev = _fit.polish(mdl, theta, u[~te])
+        tr = ~te if keep is None else ~te & keep
+        th, nfev = _robust.polish(mdl, theta, u[tr])
         bound += nfev >= _fit.polish_limit(len(theta))
         r = mdl.residuals(th, u[te])
-        sq += float(r @ r)
-    out = {"k": k, "groups": kind, "mse_heldout": sq / len(u)}
+        e = _robust.deviations(r, None if label is None else label[te])
+        if label is None:        # a sweep's held-out block: judged from the training fit's median
+            e = r - float(np.median(mdl.residuals(th, u[tr])))
+        ok = np.abs(e) <= lim if lim > 0 else np.ones(len(r), bool)
+        sq += float(r[ok] @ r[ok])
+        n_in += int(ok.sum())
+        n_out += int((~ok).sum())
+    out = {"k": k, "groups": kind, "mse_heldout": sq / max(n_in, 1),
+           "heldout_set_aside": n_out / max(n_in + n_out, 1)}
     if bound:
         out["note"] = (f"{bound} of {k} held-out refits stopped at the least-squares bound "
                        f"({_fit.polish_limit(len(theta))} evaluations): their error may be "
@@ -306,24 +352,41 @@ def bounded_rows(label, n: int) -> np.ndarray | None:
 
 
 def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss, seed,
-                      ga_options, kfold, dataset, still_limit) -> SensorCalibration:
+                      ga_options, kfold, dataset, still_limit, rows=None,
+                      times=None) -> SensorCalibration:
+    """One accelerometer or magnetometer data set, fitted robustly
+    (``robust.ga_fit``: readings far off are set aside, ``set_aside``); the
+    error after, the magnitudes after and the quality metrics are of the
+    readings kept, ``rms_rel_all`` of every reading.  A long hold or sweep is
+    fitted on a bounded, evenly spaced share of its rows (``bounded_rows``)."""
     bound_note = None
-    keep = bounded_rows(label, len(counts))
-    if keep is not None:
+    sub = bounded_rows(label, len(counts))
+    if sub is not None:
         total = len(counts)
-        counts = counts[keep]
-        label = None if label is None else label[keep]
-        bound_note = (f"fitted on {len(keep)} of {total} samples: at most "
+        counts = counts[sub]
+        label = None if label is None else label[sub]
+        rows = None if rows is None else np.asarray(rows)[sub]
+        times = None if times is None else np.asarray(times)[sub]
+        bound_note = (f"fitted on {len(sub)} of {total} samples: at most "
                       + (f"{MAX_POSE_SAMPLES} per pose" if label is not None
                          else f"{MAX_SWEEP_SAMPLES} of the sweep")
                       + ", evenly spaced (the rest repeat what these carry)")
     u = counts / lsb
-    fr = _fit.ga_fit(mdl, u, label, seed=ss, options=ga_options)
+    # static poses: a reading off its pose's median vector (on any axis, beyond
+    # the robust sd) is a knock, whether or not it changes the magnitude
+    pre = _robust.inliers_3d(u, label) if label is not None else np.ones(len(u), bool)
+    rf = _robust.ga_fit(mdl, u[pre], None if label is None else label[pre], seed=ss,
+                        options=ga_options)
+    fr = rf.fit
+    keep = np.zeros(len(u), bool)
+    keep[np.flatnonzero(pre)[rf.keep]] = True
     A, c, H = mdl.affine(fr.theta)
     H = float(H)
     mag_b = np.linalg.norm(u, axis=1)
     v = u @ A.T + c
-    mag_a = np.linalg.norm(v, axis=1)
+    mag_all = np.linalg.norm(v, axis=1)
+    mag_a = mag_all[keep]
+    aside = _robust.set_aside_record(keep, times, rows, rf.scale, rel=mag_all / H - 1.0)
     if sensor == "accel":
         mse_before = float(np.mean((mag_b - 1.0) ** 2))
     else:                      # no calibration: the best constant field for the raw readings
@@ -332,6 +395,8 @@ def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss,
     for p, val, sd, ok in zip(mdl.params, fr.theta, fr.std, fr.ident.identifiable):
         params.append(Param(p.name, float(val), float(sd), p.unit, bool(ok)))
     notes = [fr.ident.note()]
+    if aside["count"]:
+        notes.append(_robust.set_aside_text(aside, mdl.unit))
     if "angles" in mdl.groups:
         notes.append(ANGLE_NOTE)
     if sensor == "mag":
@@ -345,26 +410,30 @@ def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss,
         notes.append(bound_note)
     if fr.ga_stop == "max_gen":
         notes.append(f"the GA stopped at its bound of {ga_options.max_gen} generations "
-                     f"(the polish started from its best)")
-    if fr.polish_nfev >= _fit.polish_limit(mdl.d):
-        notes.append(f"the least-squares polish stopped at its bound of "
-                     f"{_fit.polish_limit(mdl.d)} evaluations: the fit may not be converged")
-    # quality metrics
+                     f"(the local refinement started from its best)")
+    # quality metrics (of the readings kept: a pose's or the sweep's readings
+    # set aside are not what the calibration is judged on; how many were is)
     q = {"identifiable_params": fr.ident.rank, "rms_rel": float(np.sqrt(fr.mse)) / H,
+         "rms_rel_all": float(np.sqrt(np.mean((mag_all - H) ** 2))) / H,
+         "robust_sd_rel": rf.scale / H, "set_aside_frac": aside["fraction"],
+         "set_aside_longest_s": aside["longest_s"],
          "condition": fr.ident.condition}
     if label is not None:
+        lk = label[keep]
         poses = np.unique(label)
-        means = np.array([v[label == p].mean(axis=0) for p in poses])
+        means = np.array([v[keep & (label == p)].mean(axis=0) if (keep & (label == p)).any()
+                          else v[label == p].mean(axis=0) for p in poses])
         q["distinct_orientations"] = distinct_directions(means)
         q["hull_depth"] = _gate.hull_depth(means)
-        spread = _gate.pose_spread(counts / lsb, label)
+        spread = _gate.pose_spread(u[keep], lk)
         q["worst_pose_sd"] = max(spread.values()) if spread else 0.0
         q["not_still"] = [p for p, s in spread.items() if s > still_limit]
         q["still_limit"] = still_limit
-    else:                      # a sweep: how much of the sphere it covers
-        q["hull_depth"] = _gate.hull_depth(v[:: max(1, len(v) // 2000)])
-        q["coverage"] = coverage(v)
-    validation = kfold_validation(mdl, fr.theta, u, label, kfold, fr.ident.rank)
+    else:                      # a sweep: how much of the sphere the kept readings cover
+        vk = v[keep]
+        q["hull_depth"] = _gate.hull_depth(vk[:: max(1, len(vk) // 2000)])
+        q["coverage"] = coverage(vk)
+    validation = kfold_validation(mdl, fr.theta, u, label, kfold, fr.ident.rank, keep)
     validation["mse_fit"] = fr.mse
     if validation.get("note") and validation.get("mse_heldout") is not None:
         notes.append(f"validation: {validation['note']}")
@@ -377,8 +446,11 @@ def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss,
         n_samples=len(u), n_poses=0 if label is None else len(np.unique(label)),
         dataset=dataset, rank=fr.ident.rank, notes=notes, validation=validation, quality=q,
         ga={"seed": seed, "generations": fr.ga_generations, "evaluations": fr.ga_evaluations,
-            "stop": fr.ga_stop, "polish_nfev": fr.polish_nfev, "trace": fr.trace},
-        gauge=mdl.gauge)
+            "stop": fr.ga_stop, "polish_nfev": fr.polish_nfev, "trace": fr.trace,
+            "objective": "robust scale (biweight M-scale of |v|/H - 1), then least squares on "
+                         f"the readings within {_robust.REJECT_SD:g} robust sd",
+            "route": rf.route, "robust_scale": {k: float(x) for k, x in rf.scales.items()}},
+        gauge=mdl.gauge, set_aside=aside)
     Mj = mdl.affine_jacobian(fr.theta)[:12]          # d (A nominal, c) / d theta
     Mj[:9] /= lsb                                      # A per count, as sc.A
     sc.affine_cov = Mj @ fr.cov @ Mj.T
@@ -405,6 +477,11 @@ def _recording_parts(data) -> np.ndarray:
 def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matrix,
                  still) -> SensorCalibration:
     lsb = data.scales["gyro"]
+    keep = _robust.inliers_3d(data.sensor("gyro")[rows] / lsb, data.label[rows])
+    aside = _robust.set_aside_record(keep, data.sample_times()[rows], np.flatnonzero(rows))
+    sel = np.flatnonzero(rows)[keep]            # still rates kept: glitches set aside
+    rows = np.zeros(len(data), bool)
+    rows[sel] = True
     counts = data.sensor("gyro")[rows]
     label = data.label[rows]
     g = counts / lsb
@@ -416,7 +493,9 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
     G = np.eye(3)
     params = [Param(f"b_{a}", float(v), float(s), "deg/s") for a, v, s in zip("xyz", b, bm.std)]
     notes = ["bias: mean of the still rates; std = the larger of sample sd / sqrt(n) and the "
-             "scatter of the pose means",
+             "scatter of the pose means"] + (
+        [_robust.set_aside_text(aside, "of the still rates") + " (on any axis, from their pose's "
+         "median)"] if aside["count"] else []) + [
              "the paper's eq. 6 (GA + exact minimiser) gives b = ("
              + ", ".join(f"{v:.4f}" for v in bf.b) + ") deg/s, ("
              + ", ".join(f"{v:+.4f}" for v in bf.b - b) + ") from the mean (its minimiser "
@@ -444,9 +523,16 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
                                  data.sensor("gyro"), grav, data.meta.get("rate_hz") or 125.0,
                                  part=_recording_parts(data))
         if len(moves) >= _gyro.MIN_MOVES:
-            mf = _gyro.fit_matrix(moves, b, b_cov=np.diag(bm.std ** 2), dirs=dirs,
-                                  dirs_cov=accel.affine_cov)
+            mf, mkeep = _gyro.fit_matrix_robust(moves, b, b_cov=np.diag(bm.std ** 2), dirs=dirs,
+                                                dirs_cov=accel.affine_cov)
+            if not mkeep.all():
+                bad = [f"{m.pose0}->{m.pose1}" for m, k in zip(moves, mkeep) if not k]
+                notes.append(f"moves set aside from the scale and misalignment fit: {len(bad)} "
+                             f"of {len(moves)} (their gravity direction error beyond "
+                             f"{_robust.REJECT_SD:g} robust sd: a glitch or a knock in the move): "
+                             + ", ".join(bad[:8]) + (" ..." if len(bad) > 8 else ""))
             extra["matrix_fit"] = {"moves": mf.n_moves, "rank": mf.rank,
+                                   "moves_set_aside": int((~mkeep).sum()),
                                    "rms_deg_before": float(np.rad2deg(mf.rms_before)),
                                    "rms_deg_after": float(np.rad2deg(mf.rms_after)),
                                    "std_from": {k: v.tolist() for k, v in mf.std_parts.items()}}
@@ -477,6 +563,7 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
     q = {"not_still": [p for p, s in spread.items() if s > still.gyro_dps],
          "still_limit": still.gyro_dps,
          "worst_pose_sd": max(spread.values()) if spread else 0.0,
+         "set_aside_frac": aside["fraction"], "set_aside_longest_s": aside["longest_s"],
          "warnings": warnings}
     validation = {}
     if kfold >= 2 and len(np.unique(label)) >= 2:
@@ -499,4 +586,4 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
         notes=notes, validation=validation, quality=q,
         ga={"seed": seed, "generations": bf.ga_generations, "stop": bf.ga_stop,
             "trace": bf.trace},
-        extra=extra)
+        extra=extra, set_aside=aside)

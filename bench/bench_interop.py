@@ -32,10 +32,7 @@ from motecal.targets import FORMATS, export  # noqa: E402
 from motecal.targets import ardupilot as AP, cheader as CH, imucal as IM, razor as RZ  # noqa: E402
 from motecal.targets import common as C  # noqa: E402
 
-try:
-    from synthetic import paper_sized_session  # noqa: E402
-except ImportError:
-    from motecal.calib.synthetic import paper_sized_session  # noqa: E402
+from synthetic import paper_sized_session  # noqa: E402
 
 GRAV = 9.81
 

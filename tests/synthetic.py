@@ -125,3 +125,24 @@ def vector_error(sc, physical_truth: dict, magnitude: float = 1.0,
         raise ValueError(align)
     err = v - target
     return float(np.sqrt(np.mean(np.sum(err * err, axis=1))))
+
+
+def shape_error(A, c, physical_truth: dict, sensor: str = "mag", field: float = 1.0,
+                dirs: np.ndarray | None = None) -> float:
+    """The shape error of a map ``calibrated = A @ raw_counts + c`` (any
+    scale: a Razor transform, a det-gauge calibration): the rms over fresh
+    directions of ``|s R v - u| / |u|`` for noise-free readings of true
+    vectors ``u`` of magnitude ``field``, after the best rotation R and
+    scale s (all a magnitude fit determines, and all a compass needs).  A
+    fraction of the field; the one definition the benches and tests use."""
+    from scipy.spatial.transform import Rotation
+    A_t, c_t = true_affine(physical_truth, sensor)
+    dirs = fresh_directions() if dirs is None else dirs
+    u = field * dirs
+    raw = np.linalg.solve(A_t, (u - c_t).T).T
+    v = raw @ np.asarray(A, float).T + np.asarray(c, float)
+    R, _ = Rotation.align_vectors(u, v)
+    w = R.apply(v)
+    s = float(np.sum(w * u) / np.sum(w * w))
+    e = s * w - u
+    return float(np.sqrt(np.mean(np.sum(e * e, axis=1)))) / field

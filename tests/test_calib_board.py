@@ -217,9 +217,20 @@ def test_gate_refuses_clustered_few_and_moving_poses(board_session):
     assert not dec.accepted
     assert any("too clustered" in r for r in dec.reasons), dec.reasons
 
+    # five poses that do not surround the origin determine nothing: the
+    # accelerometer is not fitted at all (calib.determine), and refused
     b = calibrate_board(_select_poses(d, d.poses()[:5]), seed=1, kfold=0, gyro_matrix=False)
     dec = gate.decide(b)
-    assert any("too few distinct orientations" in r for r in dec.reasons), dec.reasons
+    assert b.accel is None
+    assert any(r.startswith("accel: nothing determined from 5 distinct orientations: poses too "
+                            "clustered") for r in dec.reasons), dec.reasons
+    # three poses: too few for any model; forced, the full model is not fitted either
+    b = calibrate_board(_select_poses(d, d.poses()[:3]), model="full", seed=1, kfold=0,
+                        gyro_matrix=False)
+    dec = gate.decide(b)
+    assert b.accel is None
+    assert any("too few distinct orientations: 3 (at least 4 for offsets" in r
+               for r in dec.reasons), dec.reasons
 
     moving = d.select(np.ones(len(d), bool))
     rows = np.flatnonzero(moving.label == 7)
@@ -239,7 +250,7 @@ def test_mag_set_that_cannot_determine_a_model_is_not_fitted(board_session):
     one_pose = d.select((d.label == 1) | (d.label == LABEL_ROT))
     sets = mag_data_sets(one_pose)
     assert sets["R"][1] is None
-    assert sets["O"][1].startswith("too few distinct orientations: 1 (at least 6;")
+    assert sets["O"][1].startswith("too few distinct orientations: 1 (at least 4 for offsets;")
     b = calibrate_board(one_pose, seed=1, kfold=0, gyro_matrix=False)
     assert b.mag.dataset == "R" and set(b.mag_sets) == {"R"}
     dec = gate.decide(b)

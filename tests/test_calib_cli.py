@@ -101,7 +101,7 @@ def test_refused_board_exit_3_and_force(measured, tmp_path, capsys):
                "--seed", "0"])
     cap = capsys.readouterr()
     assert rc == 3 and not out.exists()
-    assert "residual too large" in cap.err and "calibration refused" in cap.err
+    assert "disturbed for too long" in cap.err and "calibration refused" in cap.err
     rc = main(["calibrate", "--db", db, "--session", "disturbed", "--out", str(out),
                "--seed", "0", "--force"])
     assert rc == 0

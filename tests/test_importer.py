@@ -227,10 +227,18 @@ def test_formats_detected_by_content_not_name(measured_dir, tmp_path):
     assert I.detect_format(csvf) == "csv"
 
 
-def test_mixed_formats_refused(measured_dir):
-    with pytest.raises(UserError, match="different formats"):
-        I.read_any([measured_dir / "sensorstick-boards" / "razor1" / "razor1_acc_x_pos.raw",
-                    measured_dir / "sensorstick-mag-sweep" / "magnetom.float"])
+def test_mixed_formats_one_session(measured_dir):
+    """Files of different formats are one session, each read by its own
+    reader (tests/test_import_combine.py has the rest); a board's sensors
+    must agree: an ADXL345 beside an MPU6050 is refused."""
+    face = measured_dir / "sensorstick-boards" / "razor1" / "razor1_acc_x_pos.raw"
+    sweep = measured_dir / "sensorstick-mag-sweep" / "magnetom.float"
+    d = I.read_any([face, sweep])
+    assert d.meta["format"] == "razor-text+razor-float"
+    assert len(d) == len(I.read_razor_text([face])) + len(I.read_razor_float(sweep))
+    with pytest.raises(UserError, match="accel: .* ADXL345 at 256 .* MPU6050 at 16384: one "
+                                        "board per session"):
+        I.read_any([face, measured_dir / "mpu6050-hmc5883l-timestamped" / "full-sphere"])
 
 
 # ---------------------------------------------------------------- chips

@@ -10,10 +10,7 @@ from motecal.commands import main as cli
 from motecal.calib import calibrate_board
 from motecal.sessions.store import open_store
 
-try:
-    from synthetic import paper_sized_session
-except ImportError:
-    from motecal.calib.synthetic import paper_sized_session
+from synthetic import paper_sized_session
 
 
 def main(argv):

@@ -266,8 +266,13 @@ def test_read_session_detects_foreign_and_native(tmp_path, measured):
     assert X.read_session([razor]).meta["format"] == "razor-text"
     with pytest.raises(UserError, match="--units: only for float inputs"):
         X.read_session([razor], units="si")
-    with pytest.raises(UserError, match="different formats"):
-        X.read_session([razor, ann], rate_hz=200)
+    # native and other tools' files together: one session, each file read by
+    # its own reader (sessions.combine); one board: the scales must agree
+    both = X.read_session([razor, ann], rate_hz=200, scale="accel=256,gyro=14.375")
+    assert both.meta["format"] == "razor-text+imucal-annotated"
+    assert [f["format"] for f in both.meta["files"]][:1] == ["razor-text"]
+    with pytest.raises(UserError, match="one board per session"):
+        X.read_session([razor, ann], rate_hz=200, scale="accel=2048,gyro=16.4")
     with pytest.raises(UserError, match="give one session CSV"):
         X.read_session([lst], rate_hz=200)
 

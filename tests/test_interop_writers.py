@@ -16,10 +16,7 @@ from motecal.targets import cheader as CH
 from motecal.targets import common as C
 from motecal.targets import razor as RZ
 
-try:                                   # after the package move the helper lives in tests/
-    from synthetic import paper_sized_session
-except ImportError:
-    from motecal.calib.synthetic import paper_sized_session
+from synthetic import paper_sized_session
 
 G0 = 9.80665
 

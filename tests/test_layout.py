@@ -183,3 +183,14 @@ def test_contributing_describes_the_layers_in_order():
     assert all(p >= 0 for p in pos), [n for n, p in zip(LAYERS[1:], pos) if p < 0]
     assert pos == sorted(pos), "docs/CONTRIBUTING.md lists the layers in another order"
     assert re.search(r"no import circles", text, re.I)
+
+
+def test_readme_layout_follows_the_layers():
+    """README's one-line data path names the sub-packages in LAYERS' order
+    (the newcomer reads the same order in README and CONTRIBUTING)."""
+    row = next(line for line in (REPO / "README.md").read_text().splitlines()
+               if line.startswith("| `host/motecal/` |"))
+    named = re.findall(r"`(\w+)/`", row)
+    order = [name.split(".")[1] for layer in LAYERS for name in layer if name.count(".") == 1
+             and (PACKAGE / name.split(".")[1]).is_dir()]
+    assert [n for n in order if n in named] == [n for n in named if n in order], (named, order)

@@ -3,7 +3,7 @@
  *
  * Included by the nesC firmware (tinyos/, basestation/), by the plain C
  * logic files (through nx_plain.h, which gives nx types to gcc/avr-gcc), and
- * parsed by the host: host/motecal/protocol.py declares the same layouts and
+ * parsed by the host: host/motecal/line/protocol.py declares the same layouts and
  * tests/test_protocol_header.py fails if the two ever differ.  TinyOS's MIG
  * can generate Java/Python classes from it (mig python -target=iris
  * NineDofMsg.h ninedof_samples_msg).
@@ -268,7 +268,7 @@ typedef nx_struct ninedof_mote_status_msg {
   /* Appended with the fault handling (ninedof_fault.h); a mote built before
    * sends the message without them (NINEDOF_MOTE_STATUS_SIZE_V1 bytes). */
   nx_uint16_t i2c_nacks;     /* I2C operations a chip did not acknowledge */
-  nx_uint16_t bus_resets;    /* hung I2C operations aborted, bus cleared */
+  nx_uint16_t bus_resets;    /* bus clears run: after a hung I2C operation was aborted, and each retry while the bus is down */
   nx_uint16_t chip_reinits;  /* chips found with reset registers, configured again */
 } ninedof_mote_status_msg_t;
 

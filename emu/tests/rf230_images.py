@@ -27,10 +27,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "host"))
-try:                                   # after the package move (layout.md)
-    from motecal.line import protocol as P
-except ImportError:                    # before it
-    from motecal import protocol as P
+from motecal.line import protocol as P  # noqa: E402
 
 
 def run(emu: str, mote: str, base: str, motes: int, seconds: float, loss: float,

@@ -21,6 +21,18 @@ Which rows are used
   80 % of the sphere's equal-area cells) is not fitted: a gate warning when another set is;
   when none is, the reason the magnetometer is refused -- or, in a session
   without a rotation sweep, left out with a warning (``settings["skipped"]``).
+
+Which model
+-----------
+Each sensor's data are judged before any fit (``content.judge_poses`` /
+``content.magnetometer_sets``, the one judgement of ``calib.determine``):
+without ``model`` the richest model they determine is fitted, and a sensor
+they determine nothing of is not fitted at all (a hold in one orientation:
+skipped; labelled poses: refused).  The choice and why are in
+``settings["models"]`` and the sensor's first note; the orientations the
+fitted model needs go to its quality for the gate.  A magnitude fit takes
+at most ``MAX_POSE_SAMPLES`` of a pose and ``MAX_SWEEP_SAMPLES`` of a sweep
+(``bounded_rows``), and notes a polish, refit or GA that reached its bound.
 """
 from __future__ import annotations
 
@@ -31,21 +43,26 @@ import numpy as np
 from .. import __version__
 from ..errors import UserError
 from ..maths.sphere import coverage, distinct_directions, unit
-from ..sessions.session import (HMC5883L_OVERFLOW, LABEL_NONE, LABEL_ROT, NOMINAL_CHIPS, UNITS,
-                                SessionData)
+from ..sessions.session import NOMINAL_CHIPS, UNITS, SessionData
 from ..sessions.still import StillThresholds
 from . import fit as _fit
-from .content import poses_from_stillness, temperature_content
+from .content import (MIN_POSE_ORIENTATIONS, ORIENTATIONS_NEEDED, Judgement, judge_poses,
+                      labelled_poses, magnetometer_sets, model_key, pose_means,
+                      poses_from_stillness, temperature_content)
 from . import gate as _gate
 from . import gyro as _gyro
+from . import robust as _robust
 from . import rotations as _rotations
 from . import thermal as _thermal
+from . import worth as _worth
 from .ga import GAOptions
 from .models import MagnitudeModel, mag_groups, make_model
 from .result import BoardCalibration, Param, SensorCalibration
 
 MIN_SWEEP = 200
 KFOLD = 5
+MAX_POSE_SAMPLES = 1000      # a fit takes at most this many samples of a pose (evenly spaced) ...
+MAX_SWEEP_SAMPLES = 20000    # ... and of a sweep: what carries the information (module doc)
 
 ANGLE_NOTE = ("the paper's angles only multiply the scales (an exact re-parametrisation of "
               "offset and scale): they cannot represent misalignment and are not "
@@ -59,17 +76,23 @@ def _seeds(seed):
     return int(seed), ss.spawn(3)
 
 
-def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed=None,
+def calibrate_board(data: SessionData, *, model: str | None = None, groups=None, seed=None,
                     gauge: str | None = None, field: float | None = None,
                     gyro_matrix: bool = True, kfold: int = KFOLD,
                     ga_options: GAOptions = GAOptions(),
                     still: StillThresholds = StillThresholds(),
-                    created: str | None = None) -> BoardCalibration:
-    """Calibrate every sensor of one mote's session (see the module doc)."""
+                    created: str | None = None,
+                    mag_data: SessionData | None = None) -> BoardCalibration:
+    """Calibrate every sensor of one mote's session (see the module doc).
+    ``model`` None fits, per sensor, the richest model the data determine
+    (``content.judge_poses`` / ``judge_sweep``); "full" or "paper" (with
+    ``groups``) forces one.  ``mag_data``: the magnetometer from this
+    session of the same board instead (its sweep or poses)."""
     motes = data.motes
     if len(motes) != 1:
         raise UserError(f"session {data.name} holds motes {motes}: calibrate one mote at a time")
     data, found = poses_from_stillness(data)
+    labelled = labelled_poses(data)
     whole, tc = data, None
     if data.has_temp:                    # issue 16: holds fit the temperature terms only
         tc = temperature_content(data)
@@ -78,33 +101,46 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
     created = created or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
     board = BoardCalibration(mote=motes[0], session=data.name, created=created,
                              tool=f"motecal {__version__}")
-    board.settings = {"model": model, "params": list(groups) if groups else None,
+    board.settings = {"model": model or "auto", "params": list(groups) if groups else None,
                       "seed": seed, "gauge": gauge, "field_gauss": field,
                       "gyro_matrix": bool(gyro_matrix), "kfold": kfold,
-                      "skipped": {}, "insufficient": {}}
+                      "skipped": {}, "insufficient": {}, "models": {}}
     if found:
         board.settings["poses_found"] = found
+    if data.meta.get("axis_frame"):
+        board.settings["axis_frame"] = data.meta["axis_frame"]
     chips = dict(NOMINAL_CHIPS)
     chips.update(data.chips or {})
 
-    # accelerometer -------------------------------------------------------------
+    # accelerometer: judged before any fit (content.judge_poses) ------------------
     acc_rows = (data.label >= 1) & data.has("accel")
     if not data.has("accel").any():
         board.settings["skipped"]["accel"] = "no accelerometer data in the session"
     elif not acc_rows.any():
         board.settings["skipped"]["accel"] = "no static poses in the session"
-    elif len(np.unique(data.label[acc_rows])) < 2:
-        # a still hold (one orientation) is what a gyroscope bias is recorded
-        # with: it determines the gyro, not the accelerometer -- left out
-        board.settings["skipped"]["accel"] = ("a still hold in one orientation: it determines "
-                                              "the gyroscope bias, not the accelerometer "
-                                              "(that needs several orientations)")
     else:
-        mdl = make_model("accel", model, groups)
-        board.accel = _magnitude_sensor(
-            "accel", mdl, data.sensor("accel")[acc_rows], data.label[acc_rows],
-            data.scales["accel"], chips["accel"], s_acc, seed, ga_options, kfold,
-            dataset="O", still_limit=still.accel_g)
+        j = judge_poses("accel", pose_means(data, "accel")[1])
+        meant = labelled or j.orientations >= MIN_POSE_ORIENTATIONS
+        if j.orientations <= 1:
+            # a still hold (one orientation) is what a gyroscope bias is recorded
+            # with: it determines the gyro, not the accelerometer -- left out
+            board.settings["skipped"]["accel"] = (
+                "a still hold in one orientation: it determines the gyroscope bias (and the "
+                "temperature terms), not the accelerometer (that needs several orientations)")
+        elif j.model is None:            # not fitted, whatever --model says
+            if meant:
+                board.settings["insufficient"]["accel"] = j.text()
+            else:
+                board.settings["skipped"]["accel"] = f"a hold in the data: {j.text()}"
+        else:
+            fam, grp = (model, groups) if model else (j.family, j.groups)
+            mdl = make_model("accel", fam, grp)
+            board.accel = _magnitude_sensor(
+                "accel", mdl, data.sensor("accel")[acc_rows], data.label[acc_rows],
+                data.scales["accel"], chips["accel"], s_acc, seed, ga_options, kfold,
+                dataset="O", still_limit=still.accel_g,
+                rows=np.flatnonzero(acc_rows), times=data.sample_times()[acc_rows])
+            _record_choice(board, "accel", j, fam, grp, given=model is not None)
 
     # gyroscope ----------------------------------------------------------------------
     gyr_rows = (data.label >= 1) & data.has("gyro")
@@ -119,11 +155,18 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
                                   ga_options, kfold, gyro_matrix, still)
         _rotations.refine_board(board, data)     # known turns / turntable runs, if listed
 
-    # magnetometer ----------------------------------------------------------------
-    all_sets = mag_data_sets(data)
-    sets = {k: rows for k, (rows, why) in all_sets.items() if why is None}
-    unfit = [f"set {k} not fitted: {why}" for k, (_, why) in all_sets.items() if why]
-    if not data.has("mag").any():
+    # magnetometer: each set judged before any fit (content.magnetometer_sets) ------
+    md = data if mag_data is None else mag_data
+    if mag_data is not None:
+        board.settings["mag_session"] = mag_data.name
+        mchips = dict(NOMINAL_CHIPS)
+        mchips.update(mag_data.chips or {})
+        chips["mag"] = mchips["mag"]
+    all_sets = magnetometer_sets(md)
+    sets = {k: (rows, j) for k, (rows, j) in all_sets.items() if j.model is not None}
+    unfit = [f"set {k} not fitted: {j.why_not()}" for k, (_, j) in all_sets.items()
+             if j.model is None]
+    if not md.has("mag").any():
         board.settings["skipped"]["mag"] = "no magnetometer data in the session"
     elif not sets:
         why = "; ".join(unfit) if all_sets else "needs a rotation sweep or static poses"
@@ -133,26 +176,34 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
             board.settings["skipped"]["mag"] = ("no rotation sweep, and the static poses "
                                                 f"cannot determine it ({why})")
     else:
-        main = "R" if "R" in sets and sets["R"].sum() >= MIN_SWEEP else "O"
+        main = "R" if "R" in sets and sets["R"][0].sum() >= MIN_SWEEP else "O"
         if main not in sets:
             main = next(iter(sets))
-        mgroups, mnote = (mag_groups(groups, gauge, field) if model == "paper"
-                          else (groups, None))
-        for name, rows in sets.items():
-            mdl = make_model("mag", model, mgroups, gauge=gauge, field=field)
+        mnote = None
+        for name, (rows, j) in sets.items():
+            if model:
+                fam = model
+                mgroups, mnote = (mag_groups(groups, gauge, field) if model == "paper"
+                                  else (groups, None))
+            else:
+                fam, mgroups = j.family, j.groups
+            mdl = make_model("mag", fam, mgroups, gauge=gauge, field=field)
             sc = _magnitude_sensor(
-                "mag", mdl, data.sensor("mag")[rows],
-                data.label[rows] if name == "O" else None,
-                data.scales["mag"], chips["mag"], s_mag, seed, ga_options, kfold,
-                dataset=name, still_limit=still.mag_gauss)
+                "mag", mdl, md.sensor("mag")[rows],
+                md.label[rows] if name == "O" else None,
+                md.scales["mag"], chips["mag"], s_mag, seed, ga_options, kfold,
+                dataset=name, still_limit=still.mag_gauss,
+                rows=np.flatnonzero(rows), times=md.sample_times()[rows])
             board.mag_sets[name] = {
                 "dataset": name, "n_samples": sc.n_samples, "model": sc.model,
                 "field_gauss": sc.field_gauss, "field_std": sc.field_std,
                 "mse_before": sc.mse_before, "mse_after": sc.mse_after,
                 "min_after": sc.min_after, "max_after": sc.max_after,
-                "validation": sc.validation, "used": name == main}
+                "validation": sc.validation, "used": name == main,
+                "set_aside": {k: sc.set_aside.get(k) for k in ("count", "of", "fraction")}}
             if name == main:
                 board.mag = sc
+                _record_choice(board, "mag", j, fam, mgroups, given=model is not None)
         if unfit:
             board.mag.quality.setdefault("warnings", []).extend(unfit)
         if mnote:
@@ -160,34 +211,60 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
             board.mag.quality.setdefault("warnings", []).append(mnote)
     if tc is not None:
         _thermal.attach(board, whole, data, tc)
+    _worth.attach(board)                 # tilt / heading error in degrees (issue 25)
     return board
+
+
+def _record_choice(board, sensor: str, j: Judgement, family: str, groups, given: bool):
+    """The model fitted for ``sensor``, what the data determine and why, in
+    ``settings["models"]`` and the sensor's notes; the orientations that
+    model needs go to its quality for the gate (static poses only)."""
+    key = model_key(family, groups)
+    sc = getattr(board, sensor)
+    entry = {"model": family, "params": list(groups) if groups else None, "key": key,
+             "determined": j.model, "given": bool(given), "why": j.text()}
+    board.settings["models"][sensor] = entry
+    if given:
+        line = f"model {key} (--model); the data determine: {j.text()}"
+    else:
+        line = j.text()
+    sc.notes.insert(0, line)
+    if j.dataset == "O" and key in ORIENTATIONS_NEEDED:
+        sc.quality["orientations_needed"] = ORIENTATIONS_NEEDED[key]
 
 
 def mag_data_sets(data: SessionData, limits: _gate.GateLimits = _gate.LIMITS) -> dict:
     """Every magnetometer data set of the session, ``{"R": (mask, why), "O":
     (mask, why)}`` (see the module doc; overflowed readings left out, sets
     under 10 rows dropped).  ``why`` is None for a set that can determine a
-    model, else why it cannot: the quality gate's orientation, hull and
-    coverage limits applied before the fit (``gate.set_metrics``), at least
-    ``min_orientations`` static poses for O and ``min_mag_coverage`` of the
-    sphere for R."""
-    ok = data.has("mag") & ~(data.sensor("mag") == HMC5883L_OVERFLOW).any(axis=1)
-    sets = {}
-    if (data.label == LABEL_ROT).any():
-        sets["R"] = ok & (data.label == LABEL_ROT)
-    elif not (data.label >= 1).any():
-        sets["R"] = ok & (data.label == LABEL_NONE)
-    if (data.label >= 1).any():
-        sets["O"] = ok & (data.label >= 1)
-    out = {}
-    for name, rows in sets.items():
-        if rows.sum() < 10:
-            continue
-        u = data.sensor("mag")[rows] / data.scales["mag"]
-        q = _gate.set_metrics(u, data.label[rows] if name == "O" else None)
-        why = _gate.coverage_reasons(q, limits.min_orientations, limits)
-        out[name] = (rows, "; ".join(why) if why else None)
-    return out
+    model, else why it cannot: the one judgement, ``content.magnetometer_sets``
+    (the quality gate's orientation, hull and coverage limits applied before
+    the fit)."""
+    return {k: (rows, None if j.model else j.why_not())
+            for k, (rows, j) in magnetometer_sets(data, limits).items()}
+
+
+def sweep_reasons(u, t=None, seed: int = 0) -> tuple[list, dict]:
+    """The one decision whether a magnetometer sweep (``u`` nominal units,
+    ``t`` its times) can be calibrated through: the robust fit calibrate
+    makes (``robust.ga_fit``, the full model) and the gate's rules on what
+    it leaves -- the residual of the readings kept, the share set aside and
+    the longest stretch set aside.  Returns (the gate's reasons, empty when
+    it can; {"rms_rel", "rms_rel_all", "set_aside_frac", "longest_s"}).
+    ``diagnose`` calls it for a field disturbance, so both commands give the
+    same answer."""
+    u = np.asarray(u, float)
+    mdl = make_model("mag", "full")
+    rf = _robust.ga_fit(mdl, u, seed=seed)
+    H = float(mdl.affine(rf.theta)[2])
+    rel = np.linalg.norm(u @ mdl.affine(rf.theta)[0].T + mdl.affine(rf.theta)[1], axis=1) / H - 1
+    aside = _robust.set_aside_record(rf.keep, t, None, rf.scale, rel=rel)
+    q = {"rms_rel": float(np.sqrt(rf.fit.mse)) / H, "rms_rel_all": float(np.sqrt(rf.mse_all)) / H,
+         "set_aside_frac": aside["fraction"], "longest_s": aside["longest_s"]}
+    reasons = [r for r in (_gate.residual_reason("mag", q["rms_rel"], set_aside=q["set_aside_frac"]),
+                           _gate.set_aside_reason("mag", q["set_aside_frac"]),
+                           _gate.stretch_reason("mag", aside)) if r]
+    return reasons, q
 
 
 def mag_sets(data: SessionData) -> dict:
@@ -207,35 +284,109 @@ def _kfold_groups(label, n, k):
     return (np.arange(n) * k) // max(n, 1), "time blocks"
 
 
-def kfold_validation(mdl: MagnitudeModel, theta, u, label, k: int, need: int) -> dict:
-    """Held-out error: refit (LM from the full fit) without each fold of
-    orientations and evaluate on it."""
+def kfold_validation(mdl: MagnitudeModel, theta, u, label, k: int, need: int,
+                     keep=None) -> dict:
+    """Held-out error: refit without each fold of orientations (least
+    squares from the full fit on the training readings it kept, ``keep``)
+    and evaluate on the fold -- a trimmed error: the mean squared residual
+    of the held-out readings within ``robust.REJECT_SD`` robust sd (of the
+    full fit's residuals; a pose's readings from their pose's median), and
+    the fraction of held-out readings beyond (``heldout_set_aside``).  A
+    plain mean would be made of the glitches (each counts with its square)
+    and say nothing of the readings the calibration is for."""
     if k < 2:
         return {}
     fold, kind = _kfold_groups(label, len(u), k)
     if label is not None and len(np.unique(label)) - int(np.ceil(len(np.unique(label)) / k)) < need:
         return {"k": k, "groups": kind, "mse_heldout": None,
                 "note": "too few orientations to leave any out"}
-    sq = 0.0
+    lim = _robust.REJECT_SD * _robust.robust_sd(
+        _robust.deviations(mdl.residuals(theta, u), label))
+    sq, n_in, n_out, bound = 0.0, 0, 0, 0
     for f in range(k):
         te = fold == f
         if not te.any() or te.all():
             continue
-        th, _ = _fit.polish(mdl, theta, u[~te])
+        tr = ~te if keep is None else ~te & keep
+        th, nfev = _robust.polish(mdl, theta, u[tr])
+        bound += nfev >= _fit.polish_limit(len(theta))
         r = mdl.residuals(th, u[te])
-        sq += float(r @ r)
-    return {"k": k, "groups": kind, "mse_heldout": sq / len(u)}
+        e = _robust.deviations(r, None if label is None else label[te])
+        if label is None:        # a sweep's held-out block: judged from the training fit's median
+            e = r - float(np.median(mdl.residuals(th, u[tr])))
+        ok = np.abs(e) <= lim if lim > 0 else np.ones(len(r), bool)
+        sq += float(r[ok] @ r[ok])
+        n_in += int(ok.sum())
+        n_out += int((~ok).sum())
+    out = {"k": k, "groups": kind, "mse_heldout": sq / max(n_in, 1),
+           "heldout_set_aside": n_out / max(n_in + n_out, 1)}
+    if bound:
+        out["note"] = (f"{bound} of {k} held-out refits stopped at the least-squares bound "
+                       f"({_fit.polish_limit(len(theta))} evaluations): their error may be "
+                       f"overstated")
+    return out
+
+
+def bounded_rows(label, n: int) -> np.ndarray | None:
+    """Rows a magnitude fit takes (issue 31): at most ``MAX_POSE_SAMPLES`` of
+    each static pose and ``MAX_SWEEP_SAMPLES`` of a sweep (``label`` None),
+    evenly spaced over each, so a longer hold of the same pose costs no more
+    once its mean is known far better than the pose-to-pose scatter (the
+    adaptive planner's own limit on samples per pose); None when nothing is
+    left out."""
+    if label is None:
+        if n <= MAX_SWEEP_SAMPLES:
+            return None
+        return np.unique(np.linspace(0, n - 1, MAX_SWEEP_SAMPLES).round().astype(np.int64))
+    label = np.asarray(label)
+    labs, inv, cnt = np.unique(label, return_inverse=True, return_counts=True)
+    if cnt.max() <= MAX_POSE_SAMPLES:
+        return None
+    keep = np.zeros(n, bool)
+    for i, c in enumerate(cnt):
+        idx = np.flatnonzero(inv == i)
+        if c > MAX_POSE_SAMPLES:
+            idx = idx[np.unique(np.linspace(0, c - 1, MAX_POSE_SAMPLES).round().astype(np.int64))]
+        keep[idx] = True
+    return np.flatnonzero(keep)
 
 
 def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss, seed,
-                      ga_options, kfold, dataset, still_limit) -> SensorCalibration:
+                      ga_options, kfold, dataset, still_limit, rows=None,
+                      times=None) -> SensorCalibration:
+    """One accelerometer or magnetometer data set, fitted robustly
+    (``robust.ga_fit``: readings far off are set aside, ``set_aside``); the
+    error after, the magnitudes after and the quality metrics are of the
+    readings kept, ``rms_rel_all`` of every reading.  A long hold or sweep is
+    fitted on a bounded, evenly spaced share of its rows (``bounded_rows``)."""
+    bound_note = None
+    sub = bounded_rows(label, len(counts))
+    if sub is not None:
+        total = len(counts)
+        counts = counts[sub]
+        label = None if label is None else label[sub]
+        rows = None if rows is None else np.asarray(rows)[sub]
+        times = None if times is None else np.asarray(times)[sub]
+        bound_note = (f"fitted on {len(sub)} of {total} samples: at most "
+                      + (f"{MAX_POSE_SAMPLES} per pose" if label is not None
+                         else f"{MAX_SWEEP_SAMPLES} of the sweep")
+                      + ", evenly spaced (the rest repeat what these carry)")
     u = counts / lsb
-    fr = _fit.ga_fit(mdl, u, label, seed=ss, options=ga_options)
+    # static poses: a reading off its pose's median vector (on any axis, beyond
+    # the robust sd) is a knock, whether or not it changes the magnitude
+    pre = _robust.inliers_3d(u, label) if label is not None else np.ones(len(u), bool)
+    rf = _robust.ga_fit(mdl, u[pre], None if label is None else label[pre], seed=ss,
+                        options=ga_options)
+    fr = rf.fit
+    keep = np.zeros(len(u), bool)
+    keep[np.flatnonzero(pre)[rf.keep]] = True
     A, c, H = mdl.affine(fr.theta)
     H = float(H)
     mag_b = np.linalg.norm(u, axis=1)
     v = u @ A.T + c
-    mag_a = np.linalg.norm(v, axis=1)
+    mag_all = np.linalg.norm(v, axis=1)
+    mag_a = mag_all[keep]
+    aside = _robust.set_aside_record(keep, times, rows, rf.scale, rel=mag_all / H - 1.0)
     if sensor == "accel":
         mse_before = float(np.mean((mag_b - 1.0) ** 2))
     else:                      # no calibration: the best constant field for the raw readings
@@ -244,6 +395,8 @@ def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss,
     for p, val, sd, ok in zip(mdl.params, fr.theta, fr.std, fr.ident.identifiable):
         params.append(Param(p.name, float(val), float(sd), p.unit, bool(ok)))
     notes = [fr.ident.note()]
+    if aside["count"]:
+        notes.append(_robust.set_aside_text(aside, mdl.unit))
     if "angles" in mdl.groups:
         notes.append(ANGLE_NOTE)
     if sensor == "mag":
@@ -253,23 +406,37 @@ def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss,
             if mdl.gauge == "det" else f"field magnitude given: {mdl.field:g} gauss"))
     if fr.note:
         notes.append(fr.note)
-    # quality metrics
+    if bound_note:
+        notes.append(bound_note)
+    if fr.ga_stop == "max_gen":
+        notes.append(f"the GA stopped at its bound of {ga_options.max_gen} generations "
+                     f"(the local refinement started from its best)")
+    # quality metrics (of the readings kept: a pose's or the sweep's readings
+    # set aside are not what the calibration is judged on; how many were is)
     q = {"identifiable_params": fr.ident.rank, "rms_rel": float(np.sqrt(fr.mse)) / H,
+         "rms_rel_all": float(np.sqrt(np.mean((mag_all - H) ** 2))) / H,
+         "robust_sd_rel": rf.scale / H, "set_aside_frac": aside["fraction"],
+         "set_aside_longest_s": aside["longest_s"],
          "condition": fr.ident.condition}
     if label is not None:
+        lk = label[keep]
         poses = np.unique(label)
-        means = np.array([v[label == p].mean(axis=0) for p in poses])
+        means = np.array([v[keep & (label == p)].mean(axis=0) if (keep & (label == p)).any()
+                          else v[label == p].mean(axis=0) for p in poses])
         q["distinct_orientations"] = distinct_directions(means)
         q["hull_depth"] = _gate.hull_depth(means)
-        spread = _gate.pose_spread(counts / lsb, label)
+        spread = _gate.pose_spread(u[keep], lk)
         q["worst_pose_sd"] = max(spread.values()) if spread else 0.0
         q["not_still"] = [p for p, s in spread.items() if s > still_limit]
         q["still_limit"] = still_limit
-    else:                      # a sweep: how much of the sphere it covers
-        q["hull_depth"] = _gate.hull_depth(v[:: max(1, len(v) // 2000)])
-        q["coverage"] = coverage(v)
-    validation = kfold_validation(mdl, fr.theta, u, label, kfold, fr.ident.rank)
+    else:                      # a sweep: how much of the sphere the kept readings cover
+        vk = v[keep]
+        q["hull_depth"] = _gate.hull_depth(vk[:: max(1, len(vk) // 2000)])
+        q["coverage"] = coverage(vk)
+    validation = kfold_validation(mdl, fr.theta, u, label, kfold, fr.ident.rank, keep)
     validation["mse_fit"] = fr.mse
+    if validation.get("note") and validation.get("mse_heldout") is not None:
+        notes.append(f"validation: {validation['note']}")
     sc = SensorCalibration(
         sensor=sensor, unit=UNITS[sensor], chip=chip, lsb_per_unit=float(lsb),
         model=mdl.family if mdl.family == "full" else f"paper({'+'.join(mdl.groups)})",
@@ -279,8 +446,11 @@ def _magnitude_sensor(sensor, mdl: MagnitudeModel, counts, label, lsb, chip, ss,
         n_samples=len(u), n_poses=0 if label is None else len(np.unique(label)),
         dataset=dataset, rank=fr.ident.rank, notes=notes, validation=validation, quality=q,
         ga={"seed": seed, "generations": fr.ga_generations, "evaluations": fr.ga_evaluations,
-            "stop": fr.ga_stop, "polish_nfev": fr.polish_nfev, "trace": fr.trace},
-        gauge=mdl.gauge)
+            "stop": fr.ga_stop, "polish_nfev": fr.polish_nfev, "trace": fr.trace,
+            "objective": "robust scale (biweight M-scale of |v|/H - 1), then least squares on "
+                         f"the readings within {_robust.REJECT_SD:g} robust sd",
+            "route": rf.route, "robust_scale": {k: float(x) for k, x in rf.scales.items()}},
+        gauge=mdl.gauge, set_aside=aside)
     Mj = mdl.affine_jacobian(fr.theta)[:12]          # d (A nominal, c) / d theta
     Mj[:9] /= lsb                                      # A per count, as sc.A
     sc.affine_cov = Mj @ fr.cov @ Mj.T
@@ -307,6 +477,11 @@ def _recording_parts(data) -> np.ndarray:
 def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matrix,
                  still) -> SensorCalibration:
     lsb = data.scales["gyro"]
+    keep = _robust.inliers_3d(data.sensor("gyro")[rows] / lsb, data.label[rows])
+    aside = _robust.set_aside_record(keep, data.sample_times()[rows], np.flatnonzero(rows))
+    sel = np.flatnonzero(rows)[keep]            # still rates kept: glitches set aside
+    rows = np.zeros(len(data), bool)
+    rows[sel] = True
     counts = data.sensor("gyro")[rows]
     label = data.label[rows]
     g = counts / lsb
@@ -318,7 +493,9 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
     G = np.eye(3)
     params = [Param(f"b_{a}", float(v), float(s), "deg/s") for a, v, s in zip("xyz", b, bm.std)]
     notes = ["bias: mean of the still rates; std = the larger of sample sd / sqrt(n) and the "
-             "scatter of the pose means",
+             "scatter of the pose means"] + (
+        [_robust.set_aside_text(aside, "of the still rates") + " (on any axis, from their pose's "
+         "median)"] if aside["count"] else []) + [
              "the paper's eq. 6 (GA + exact minimiser) gives b = ("
              + ", ".join(f"{v:.4f}" for v in bf.b) + ") deg/s, ("
              + ", ".join(f"{v:+.4f}" for v in bf.b - b) + ") from the mean (its minimiser "
@@ -346,9 +523,16 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
                                  data.sensor("gyro"), grav, data.meta.get("rate_hz") or 125.0,
                                  part=_recording_parts(data))
         if len(moves) >= _gyro.MIN_MOVES:
-            mf = _gyro.fit_matrix(moves, b, b_cov=np.diag(bm.std ** 2), dirs=dirs,
-                                  dirs_cov=accel.affine_cov)
+            mf, mkeep = _gyro.fit_matrix_robust(moves, b, b_cov=np.diag(bm.std ** 2), dirs=dirs,
+                                                dirs_cov=accel.affine_cov)
+            if not mkeep.all():
+                bad = [f"{m.pose0}->{m.pose1}" for m, k in zip(moves, mkeep) if not k]
+                notes.append(f"moves set aside from the scale and misalignment fit: {len(bad)} "
+                             f"of {len(moves)} (their gravity direction error beyond "
+                             f"{_robust.REJECT_SD:g} robust sd: a glitch or a knock in the move): "
+                             + ", ".join(bad[:8]) + (" ..." if len(bad) > 8 else ""))
             extra["matrix_fit"] = {"moves": mf.n_moves, "rank": mf.rank,
+                                   "moves_set_aside": int((~mkeep).sum()),
                                    "rms_deg_before": float(np.rad2deg(mf.rms_before)),
                                    "rms_deg_after": float(np.rad2deg(mf.rms_after)),
                                    "std_from": {k: v.tolist() for k, v in mf.std_parts.items()}}
@@ -379,6 +563,7 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
     q = {"not_still": [p for p, s in spread.items() if s > still.gyro_dps],
          "still_limit": still.gyro_dps,
          "worst_pose_sd": max(spread.values()) if spread else 0.0,
+         "set_aside_frac": aside["fraction"], "set_aside_longest_s": aside["longest_s"],
          "warnings": warnings}
     validation = {}
     if kfold >= 2 and len(np.unique(label)) >= 2:
@@ -401,4 +586,4 @@ def _gyro_sensor(data, rows, accel, chip, ss, seed, ga_options, kfold, gyro_matr
         notes=notes, validation=validation, quality=q,
         ga={"seed": seed, "generations": bf.ga_generations, "stop": bf.ga_stop,
             "trace": bf.trace},
-        extra=extra)
+        extra=extra, set_aside=aside)

@@ -13,7 +13,15 @@ while the gyroscope still turns (the slow tail of a long, smooth move passes
 a stillness test on the spread of readings); when they cover at least
 ``MIN_POSE_ORIENTATIONS`` distinct orientations, the session holds poses --
 and it may hold a sweep too (the rows between them, judged by the gate's
-coverage rule).
+coverage rule).  An unlabelled recording whose still stretches cover fewer
+orientations is a hold: its stretches are labelled too, for the gyroscope's
+bias and the temperature terms (issue 31).
+
+What each sensor's data determine -- the richest model its poses or its
+sweep can fit, or nothing -- is judged in ``calib.determine``, which this
+module owns (``judge_poses``, ``judge_sweep``, ``magnetometer_sets``,
+``pose_means``): one judgement for calibrate, its gate, the adaptive planner
+and the diagnosis.
 """
 from __future__ import annotations
 
@@ -22,9 +30,11 @@ import dataclasses
 import numpy as np
 
 from ..maths.sphere import distinct_directions
-from ..sessions.session import LABEL_ROT, SessionData
+from ..sessions.session import HMC5883L_OVERFLOW, LABEL_NONE, LABEL_ROT, SessionData
 from ..sessions.still import StillThresholds, gyro_bias, segment_recording
-from .gate import LIMITS, hull_depth
+from .determine import (MODELS, ORIENTATIONS_NEEDED, Judgement, judge_poses,  # noqa: F401
+                        judge_sweep, model_key)
+from .gate import LIMITS, GateLimits, hull_depth
 
 TRIM_S = 0.2               # left out at both ends of a still stretch
 MIN_STILL_S = 0.6          # shortest still stretch kept (hand-held poses of 1.6 s, trimmed)
@@ -160,20 +170,87 @@ def poses_from_stillness(data: SessionData) -> tuple[SessionData, str | None]:
     ``MIN_POSE_ORIENTATIONS`` distinct orientations holds static poses: a
     copy with those stretches labelled 1..K (rows labelled a rotation keep
     that label between them, so a recording can be both), and a note saying
-    so.  Anything else is returned as it is, with None."""
+    so.  An unlabelled session (no rotation label either) whose stretches
+    cover fewer orientations is a hold: they are labelled too (the
+    gyroscope's still data; ``judge_poses`` then finds what, if anything,
+    they determine for the others), and the note says so.  Anything else is
+    returned as it is, with None."""
     if not len(data) or (data.label >= 1).any():
         return data, None
     lab = still_stretches(data)
     n = stretch_orientations(data, lab)
-    if n < MIN_POSE_ORIENTATIONS:
+    was = "a rotation" if (data.label == LABEL_ROT).any() else "unlabelled"
+    if not (lab > 0).any() or (n < MIN_POSE_ORIENTATIONS and was != "unlabelled"):
         return data, None
     label = data.label.copy()
     label[lab > 0] = lab[lab > 0]
-    was = "a rotation" if (data.label == LABEL_ROT).any() else "unlabelled"
-    note = (f"static poses found in the data: {int(lab.max())} still stretches covering {n} "
+    k = int(lab.max())
+    if n < MIN_POSE_ORIENTATIONS:
+        what = "one orientation" if n <= 1 else f"{n} orientations"
+        note = (f"a hold found in the data: {k} still stretch{'es' if k != 1 else ''} in "
+                f"{what} (the recording was unlabelled): still data for the gyroscope")
+        return dataclasses.replace(data, label=label,
+                                   meta=dict(data.meta or {}, still_found="hold")), note
+    note = (f"static poses found in the data: {k} still stretches covering {n} "
             f"distinct orientations (the recording was labelled {was}); the rows between "
             f"them stay {'the sweep' if was == 'a rotation' else 'unlabelled'}")
     return dataclasses.replace(data, label=label), note
+
+
+def labelled_poses(data: SessionData) -> bool:
+    """The session's poses are poses: labelled when recorded or imported (a
+    guided log, an import's one pose per file) or found in six or more
+    orientations, not a hold ``poses_from_stillness`` found in an unlabelled
+    recording.  Data meant for the accelerometer, which a calibrate that
+    cannot use them refuses rather than skips."""
+    return bool((data.label >= 1).any()) and (data.meta or {}).get("still_found") != "hold"
+
+
+def pose_means(data: SessionData, sensor: str, rows=None) -> tuple[np.ndarray, np.ndarray]:
+    """(labels, mean reading per static pose in nominal units (K, 3)) of
+    ``sensor`` over ``rows`` (default: every row with it), poses label >= 1
+    (overflowed magnetometer readings left out)."""
+    x = data.sensor(sensor)
+    ok = data.has(sensor) & (data.label >= 1) & (True if rows is None else rows)
+    if sensor == "mag":
+        ok &= ~(x == HMC5883L_OVERFLOW).any(axis=1)
+    labs, inv = np.unique(data.label[ok], return_inverse=True)
+    if not len(labs):
+        return labs, np.zeros((0, 3))
+    sums = np.zeros((len(labs), 3))
+    np.add.at(sums, inv, x[ok])
+    return labs, sums / np.bincount(inv, minlength=len(labs))[:, None] / data.scales[sensor]
+
+
+def magnetometer_sets(data: SessionData, limits: GateLimits = LIMITS) -> dict:
+    """Every magnetometer data set of the session and what it determines,
+    ``{"R": (mask, Judgement), "O": (mask, Judgement)}``: R = the rotation
+    rows (every row of a session without labels), O = the static poses;
+    overflowed readings (-4096) left out, sets under 10 rows dropped.  R is
+    judged as a sweep (``judge_sweep``), O by its pose means
+    (``judge_poses``, asking the gate's hull depth: a set of poses the gate
+    would call too clustered is not fitted)."""
+    ok = data.has("mag") & ~(data.sensor("mag") == HMC5883L_OVERFLOW).any(axis=1)
+    sets = {}
+    if (data.label == LABEL_ROT).any():
+        sets["R"] = ok & (data.label == LABEL_ROT)
+    elif not (data.label >= 1).any():
+        sets["R"] = ok & (data.label == LABEL_NONE)
+    if (data.label >= 1).any():
+        sets["O"] = ok & (data.label >= 1)
+    out = {}
+    for name, rows in sets.items():
+        if rows.sum() < 10:
+            continue
+        if name == "R":
+            j = judge_sweep("mag", data.sensor("mag")[rows] / data.scales["mag"], limits)
+        else:
+            # poses not meant for the magnetometer (the six faces) are fitted
+            # only when the gate could accept them: its own surround limit
+            j = judge_poses("mag", pose_means(data, "mag", rows)[1], limits,
+                            surround=limits.min_hull_depth)
+        out[name] = (rows, j)
+    return out
 
 
 # What a session's static poses can determine beyond the affine map (issue

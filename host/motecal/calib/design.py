@@ -54,6 +54,7 @@ from scipy.optimize import least_squares
 from scipy.stats import chi2, f as f_dist
 
 from ..maths.sphere import angle_deg, fibonacci_sphere, unit
+from .content import judge_poses
 from .models import MagnitudeModel, make_model
 
 CONFIDENCE = 0.9              # the promised error is this quantile of the true error
@@ -132,6 +133,7 @@ class SensorDesign:
     dof: float                  # effective degrees of freedom of the variance estimate
     rms: float                  # expected rms error on fresh directions (unit; mag: relative)
     bound: float                # CONFIDENCE upper bound of it
+    determined: bool = True     # the poses determine the full model (content.judge_poses)
 
     def var_new(self, n_samples: float) -> float:
         return self.s_w2 / max(n_samples, 1.0) + self.tau2
@@ -218,7 +220,10 @@ def design_sensor(sensor: str, stats: PoseStats, lsb: float, theta0=None,
                   dirs: np.ndarray = FRESH, q: float = CONFIDENCE) -> SensorDesign | None:
     """Fit the full model to the pose means of ``sensor`` (``lsb`` counts per
     nominal unit) and predict its fresh-direction error (module doc).  None
-    with fewer than ``MIN_POSES`` usable poses."""
+    with fewer than ``MIN_POSES`` usable poses.  ``determined`` says whether
+    the poses determine the full model (``content.judge_poses``, the
+    judgement calibrate uses): only then is its error promised (``assess``);
+    the fit still tells the next pose where the poses are lacking."""
     sl = slice(0, 3) if sensor == "accel" else slice(6, 9)
     ok = np.isfinite(stats.mean[:, sl]).all(axis=1) & (stats.n >= 2)
     if sensor == "mag":
@@ -257,7 +262,8 @@ def design_sensor(sensor: str, stats: PoseStats, lsb: float, theta0=None,
         dof = min(dof, float(K - d))        # it is as uncertain as the residuals
     M = error_matrix(model, theta, dirs)
     rms, bound = upper_bound(M, cov, dof, q)
-    return SensorDesign(sensor, model, theta, u, n, s_w2, tau2, phi, cov, M, dof, rms, bound)
+    return SensorDesign(sensor, model, theta, u, n, s_w2, tau2, phi, cov, M, dof, rms, bound,
+                        judge_poses(sensor, u).determines("full"))
 
 
 def gyro_bias_bound(stats: PoseStats, lsb: float, q: float = CONFIDENCE) -> float | None:
@@ -372,9 +378,9 @@ def assess(stats: PoseStats, scales: dict, targets: Targets = Targets(), *,
     LSB per unit per sensor) and the next pose to take (module doc)."""
     designs = {s: design_sensor(s, stats, scales[s], q=q) for s in SENSORS}
     bounds, met = {}, {}
-    for s, dsg in designs.items():
-        bounds[s] = None if dsg is None else dsg.bound
-        met[s] = dsg is not None and dsg.bound <= targets.of(s)
+    for s, dsg in designs.items():       # a promise only where the poses determine it
+        bounds[s] = None if dsg is None or not dsg.determined else dsg.bound
+        met[s] = bounds[s] is not None and dsg.bound <= targets.of(s)
     has_mag = np.isfinite(stats.mean[:, 6:9]).any() if len(stats) else False
     if not has_mag:
         designs.pop("mag"); bounds.pop("mag"); met.pop("mag")

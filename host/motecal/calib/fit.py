@@ -92,8 +92,14 @@ def nominal_start(model: MagnitudeModel, u) -> np.ndarray:
 LM_TOL = 1e-12
 
 
-def polish(model: MagnitudeModel, theta0, u, max_nfev=None):
-    """Levenberg-Marquardt (MINPACK, analytic Jacobian) on every sample.
+def polish_limit(d: int) -> int:
+    """The polish's bound on residual evaluations for ``d`` parameters."""
+    return 60 * (d + 1)
+
+
+def polish(model: MagnitudeModel, theta0, u, max_nfev=None, w=None):
+    """Levenberg-Marquardt (MINPACK, analytic Jacobian) on every sample
+    (each residual weighted by ``sqrt(w)`` when weights ``w`` are given).
     Returns (theta, nfev).
 
     A model with redundant parameters (``model.redundant``: the paper's
@@ -107,10 +113,18 @@ def polish(model: MagnitudeModel, theta0, u, max_nfev=None):
     MINPACK, whose steps on one read uninitialised memory: the same input gave
     results differing in the last bits from run to run."""
     theta0 = np.asarray(theta0, float)
-    max_nfev = max_nfev or 60 * (len(theta0) + 1)
+    max_nfev = max_nfev or polish_limit(len(theta0))
     keep = independent_columns(model.jacobian(theta0, u)) if model.redundant else None
+    sw = None if w is None else np.sqrt(np.asarray(w, float))
+    res_f, jac_f = model.residuals, model.jacobian
+    if sw is not None:
+        def res_f(th, u):
+            return sw * model.residuals(th, u)
+
+        def jac_f(th, u):
+            return sw[:, None] * model.jacobian(th, u)
     if keep is None or keep.all():
-        res = least_squares(model.residuals, theta0, jac=model.jacobian, args=(u,),
+        res = least_squares(res_f, theta0, jac=jac_f, args=(u,),
                             method="lm", xtol=LM_TOL, ftol=LM_TOL, gtol=1e-15,
                             max_nfev=max_nfev)
         return res.x, res.nfev
@@ -123,13 +137,13 @@ def polish(model: MagnitudeModel, theta0, u, max_nfev=None):
         th[keep] = x
         return th
 
-    res = least_squares(lambda x: model.residuals(full(x), u), start[keep],
-                        jac=lambda x: model.jacobian(full(x), u)[:, keep], method="lm",
+    res = least_squares(lambda x: res_f(full(x), u), start[keep],
+                        jac=lambda x: jac_f(full(x), u)[:, keep], method="lm",
                         xtol=LM_TOL, ftol=LM_TOL, gtol=1e-15, max_nfev=max_nfev, x_scale=1.0)
     return full(res.x), res.nfev
 
 
-def _escaped(theta, lo, hi) -> bool:
+def escaped(theta, lo, hi) -> bool:
     """Far outside the prior box (sphere fits can run off towards a plane)."""
     c, h = 0.5 * (lo + hi), 0.5 * (hi - lo)
     return bool(np.any(np.abs(theta - c) > 3 * h + 1e-12))
@@ -160,7 +174,7 @@ def ga_optimize(model: MagnitudeModel, u, label=None, *, seed=None,
                      seed=seed, options=options)
     theta, nfev = polish(model, g.x, u)
     note = ""
-    if _escaped(theta, lo, hi) or not np.all(np.isfinite(theta)):
+    if escaped(theta, lo, hi) or not np.all(np.isfinite(theta)):
         c, h = 0.5 * (lo + hi), 0.5 * (hi - lo)
         res = least_squares(model.residuals, g.x, jac=model.jacobian, args=(u,),
                             method="trf", bounds=(c - 3 * h, c + 3 * h),

@@ -17,6 +17,12 @@ population.
   improved by less than ``rtol`` *relative* over the last ``window``
   generations, or after ``max_gen`` generations.  The result is then meant to
   be polished by a local least-squares method (see ``fit.py``).
+* Local refinement (optional, ``refine``): in the first population and every
+  ``refine_every`` generations the ``refine_k`` best individuals are replaced
+  by ``refine(x)`` (a memetic, Lamarckian GA).  The robust fit refines with a
+  few concentration steps on the reduction (``robust.py``): its objective has
+  a narrow global basin that mutation and crossover alone rarely hit, while
+  a concentration step from anywhere near it lands in it.
 """
 from __future__ import annotations
 
@@ -48,8 +54,10 @@ class GAResult:
     seed: int | None = None
 
 
-def minimize(fitness, lo, hi, *, seed=None, x0=None, options: GAOptions = GAOptions()) -> GAResult:
-    """Minimise ``fitness`` over the box ``[lo, hi]`` with the GA."""
+def minimize(fitness, lo, hi, *, seed=None, x0=None, options: GAOptions = GAOptions(),
+             refine=None, refine_every: int = 5, refine_k: int = 4) -> GAResult:
+    """Minimise ``fitness`` over the box ``[lo, hi]`` with the GA (``refine``:
+    the module doc's local refinement)."""
     lo = np.asarray(lo, float)
     hi = np.asarray(hi, float)
     d = len(lo)
@@ -63,6 +71,16 @@ def minimize(fitness, lo, hi, *, seed=None, x0=None, options: GAOptions = GAOpti
     f = np.asarray(fitness(X), float)
     f = np.where(np.isfinite(f), f, np.inf)
     evals = P
+
+    def refined(X, f):
+        best = np.argsort(f)[:refine_k]
+        X[best] = np.clip(np.array([refine(x) for x in X[best]]), lo, hi)
+        fb = np.asarray(fitness(X[best]), float)
+        f[best] = np.where(np.isfinite(fb), fb, np.inf)
+        return X, f, len(best)
+    if refine is not None:
+        X, f, k = refined(X, f)
+        evals += k
     best = int(np.argmin(f))
     trace = [float(f[best])]
     stop = "max_gen"
@@ -90,6 +108,9 @@ def minimize(fitness, lo, hi, *, seed=None, x0=None, options: GAOptions = GAOpti
         fc = np.where(np.isfinite(fc), fc, np.inf)
         f = np.concatenate([f[order[:options.elite]], fc])
         evals += n_child
+        if refine is not None and gen % refine_every == 0:
+            X, f, k = refined(X, f)
+            evals += k
         best = int(np.argmin(f))
         trace.append(float(f[best]))
         if gen >= max(options.min_gen, options.window):

@@ -28,9 +28,14 @@ Reasons (and the metric behind each):
   a 60 degree cap covers ~30 %, the measured full-sphere run 86-87 %.
   Static poses are judged by their number and spread, not by coverage (80
   poses can fill at most 80 of the 100 cells);
-* residual too large -- rms magnitude error after calibration above
-  ``max_rms_rel`` of the target (1 g or the fitted field): the data do not fit
-  a fixed field / gravity (disturbed place, moving board, wrong model);
+* residual too large -- rms magnitude error after calibration, over the
+  readings the robust fit kept (``calib.robust``: a trimmed rms), above
+  ``max_rms_rel`` of the target (1 g or the fitted field): the data do not
+  fit a fixed field / gravity (disturbed place, moving board, wrong model);
+* too many readings set aside -- the robust fit set aside more than
+  ``max_set_aside`` of the readings (beyond 3.5 robust sd): they disagree
+  with any one calibration, so the rest is not known to be the place's
+  field or gravity;
 * parameter poorly determined -- an identifiable parameter whose standard
   deviation exceeds ``max_offset_std`` (offsets, in the sensor unit) or
   ``max_gain_std`` (scales, cross terms);
@@ -62,6 +67,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from ..maths.sphere import DISTINCT_DEG, coverage, distinct_directions, sphere_centre, unit
 from ..sessions.still import StillThresholds
+from .robust import MAX_STRETCH_S, REJECT_SD
 
 
 @dataclass(frozen=True)
@@ -74,6 +80,8 @@ class GateLimits:
     max_offset_std: dict = field(default_factory=lambda: {"accel": 0.005, "mag": 0.01,
                                                          "gyro": 0.5})
     max_gain_std: float = 0.01
+    max_set_aside: float = 0.2
+    max_stretch_s: float = MAX_STRETCH_S
     still: StillThresholds = StillThresholds()
 
 
@@ -177,18 +185,50 @@ class GateDecision:
         return "refused: " + "; ".join(self.reasons)
 
 
-def residual_reason(sensor: str, rms_rel, lim: GateLimits = LIMITS) -> str | None:
+def residual_reason(sensor: str, rms_rel, lim: GateLimits = LIMITS,
+                    set_aside=None) -> str | None:
     """The one decision whether what is left after a calibration is small
     enough to calibrate through: rms magnitude error relative to the target
-    (1 g, or the field) above ``max_rms_rel``.  Used by the gate and by
-    ``diagnose`` (a field disturbance that leaves more is "not calibratable"
-    in both)."""
+    (1 g, or the field) above ``max_rms_rel`` -- of the readings a robust
+    fit kept when ``set_aside`` (their fraction set aside) is given.  Used by
+    the gate and by ``diagnose`` (a field disturbance that leaves more is
+    "not calibratable" in both)."""
     if rms_rel is None or sensor not in lim.max_rms_rel or not rms_rel > lim.max_rms_rel[sensor]:
         return None
     what = "the field is not constant (disturbed place or moving magnets?)" \
         if sensor == "mag" else "the board was not still or the model does not fit"
+    over = (f" over the {100 * (1 - set_aside):.0f}% of readings kept" if set_aside else "")
     return (f"residual too large: rms magnitude error {100 * rms_rel:.1f}% of the target "
-            f"after calibration (limit {100 * lim.max_rms_rel[sensor]:.0f}%): {what}")
+            f"after calibration{over} (limit {100 * lim.max_rms_rel[sensor]:.0f}%): {what}")
+
+
+def set_aside_reason(sensor: str, frac, lim: GateLimits = LIMITS) -> str | None:
+    """Too many readings set aside by the robust fit (``max_set_aside``)."""
+    if frac is None or not frac > lim.max_set_aside:
+        return None
+    what = ("the field changed while the board was turned (a disturbed place, a magnet or "
+            "steel moving nearby)" if sensor == "mag" else
+            "the board moved or was knocked while it should have been still")
+    return (f"too many readings set aside: {100 * frac:.0f}% disagree with the calibration "
+            f"by more than {REJECT_SD:g} robust standard deviations (limit "
+            f"{100 * lim.max_set_aside:.0f}%): {what}")
+
+
+def stretch_reason(sensor: str, aside: dict, lim: GateLimits = LIMITS) -> str | None:
+    """One stretch set aside longer than ``max_stretch_s``: the field (or
+    gravity) was something else for that long -- the board lay in a
+    disturbed place, not a glitch or a passer-by; the bench shows stretches
+    up to 3 s calibrated through, nothing longer."""
+    st = [s for s in aside.get("stretches_s") or [] if s[1] - s[0] > lim.max_stretch_s]
+    if not st:
+        return None
+    a, b, k, *rel = max(st, key=lambda s: s[1] - s[0])
+    off = f", {100 * rel[0]:+.0f} % off" if rel else ""
+    what = "the board lay in a disturbed place (a magnet or iron next to it)" \
+        if sensor == "mag" else "the board was moved or knocked for that long"
+    return (f"disturbed for too long: {k} readings over {b - a:.1f} s ({a:.1f}-{b:.1f} s{off}) "
+            f"set aside in one stretch (limit {lim.max_stretch_s:g} s): {what}; record again "
+            "away from it")
 
 
 EARTH_FIELD_GAUSS = (0.25, 0.65)   # the total field anywhere on the Earth's surface
@@ -215,14 +255,23 @@ def _check_sensor(name, sc, lim: GateLimits, reasons, warnings):
         if why:
             warnings.append(f"mag: {why}")
     unit_ = sc.unit
-    need = max(lim.min_orientations, int(q.get("identifiable_params", 0)))
+    # the orientations the chosen model needs (calib.determine, recorded by
+    # calibrate_board); else at least the identifiable parameters
+    need = q.get("orientations_needed") or max(lim.min_orientations,
+                                              int(q.get("identifiable_params", 0)))
     reasons += [f"{name}: {r}" for r in coverage_reasons(q, need, lim, model=sc.model)]
     if q.get("not_still"):
         bad = q["not_still"]
         lab = ", ".join(str(p) for p in list(bad)[:8]) + (" ..." if len(bad) > 8 else "")
         reasons.append(f"{name}: non-still data in static poses {lab} (per-axis sd above "
                        f"{q.get('still_limit')} {unit_}; re-log those poses)")
-    why = residual_reason(name, q.get("rms_rel"), lim)
+    why = residual_reason(name, q.get("rms_rel"), lim, q.get("set_aside_frac"))
+    if why:
+        reasons.append(f"{name}: {why}")
+    why = set_aside_reason(name, q.get("set_aside_frac"), lim)
+    if why:
+        reasons.append(f"{name}: {why}")
+    why = stretch_reason(name, getattr(sc, "set_aside", None) or {}, lim)
     if why:
         reasons.append(f"{name}: {why}")
     for p in sc.params:

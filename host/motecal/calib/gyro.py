@@ -28,6 +28,7 @@ from scipy.optimize import least_squares
 from . import eq6
 from . import ga as _ga
 from .fit import reduce_samples
+from .robust import MAX_CONCENTRATE, inliers
 
 PRIOR_BIAS_DPS = 40.0            # ITG3200 zero-rate offset, datasheet +-40 deg/s
 MAX_MOVE_S = 10.0                # longer gaps between still poses are not integrated
@@ -254,6 +255,24 @@ def _psd(C):
     C = 0.5 * (C + C.T)
     w, V = np.linalg.eigh(C)
     return (V * np.maximum(w, 0.0)) @ V.T
+
+
+def fit_matrix_robust(moves: list[Move], b: np.ndarray, **kw) -> tuple[MatrixFit, np.ndarray]:
+    """``fit_matrix`` on the moves whose residual (the gravity direction
+    error after the fit, every component) is within ``robust.REJECT_SD``
+    robust sd of the median, refitted until the moves set aside no longer
+    change: a move with a glitch or a knock in it integrates to a rotation
+    off by far more than the others.  Returns (fit, kept per move)."""
+    keep = np.ones(len(moves), bool)
+    mf = fit_matrix(moves, b, **kw)
+    for _ in range(MAX_CONCENTRATE):
+        r = MoveSet(moves).residuals(mf.G, b).reshape(len(moves), 3)
+        ok = inliers(r.ravel()).reshape(-1, 3).all(axis=1)
+        if np.array_equal(ok, keep) or ok.sum() < max(MIN_MOVES, 9):
+            break
+        keep = ok
+        mf = fit_matrix([m for m, k in zip(moves, keep) if k], b, **kw)
+    return mf, keep
 
 
 def fit_matrix(moves: list[Move], b: np.ndarray, *, b_cov=None, dirs=None,

@@ -34,6 +34,7 @@ from ..errors import UserError
 from ..maths.heldout import interleaved, kfold_heldout
 from . import extra_terms as X
 from . import fit as _fit
+from . import robust as _robust
 from .board import mag_data_sets
 from .content import poses_from_stillness, term_support
 from .models import mag_groups, make_model, theta_from_affine
@@ -51,11 +52,18 @@ SPAN_ITER = 3              # spans found again from the calibration without them
 def sensor_model(sensor: str, settings: dict):
     """The magnitude model ``calibrate_board`` fitted for ``sensor`` (accel,
     mag) with ``settings`` (the board's)."""
-    model, groups = settings.get("model", "full"), settings.get("params")
+    chosen = (settings.get("models") or {}).get(sensor)
+    if chosen:                     # the model fitted (chosen by calib.determine, or given)
+        model, groups = chosen["model"], chosen.get("params")
+    else:
+        model, groups = settings.get("model") or "full", settings.get("params")
+        model = "full" if model == "auto" else model
     groups = tuple(groups) if groups else None
     if sensor == "accel":
         return make_model("accel", model, groups)
     gauge, field = settings.get("gauge"), settings.get("field_gauss")
+    if chosen:
+        return make_model("mag", model, groups, gauge=gauge, field=field)
     mg = mag_groups(groups, gauge, field)[0] if model == "paper" else groups
     return make_model("mag", model, mg, gauge=gauge, field=field)
 
@@ -76,12 +84,30 @@ def _groups(data, sensor: str, dataset: str | None):
     return rows, g, False
 
 
+def set_aside_rows(sc, n: int) -> np.ndarray:
+    """The rows (of the session the calibration was made from) its robust
+    fit set aside (``SensorCalibration.set_aside["rows"]``)."""
+    out = np.zeros(n, bool)
+    for a, c in (getattr(sc, "set_aside", None) or {}).get("rows", []):
+        out[int(a):int(a) + int(c)] = True
+    return out
+
+
 def magnitude_heldout(sensor, data, sc_base, sc_cand, rows_base, rows_cand, group, test_ok,
-                      settings, k, pose_means, z=X.Z_ACCEPT) -> X.Decision:
+                      settings, k, pose_means, z=X.Z_ACCEPT, robust: bool = True) -> X.Decision:
     """Held-out comparison of two calibrations of an accelerometer or
-    magnetometer: each refitted (least squares from its own optimum) without
-    each fold of groups and judged, relative to its target, on the fold's
-    rows in ``test_ok``."""
+    magnetometer: each refitted (least squares from its own optimum, on the
+    training rows its robust fit kept) without each fold of groups and
+    judged, relative to its target, on the fold's rows in ``test_ok``.
+
+    The per-group error is robust (``robust``): each squared relative
+    residual is capped at ``(robust.REJECT_SD s)^2``, ``s`` the robust sd of
+    the base calibration's residuals on those rows (one cap for both, so
+    they are compared on the same readings).  A plain mean square is made of
+    whatever glitches the held-out rows still hold -- the same glitches for
+    both calibrations, so their noise swamped any difference and no
+    treatment of outliers could pass.  ``robust=False`` is that plain mean
+    (kept for the test that shows the difference)."""
     mdl = sensor_model(sensor, settings)
     lsb = sc_base.lsb_per_unit
     u = data.sensor(sensor) / lsb
@@ -92,12 +118,27 @@ def magnitude_heldout(sensor, data, sc_base, sc_cand, rows_base, rows_cand, grou
                           why=f"too few poses to hold any out ({len(ids)} poses, {need} "
                               "parameters)")
     fold = interleaved(len(ids), k)                  # per group, in the order of ids
+    tested = rows_base & test_ok & (group >= 0)
+
+    def residuals_of(theta, rows):
+        H = float(mdl.affine(theta)[2])
+        if not pose_means:
+            return mdl.residuals(theta, u[rows]) / H
+        gs = np.unique(group[rows])
+        x = np.array([u[rows & (group == g)].mean(axis=0) for g in gs]).reshape(-1, 3)
+        return mdl.residuals(theta, x) / H
+
+    cap = np.inf
+    if robust and tested.any():
+        th0 = np.array([p.value for p in sc_base.params], float)
+        cap = (_robust.REJECT_SD * _robust.robust_sd(residuals_of(th0, tested))) ** 2 or np.inf
     out = {}
     for key, sc, rows in (("base", sc_base, rows_base), ("cand", sc_cand, rows_cand)):
         theta = np.array([p.value for p in sc.params], float)
+        kept = rows & ~set_aside_rows(sc, len(rows)) if robust else rows
 
-        def fit(train, rows=rows, theta=theta):
-            tr = rows & np.isin(group, ids[train])
+        def fit(train, kept=kept, theta=theta):
+            tr = kept & np.isin(group, ids[train])
             if tr.sum() < 20:
                 return None
             th, _ = _fit.polish(mdl, theta, u[tr])
@@ -107,23 +148,28 @@ def magnitude_heldout(sensor, data, sc_base, sc_cand, rows_base, rows_cand, grou
             th, H = model
             e = np.full(int(test.sum()), np.nan)
             for i, g in enumerate(ids[test]):
-                m = rows_base & test_ok & (group == g)
+                m = tested & (group == g)
                 if not m.any():
                     continue
                 x = u[m].mean(axis=0, keepdims=True) if pose_means else u[m]
                 r = mdl.residuals(th, x) / H
-                e[i] = float(np.mean(r * r))
+                e[i] = float(np.mean(np.minimum(r * r, cap)))
             return e
         out[key] = kfold_heldout(fold, fit, score)
     return X.heldout_decision(out["base"], out["cand"], z)
 
 
-def gyro_heldout_bias(data, rows_base, rows_cand, test_ok, k, z=X.Z_ACCEPT) -> X.Decision:
+def gyro_heldout_bias(data, rows_base, rows_cand, test_ok, k, z=X.Z_ACCEPT,
+                      sc_base=None, sc_cand=None) -> X.Decision:
     """Held-out comparison of the gyroscope's bias (the mean of the still
-    rates) from two sets of rows: per held-out pose, |pose mean - bias|^2."""
+    rates) from two sets of rows: per held-out pose, |pose mean - bias|^2.
+    The still rates each calibration's robust fit set aside (``sc_base``,
+    ``sc_cand``) are left out of its fit, and the base's out of every
+    held-out pose mean (the same rows for both)."""
     g = data.sensor("gyro") / data.scales["gyro"]
     ids = np.unique(data.label[rows_base & (data.label >= 1)])
     fold = interleaved(len(ids), k)                  # per pose, in the order of ids
+    test_ok = test_ok & ~set_aside_rows(sc_base, len(data))
 
     def score(b, test):
         e = np.full(int(test.sum()), np.nan)
@@ -133,7 +179,9 @@ def gyro_heldout_bias(data, rows_base, rows_cand, test_ok, k, z=X.Z_ACCEPT) -> X
                 e[i] = float(np.sum((g[m].mean(axis=0) - b) ** 2))
         return e
     e = {}
-    for key, rows in (("base", rows_base), ("cand", rows_cand)):
+    for key, rows, sc in (("base", rows_base, sc_base), ("cand", rows_cand, sc_cand)):
+        rows = rows & ~set_aside_rows(sc, len(data))
+
         def fit(train, rows=rows):
             tr = rows & ~np.isin(data.label, ids[~train])
             return g[tr].mean(axis=0) if tr.any() else None
@@ -144,9 +192,11 @@ def gyro_heldout_bias(data, rows_base, rows_cand, test_ok, k, z=X.Z_ACCEPT) -> X
 def _pose_table(data, board):
     """Per static pose with gyroscope and accelerometer: mean rate (deg/s,
     nominal), mean specific force (g, calibrated when the board has an
-    accelerometer calibration), mid-time (s) and sample count."""
+    accelerometer calibration), mid-time (s) and sample count; the readings
+    the calibrations' robust fits set aside are left out of the means."""
     poses = [p for p in data.poses()]
-    has = data.has("gyro") & data.has("accel")
+    has = data.has("gyro") & data.has("accel") & ~set_aside_rows(board.gyro, len(data)) \
+        & ~set_aside_rows(board.accel, len(data))
     t = data.sample_times()
     W, A, T, N = [], [], [], []
     for p in poses:
@@ -254,7 +304,7 @@ def _accel_nonlinearity(data, board, k: int, used, unused, z=X.Z_ACCEPT, log=Non
         unused.append("accel nonlinearity: not fitted: needs the full model's accelerometer "
                       "calibration")
         return
-    rows = (data.label >= 1) & data.has("accel")
+    rows = (data.label >= 1) & data.has("accel") & ~set_aside_rows(sc, len(data))
     poses = np.unique(data.label[rows])
     u = data.sensor("accel") / sc.lsb_per_unit
     U = np.array([u[rows & (data.label == p)].mean(axis=0) for p in poses]).reshape(-1, 3)
@@ -376,10 +426,15 @@ def calibrate_with_diagnosis(data, diagnosis: dict, calibrate, *, kfold: int = 5
                 else:
                     unused.append(f"{texts}: no {sensor} calibration either way")
                 continue
+            aside = set_aside_rows(sb, len(data))
+            if drop.any() and not (drop & ~aside & data.has(sensor)).any():
+                unused.append(f"{texts}: already set aside by the robust fit (it set aside "
+                              f"{int(aside.sum())} readings in all)")
+                continue
             has = data.has(sensor)
             if sensor == "gyro":
                 rows = (data.label >= 1) & has
-                dec = gyro_heldout_bias(data, rows, rows & ~drop, ~drop, k, z)
+                dec = gyro_heldout_bias(data, rows, rows & ~drop, ~drop, k, z, sb, scand)
                 unit = "deg/s"
             else:
                 rows, group, pm = _groups(data, sensor, sb.dataset)

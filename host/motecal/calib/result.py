@@ -124,6 +124,10 @@ class SensorCalibration:
     gauge: str | None = None
     extra: dict = field(default_factory=dict)
     temperature: TempModel | None = None        # format 2: the output against board temperature
+    # readings the robust fit set aside (calib.robust.set_aside_record: count, of,
+    # fraction, threshold_sd, robust_sd, stretches_s, single, rows as [first, count]);
+    # empty in files written before it
+    set_aside: dict = field(default_factory=dict)
     # covariance (12, 12) of (A row-major, c) from the fit, for what builds on
     # this calibration (the gyroscope's G on the accelerometer's gravity
     # directions); not written to cal.json
@@ -176,6 +180,8 @@ class SensorCalibration:
             d["extra"] = _jsonable(self.extra)
         if self.temperature is not None:
             d["temperature"] = self.temperature.to_json()
+        if self.set_aside:
+            d["set_aside"] = _jsonable(self.set_aside)
         return d
 
     @classmethod
@@ -194,7 +200,8 @@ class SensorCalibration:
                    field_gauss=d.get("field_gauss"), field_std=d.get("field_std"),
                    gauge=d.get("gauge"), extra=d.get("extra", {}),
                    temperature=TempModel.from_json(d["temperature"])
-                   if d.get("temperature") else None)
+                   if d.get("temperature") else None,
+                   set_aside=d.get("set_aside") or {})
 
 
 @dataclass

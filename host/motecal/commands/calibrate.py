@@ -2,9 +2,17 @@
 
     motecal calibrate --db FILE --session NAME --out cal.json [--mote ID]
                       [--model paper|full] [--params offsets,scales,angles]
-                      [--seed N] [--mag-field GAUSS] [--no-gyro-matrix]
-                      [--kfold K] [--diagnosis FILE | --no-diagnosis] [--force]
-                      [--upload --port URL [--baud B]]
+                      [--mag-session NAME] [--seed N] [--mag-field GAUSS]
+                      [--no-gyro-matrix] [--kfold K] [--diagnosis FILE | --no-diagnosis]
+                      [--force] [--upload --port URL [--baud B]]
+
+Per sensor, the model is the richest the session's data determine
+(``calib.content``'s judgement: the full model from 9 or more orientations
+spread over the sphere or a sweep, offsets and scales from the six faces,
+offsets alone from 4 orientations around the sphere); the summary says which
+and why.  ``--model`` forces one.  ``--mag-session NAME`` takes the
+magnetometer from another session of the same board (its sweep), so one
+cal.json holds the board.
 
 A diagnosis of the session (``motecal diagnose`` keeps its result with the
 session) is used by default: the findings' treatments and terms, each kept
@@ -59,8 +67,13 @@ def register(subparsers):
     p.add_argument("--out", required=True, help="calibration file (cal.json); see above for "
                                                 "several motes")
     p.add_argument("--mote", type=mote_id, help="calibrate only this mote")
-    p.add_argument("--model", choices=MODEL_FAMILIES, default="full",
-                   help="full: bias + lower-triangular matrix (default); paper: eqs. 1-5")
+    p.add_argument("--model", choices=MODEL_FAMILIES, default=None,
+                   help="force a model for every sensor (default: per sensor, the richest "
+                        "the data determine): full: bias + lower-triangular matrix; paper: "
+                        "eqs. 1-5")
+    p.add_argument("--mag-session", metavar="NAME",
+                   help="take the magnetometer from this session of the same board (its "
+                        "sweep) instead of this one's")
     p.add_argument("--params", help="paper model: comma-separated subset of "
                                     "offsets,scales,angles (default all three)")
     p.add_argument("--seed", type=seed, help="GA seed (default: random, recorded in cal.json)")
@@ -98,7 +111,7 @@ def out_path(out: str, mote: int, several: bool) -> Path:
     return p.with_name(f"{p.stem}-mote{mote}{p.suffix}")
 
 
-def calibrate(data, args) -> BoardCalibration:
+def calibrate(data, args, mag_data=None) -> BoardCalibration:
     groups = parse_groups(args.params)
     if groups is not None and args.model != "paper":
         raise UserError("--params selects parameter groups of --model paper")
@@ -106,7 +119,34 @@ def calibrate(data, args) -> BoardCalibration:
         raise UserError("--kfold must be 0 (off) or at least 2")
     return calibrate_board(data, model=args.model, groups=groups, seed=args.seed,
                            field=args.mag_field, gyro_matrix=not args.no_gyro_matrix,
-                           kfold=args.kfold)
+                           kfold=args.kfold, mag_data=mag_data)
+
+
+def mag_session(store, args, data, mote: int):
+    """The magnetometer's session for one mote (``--mag-session``): the same
+    board (mote id) with the same magnetometer chip and scale as the
+    calibrated session, if that one has a magnetometer at all."""
+    name = getattr(args, "mag_session", None)
+    if not name:
+        return None
+    if name == args.session:
+        raise UserError("--mag-session names the session being calibrated")
+    other = store.load_session(name)
+    if mote not in other.motes:
+        raise UserError(f"--mag-session {name}: no mote {mote} in it (motes "
+                        f"{', '.join(map(str, other.motes)) or 'none'}): the magnetometer must "
+                        "come from the same board")
+    other = other.for_mote(mote)
+    if not other.has("mag").any():
+        raise UserError(f"--mag-session {name}: it holds no magnetometer readings")
+    if data.has("mag").any():
+        a = (data.chips or {}).get("mag"), float(data.scales["mag"])
+        b = (other.chips or {}).get("mag"), float(other.scales["mag"])
+        if a != b:
+            raise UserError(f"--mag-session {name}: its magnetometer is {b[0]} at {b[1]:g} "
+                            f"LSB/gauss, session {args.session!r}'s {a[0]} at {a[1]:g}: not "
+                            "the same board's chip")
+    return other
 
 
 TOOL = f"motecal {__version__}"
@@ -180,6 +220,8 @@ def summary(board: BoardCalibration) -> str:
     s = board.settings
     lines = [f"mote {board.mote}  session {board.session}  model {s.get('model')}"
              + (f" ({','.join(s['params'])})" if s.get("params") else "")
+             + (f"  magnetometer from session {s['mag_session']}" if s.get("mag_session")
+                else "")
              + f"  seed {s.get('seed')}",
              f"  {'sensor':<9}{'model':<28}{'n':>7}  {'mse before':>10}  {'mse after':>10}  "
              f"{'held-out':>10}  {'|v| before':>13}  {'|v| after':>13}"]
@@ -231,15 +273,18 @@ def run(args) -> int:
         refused = []
         if getattr(args, "diagnosis", None):
             load_diagnosis(args.diagnosis)           # a bad file: one line before any work
+        mags = {m: mag_session(store, args, data.for_mote(m), m) for m in motes}
         for m in motes:
             dm = data.for_mote(m)
+            mag = mags[m]
             diag, source = pick_diagnosis(args, store, dm, m)
             if diag is not None:
-                board, rep = calibrate_with_diagnosis(dm, diag, lambda d: calibrate(d, args),
+                board, rep = calibrate_with_diagnosis(dm, diag,
+                                                      lambda d: calibrate(d, args, mag),
                                                       kfold=args.kfold)
                 source = dict(source, **rep)
             else:
-                board = calibrate(dm, args)
+                board = calibrate(dm, args, mag)
             board.settings["diagnosis"] = source
             session_poses_needed(board, dm)
             decision = decide(board, force=args.force)

@@ -7,8 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..calib.gate import LIMITS as GATE_LIMITS, coverage_reasons, set_metrics
-from ..maths.sphere import distinct_directions
+from ..calib.content import ORIENTATIONS_NEEDED, judge_poses, judge_sweep
 from . import structure as ST
 from .prepare import SensorObs
 
@@ -24,12 +23,20 @@ CANDIDATES = {
 
 
 def regime(obs: SensorObs) -> str | None:
+    """The sensor's regime.  ``poses``: still segments whose means determine
+    the full model by calibrate's own judgement (``calib.content.judge_poses``:
+    distinct orientations around the centre, the Jacobian's rank), with at
+    least ``structure.MIN_POSES`` of them (the full model's 9 and room for the
+    tests); ``sweep``: magnetometer readings that determine it as a sweep
+    (``judge_sweep``); else ``single`` with any still segment."""
     s = obs.sensor
     nseg = 0 if obs.segs is None else len(obs.segs)
     if s == "gyro":
         return "still" if obs.blocks is not None else None
-    if nseg >= ST.MIN_POSES and distinct_directions(obs.segs.mean) >= ST.MIN_POSES:
-        return "poses"
+    if nseg >= max(ST.MIN_POSES, ORIENTATIONS_NEEDED["full"]):
+        j = judge_poses(s, obs.segs.mean / obs.K)
+        if j.determines("full") and j.orientations >= ST.MIN_POSES:
+            return "poses"
     if s == "mag" and obs.moving is not None and obs.moving.sum() >= MIN_SWEEP_ROWS \
             and sweep_surrounds(obs):
         return "sweep"
@@ -40,17 +47,16 @@ def regime(obs: SensorObs) -> str | None:
 
 def sweep_reasons(obs: SensorObs) -> list:
     """Why the readings cannot determine a magnetometer model as a sweep, by
-    the very rule ``calibrate`` and its gate apply (``gate.set_metrics`` +
-    ``gate.coverage_reasons``: directions from the best-fitting sphere's
-    centre must surround it, hull depth >= 0.3, and fill >= 80 % of the
-    sphere's equal-area cells); empty when they can.  A turn about one axis
-    (a circle), a cap, or a few poses' worth of readings cannot: no
-    calibration term is then tested or claimed."""
+    the very rule ``calibrate`` applies (``calib.content.judge_sweep``:
+    directions from the best-fitting sphere's centre must surround it, hull
+    depth >= 0.3, fill >= 80 % of the sphere's equal-area cells, and the
+    sphere be larger than the readings' noise); empty when they can.  A turn
+    about one axis (a circle), a cap, a few poses' worth of readings or a
+    hold cannot: no calibration term is then tested or claimed."""
     x = obs.x[~obs.overflow]
     if len(x) < 10:
         return ["fewer than 10 readings"]
-    x = x[:: max(1, len(x) // 4000)] / obs.K
-    return coverage_reasons(set_metrics(x, None), 0, GATE_LIMITS)
+    return list(judge_sweep("mag", x / obs.K).reasons.get("full", []))
 
 
 def sweep_surrounds(obs: SensorObs) -> bool:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..calib.gate import residual_reason
+from ..calib.board import sweep_reasons
 from . import causes as C
 from . import extend as X
 from . import fitting as F
@@ -69,17 +69,16 @@ def term_finding(s, c, st: ST.Structure, o: SensorObs, g, before, after) -> Find
             rel = float(np.std(f) / H)
             ev["relative_change"] = rel
             ev["field_range_gauss"] = float(np.ptp(f))
-            # the same decision calibrate's gate makes: the rms magnitude error a
-            # calibration without the field term leaves, relative to the field
-            item = next(i for i in st.accepted if ST.cause_of(i) == "field_disturbance")
-            f0 = st.fits.get(frozenset(st.accepted) - {item})
-            left = float(np.sqrt(np.mean(f0.residuals(st.points["X"], T) ** 2))) / H \
-                if f0 is not None else rel
-            ev["calibration_rms_rel"] = left
-            why = residual_reason("mag", left)
-            ev["untrustworthy"] = why is not None
+            # the same decision calibrate's gate makes, on the same robust fit
+            # (calib.board.sweep_reasons: the residual of the readings kept, the
+            # share set aside, the longest stretch set aside)
+            ok = ~o.overflow
+            why, left = sweep_reasons(o.x[ok] / o.K, o.t[ok])
+            ev["calibration_rms_rel"] = left["rms_rel"]
+            ev["calibration_set_aside"] = left["set_aside_frac"]
+            ev["untrustworthy"] = bool(why)
             if why:
-                ev["gate"] = why
+                ev["gate"] = "; ".join(why)
             ev["what"] = (f"the field magnitude moves with time by {np.std(f):.3g} gauss rms "
                           f"({np.ptp(f):.3g} peak to peak) around {H:.3g} gauss, independent "
                           f"of direction.")

@@ -299,6 +299,43 @@ def _fig_sensor(mr: MoteReport, sensor: str, out: Path) -> list:
     return refs
 
 
+def _fig_set_aside(mr: MoteReport, sensor: str, out: Path) -> list:
+    """The readings the robust fit set aside, in red over those it kept
+    (issue 25); none when nothing was, or when the calibration shown was
+    made from other rows than this session's."""
+    sc = getattr(mr.board, sensor, None) if mr.board is not None else None
+    rec = getattr(sc, "set_aside", None) or {}
+    if sc is None or not rec.get("count"):
+        return []
+    data = mr.data
+    aside = np.zeros(len(data), bool)
+    for a, k in rec.get("rows", []):
+        if a + k > len(data):
+            mr.notes.append(f"{sensor}: the readings set aside are of other rows than this "
+                            "session's; not drawn")
+            return []
+        aside[a:a + k] = True
+    from ..calib.board import mag_sets
+    if sensor == "accel":
+        rows = (data.label >= 1) & data.has("accel")
+    else:
+        rows = mag_sets(data).get(sc.dataset, data.has("mag"))
+    rows = rows | (aside & data.has(sensor))
+    after = sc.apply(data.sensor(sensor)[rows])
+    t = data.sample_times()[rows]
+    ref = 1.0 if sensor == "accel" else float(sc.field_gauss or np.median(
+        np.linalg.norm(after, axis=1)))
+    name = {"accel": "Accelerometer", "mag": "Magnetometer"}[sensor]
+    f = F.set_aside(out / f"mote{mr.mote}_{sensor}_set_aside.png", after, aside[rows],
+                    t - (t[0] if len(t) else 0.0), ref, UNITS[sensor],
+                    f"{name}: readings set aside by the robust fit, mote {mr.mote}")
+    from ..calib.robust import set_aside_text
+    return [H.FigureRef(f.name, f"{name}: readings set aside",
+                        f"Calibrated readings, red: set aside ({set_aside_text(rec, sc.unit)}); "
+                        "grey: kept. They do not pull the calibration; the gate refuses when "
+                        "more than 20 % are set aside or one stretch lasts over 5 s.")]
+
+
 def _fig_coverage(mr: MoteReport, out: Path) -> list:
     from ..calib.board import mag_sets
     from ..calib.gate import LIMITS
@@ -557,6 +594,7 @@ def build_report(store, session, out_dir, *, mote=None, cal=None, seed: int = 0,
         figs = []
         figs += _fig_sensor(mr, "accel", out)
         figs += _fig_sensor(mr, "mag", out)
+        figs += _fig_set_aside(mr, "accel", out) + _fig_set_aside(mr, "mag", out)
         figs += _fig_coverage(mr, out)
         figs += _fig_allan(mr, out)
         figs += _fig_trace(mr, out)

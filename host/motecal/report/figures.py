@@ -232,6 +232,50 @@ def coverage(path, sets: list[tuple[str, np.ndarray]], title: str) -> Path:
     return _save(fig, path)
 
 
+# ------------------------------------------------------------------ readings set aside
+
+ASIDE_COLOR = "tab:red"
+
+
+def set_aside(path, after: np.ndarray, aside: np.ndarray, t: np.ndarray, ref: float,
+              unit: str, title: str) -> Path:
+    """The calibrated readings in three planes and their magnitude against
+    time, those the robust fit set aside (``aside``) in red over the ones it
+    kept (grey): where the glitches and the disturbed stretches were."""
+    fig = _figure(12, 8)
+    axes = fig.subplots(2, 2)
+    aside = np.asarray(aside, bool)
+    keep_i = np.flatnonzero(~aside)[_thin(int((~aside).sum()))]
+    out_i = np.flatnonzero(aside)[_thin(int(aside.sum()))]
+    phi = np.linspace(0, 2 * np.pi, 200)
+    lim = max(float(np.abs(after).max()), ref) * 1.05
+    for ax, (a, b, i, j) in zip((axes[0, 0], axes[0, 1], axes[1, 0]), PLANES):
+        ax.plot(ref * np.cos(phi), ref * np.sin(phi), color="k", lw=0.7, ls="--")
+        ax.scatter(after[keep_i, i], after[keep_i, j], s=1.5, c="0.6", linewidths=0)
+        ax.scatter(after[out_i, i], after[out_i, j], s=4, c=ASIDE_COLOR, linewidths=0)
+        ax.set_xlim(-lim, lim)
+        ax.set_ylim(-lim, lim)
+        ax.set_aspect("equal")
+        ax.set_xlabel(f"{a} ({unit})")
+        ax.set_ylabel(f"{b} ({unit})")
+        ax.set_title(f"{a}{b} plane", fontsize=10)
+        ax.grid(alpha=0.3)
+    ax = axes[1, 1]
+    m = np.linalg.norm(after, axis=1)
+    ax.scatter(t[keep_i], m[keep_i], s=1.5, c="0.6", linewidths=0, label="kept")
+    ax.scatter(t[out_i], m[out_i], s=4, c=ASIDE_COLOR, linewidths=0,
+               label=f"set aside ({int(aside.sum())} of {len(aside)})")
+    ax.axhline(ref, color="k", lw=0.7, ls="--")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel(f"|v| ({unit})")
+    ax.set_title("magnitude after calibration", fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, markerscale=3, loc="best")
+    fig.suptitle(title)
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.07, top=0.91, wspace=0.3, hspace=0.3)
+    return _save(fig, path)
+
+
 # ------------------------------------------------------------------ gyroscope noise
 
 GAP_FACTOR = 10.0      # interleaved rows: an interval over this many mean intervals is a gap

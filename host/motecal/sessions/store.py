@@ -42,7 +42,8 @@ from .store_backend import Backend, StoreBusy, StoreError, store_fault
 from .store_schema import (APPLICATION_ID, LINE_COUNTERS, LINK_COUNTERS, MIGRATIONS,
                            SAMPLE_COLUMNS, SCHEMA_VERSION, SIGNATURE, SIGNATURE_SINCE)
 from .store_sqlite import SqliteBackend
-from .store_values import document, dumps, from_iso, iso, label_texts, labels_from_texts
+from .store_values import (check_rows, document, dumps, from_iso, iso, label_texts,
+                           labels_from_texts)
 from .store_writer import INSERT_TEMPS, LOCK_BUFFER_SAMPLES, LOCK_TIMEOUT_S, SessionWriter
 from .temperature import rows_from_readings
 
@@ -287,23 +288,7 @@ class Store:
         unless ``replace``, which deletes it (and its calibrations) first.
         """
         check_session_name(data.name)
-        raw = np.asarray(data.raw, float)
-        finite = np.isfinite(raw)
-        if np.isinf(raw).any():
-            raise UserError(f"session {data.name!r}: infinite sample values")
-        vals = raw[finite]
-        if vals.size and (np.any(vals != np.round(vals)) or vals.min() < INT16_MIN
-                          or vals.max() > INT16_MAX):
-            raise UserError(f"session {data.name!r}: samples must be integer counts "
-                            f"within {INT16_MIN}..{INT16_MAX}")
-        order = np.lexsort((data.seq, data.mote))
-        m, s = data.mote[order], data.seq[order]
-        dup = (m[1:] == m[:-1]) & (s[1:] == s[:-1])
-        if dup.any():
-            i = int(np.flatnonzero(dup)[0])
-            raise UserError(f"session {data.name!r}: mote {int(m[i])} has sequence number "
-                            f"{int(s[i])} twice")
-        t = np.where(np.isfinite(data.t), data.t, np.nan)
+        check_rows(data, INT16_MIN, INT16_MAX)
         row = self._meta_row(data.name, data.kind, data.scales, data.chips, data.meta)
         with self._tx() as cur:
             info = self._info(data.name)
@@ -312,25 +297,49 @@ class Store:
                     raise UserError(f"session {data.name!r} already exists in {self.target}")
                 self._delete_session(cur, info.id)
             sid = self._insert_session(cur, row)
-            n = len(data)
-            step = 100_000
-            labels = label_texts(data.label)
-            int_rows = np.where(finite, raw, 0).astype(np.int64)
-            for a in range(0, n, step):
-                sl = slice(a, a + step)
-                cols = [np.where(finite[sl, j], int_rows[sl, j], None).tolist() for j in range(9)]
-                tt = t[sl]
-                tcol = np.where(np.isnan(tt), None, tt).tolist()
-                self._b_insert(cur, zip(itertools.repeat(sid), data.mote[sl].tolist(),
-                                        data.seq[sl].tolist(), tcol, labels[sl],
-                                        data.flags[sl].tolist(), *cols))
-            if data.temp is not None:
-                has = np.isfinite(data.temp)
-                tt = t[has]
-                cur.executemany(self._b.sql(INSERT_TEMPS), zip(
-                    itertools.repeat(sid), data.mote[has].tolist(), data.seq[has].tolist(),
-                    np.where(np.isnan(tt), None, tt).tolist(), data.temp[has].tolist(),
-                    itertools.repeat(1)))
+            self._insert_rows(cur, sid, data)
+
+    def append_session(self, data: SessionData, rows: SessionData) -> None:
+        """Add ``rows`` to the stored session ``data.name`` and give it
+        ``data``'s kind, scales, chips and metadata, in one transaction
+        (``motecal import --append``: ``sessions.combine.append`` made both
+        and checked that no row is stored already).  Its calibrations and
+        diagnoses stay."""
+        info = self._require(data.name)
+        check_rows(rows, INT16_MIN, INT16_MAX)
+        _, kind, _, _, source, rate, notes, scales, chips, meta = self._meta_row(
+            data.name, data.kind, data.scales, data.chips, data.meta)
+        with self._tx() as cur:
+            cur.execute(self._b.sql(
+                "UPDATE sessions SET kind = ?, source = ?, rate_hz = ?, notes = ?, scales = ?, "
+                "chips = ?, meta = ? WHERE id = ?"),
+                (kind, source, rate, notes, scales, chips, meta, info.id))
+            self._insert_rows(cur, info.id, rows)
+
+    def _insert_rows(self, cur, sid: int, data: SessionData) -> None:
+        """Insert a session's sample rows and temperature readings."""
+        raw = np.asarray(data.raw, float)
+        finite = np.isfinite(raw)
+        t = np.where(np.isfinite(data.t), data.t, np.nan)
+        n = len(data)
+        step = 100_000
+        labels = label_texts(data.label)
+        int_rows = np.where(finite, raw, 0).astype(np.int64)
+        for a in range(0, n, step):
+            sl = slice(a, a + step)
+            cols = [np.where(finite[sl, j], int_rows[sl, j], None).tolist() for j in range(9)]
+            tt = t[sl]
+            tcol = np.where(np.isnan(tt), None, tt).tolist()
+            self._b_insert(cur, zip(itertools.repeat(sid), data.mote[sl].tolist(),
+                                    data.seq[sl].tolist(), tcol, labels[sl],
+                                    data.flags[sl].tolist(), *cols))
+        if data.temp is not None:
+            has = np.isfinite(data.temp)
+            tt = t[has]
+            cur.executemany(self._b.sql(INSERT_TEMPS), zip(
+                itertools.repeat(sid), data.mote[has].tolist(), data.seq[has].tolist(),
+                np.where(np.isnan(tt), None, tt).tolist(), data.temp[has].tolist(),
+                itertools.repeat(1)))
 
     def _b_insert(self, cur, rows):
         """Insert full sample rows (session, mote, seq, t, label, flags, 9 values)."""

@@ -33,7 +33,7 @@ LINK_COUNTERS = {
     "cal_version": "calibration version in force on the mote",
     "cal_sensors": "sensors corrected on the mote (bit mask)",
     "mote_i2c_nacks": "mote counter: I2C operations a chip did not acknowledge",
-    "mote_bus_resets": "mote counter: hung I2C operations aborted, bus cleared",
+    "mote_bus_resets": "mote counter: bus clears run (after a hung I2C operation was aborted, and each retry while the bus is down)",
     "mote_chip_reinits": "mote counter: chips found with reset registers, configured again",
 }
 LINE_COUNTERS = {

@@ -1,7 +1,7 @@
 """How the store writes values that are not numbers: times (unix seconds in
 the database, ISO 8601 text in and out), documents (JSON text: session
 metadata, calibrations, diagnoses) and labels (text as in CSV: ``"1".."80"``,
-``"rot"`` or ``""``).
+``"rot"`` or ``""``); and what sample rows it takes (``check_rows``).
 """
 from __future__ import annotations
 
@@ -72,3 +72,22 @@ def labels_from_texts(texts: list[str]) -> np.ndarray:
     uniq, inv = np.unique(np.asarray(texts, dtype=object).astype(str), return_inverse=True)
     vals = np.array([label_from_text(u) for u in uniq], dtype=np.int32)
     return vals[inv] if len(texts) else np.zeros(0, np.int32)
+
+
+def check_rows(data, lo: int, hi: int) -> None:
+    """Sample rows the store takes: integer counts within ``lo..hi`` (NaN =
+    missing), each (mote, seq) once; UserError otherwise."""
+    raw = np.asarray(data.raw, float)
+    finite = np.isfinite(raw)
+    if np.isinf(raw).any():
+        raise UserError(f"session {data.name!r}: infinite sample values")
+    vals = raw[finite]
+    if vals.size and (np.any(vals != np.round(vals)) or vals.min() < lo or vals.max() > hi):
+        raise UserError(f"session {data.name!r}: samples must be integer counts within {lo}..{hi}")
+    order = np.lexsort((data.seq, data.mote))
+    m, s = data.mote[order], data.seq[order]
+    dup = (m[1:] == m[:-1]) & (s[1:] == s[:-1])
+    if dup.any():
+        i = int(np.flatnonzero(dup)[0])
+        raise UserError(f"session {data.name!r}: mote {int(m[i])} has sequence number "
+                        f"{int(s[i])} twice")

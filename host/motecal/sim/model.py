@@ -32,6 +32,7 @@ from .physics import (DEFAULT_TEMP_C, K_NOMINAL, REQUIRED, SENSORS, TERMS, Board
                       Environment, GSensitivity, Saturation, StaleSamples, Term, Thermal,
                       seed_key)
 from .trajectory import Trajectory
+from . import contamination  # noqa: F401,E402 - registers glitch and disturbed_stretch in TERMS
 
 MODEL_FORMAT = "motecal-sim-model"
 MODEL_VERSION = 1

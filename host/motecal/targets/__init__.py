@@ -8,7 +8,7 @@ export-cal``; docs/interop.md):
   ``COMPASS_OFS/DIA/ODI_*``);
 * ``imucal``: imucal's ``FerrarisCalibrationInfo`` JSON;
 * ``c-header``: the fixed-point set the IRIS firmware applies
-  (``motecal.fixedpoint``, one definition) as a C header.
+  (``motecal.firmware.fixedpoint``, one definition) as a C header.
 
 Each writer returns an :class:`~motecal.targets.common.Export`: the text,
 what the target computes from raw counts (``apply``), and the model parts

@@ -1,7 +1,7 @@
 """A plain C header with the fixed-point set the IRIS firmware applies: per
 sensor ``a`` (int16, 3x3), ``c`` (int32) and ``shift``, and the whole
 ``ninedof_calset`` (tinyos/NineDofMsg.h) as bytes, as EEPROM and upload hold
-it.  Built by ``motecal.fixedpoint`` (the one definition the uploader and the
+it.  Built by ``motecal.firmware.fixedpoint`` (the one definition the uploader and the
 simulator use); the mote computes ``sat((a raw + c + 2^(shift-1)) >> shift)``
 in the nominal counts (256 LSB/g, 14.375 LSB/(deg/s), 1090 LSB/gauss).
 """

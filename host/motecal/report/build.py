@@ -589,12 +589,12 @@ def build_report(store, session, out_dir, *, mote=None, cal=None, seed: int = 0,
     parts, view_charts = [], {}
     for mr in reports:
         log(f"mote {mr.mote}: the calibration's choices, temperature, poses needed")
-        mine = [choices.part(mr, out), temperature.part(mr, out), poses.part(mr, out)]
+        aside = _fig_set_aside(mr, "accel", out) + _fig_set_aside(mr, "mag", out)
+        mine = [choices.part(mr, out, aside), temperature.part(mr, out), poses.part(mr, out)]
         log(f"mote {mr.mote}: figures")
-        figs = []
+        figs = [] if mine[0].section is not None else aside
         figs += _fig_sensor(mr, "accel", out)
         figs += _fig_sensor(mr, "mag", out)
-        figs += _fig_set_aside(mr, "accel", out) + _fig_set_aside(mr, "mag", out)
         figs += _fig_coverage(mr, out)
         figs += _fig_allan(mr, out)
         figs += _fig_trace(mr, out)

@@ -66,9 +66,14 @@ def _diagnosis(name, settings) -> str:
 
 
 def _set_aside(sc) -> str:
+    """'152 of 5000 (3.0 %)' from the robust fit's record (calib.robust), ''
+    without one."""
     rec = getattr(sc, "set_aside", None) or {}
-    n = rec.get("count") if isinstance(rec, dict) else None
-    return "" if n is None else str(int(n))
+    if not isinstance(rec, dict) or rec.get("count") is None:
+        return ""
+    if not rec["count"]:
+        return f"none of {rec.get('of', '?')}"
+    return f"{rec['count']} of {rec.get('of', '?')} ({100 * rec.get('fraction', 0):.1f} %)"
 
 
 def table_rows(mote: int, board) -> list:
@@ -116,6 +121,17 @@ def margins(board) -> list:
             v = q["coverage"]
             out.append((f"{name} sweep coverage {v:.0%} (at least "
                         f"{LIMITS.min_mag_coverage:.0%})", v / LIMITS.min_mag_coverage))
+        if q.get("set_aside_frac") is not None:
+            v = q["set_aside_frac"]
+            out.append((f"{name} set aside {100 * v:.1f}% (at most "
+                        f"{100 * LIMITS.max_set_aside:g}%)",
+                        LIMITS.max_set_aside / v if v > 0 else np.inf))
+        st = (getattr(sc, "set_aside", None) or {}).get("stretches_s") or []
+        if st:
+            v = max(b - a for a, b, *_ in st)
+            out.append((f"{name} longest stretch set aside {v:.1f} s (at most "
+                        f"{LIMITS.max_stretch_s:g} s)", LIMITS.max_stretch_s / v if v > 0
+                        else np.inf))
         if q.get("rms_rel") is not None and name in LIMITS.max_rms_rel:
             v, lim = q["rms_rel"], LIMITS.max_rms_rel[name]
             out.append((f"{name} residual {100 * v:.2f}% (at most {100 * lim:g}%)",
@@ -154,7 +170,10 @@ def gate_chart(board) -> dict | None:
                     C.vline(1.0, C.BLACK, "limit", dash=False)], xlim=(0, MARGIN_CAP * 1.05))
 
 
-def part(mr, out: Path) -> Part:
+def part(mr, out: Path, set_aside_figures=()) -> Part:
+    """The section of one mote; ``set_aside_figures``: the figures of the
+    readings the robust fit set aside (build's, drawn from the session)."""
+    from ..calib.robust import set_aside_text
     board, m = mr.board, mr.mote
     if board is None:
         return Part()
@@ -163,6 +182,10 @@ def part(mr, out: Path) -> Part:
         " (forced)" if gate.get("forced") else "")
     notes = [f"gate: {verdict}"] + [f"reason: {r}" for r in gate.get("reasons", [])] \
         + [f"warning: {w}" for w in gate.get("warnings", [])]
+    for name, sc in board.sensors():
+        rec = getattr(sc, "set_aside", None) or {}
+        if rec:
+            notes.append(f"{name}: {set_aside_text(rec, sc.unit)}")
     figs, view = [], []
     ch = gate_chart(board)
     if ch is not None:
@@ -174,6 +197,7 @@ def part(mr, out: Path) -> Part:
                                 "verdict is the gate's own; reasons and warnings are listed "
                                 "below."))
         view.append((f"quality gate: {verdict}", [ch]))
+    figs += list(set_aside_figures)
     n_r, n_w = len(gate.get("reasons", [])), len(gate.get("warnings", []))
     sec = H.Section(f"choices-mote{m}", f"What the calibration chose, mote {m}",
                     f"Quality gate: {verdict} ({n_r} reason(s), {n_w} warning(s), listed "

@@ -29,10 +29,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..sessions.session import HMC5883L_OVERFLOW, SENSOR_SLICES
-from .field import FieldDisturbance
+from .field import FieldDisturbance, FieldDrift
 from .termbase import (DEFAULT_TEMP_C, K_NOMINAL, REQUIRED, SENSORS, Ctx,  # noqa: F401
                        NormalStream, Param, SineProcess, Term, seed_key)
-from .thermal import Temperature, Thermal
+from .thermal import (ChipLag, Temperature, TemperatureCurve, TemperatureHysteresis,
+                      Thermal)
 from .trajectory import Motion, Trajectory
 
 _SALT = 0x5E5A0B
@@ -297,7 +298,8 @@ class _Tremor:
 
 TERMS = {cls.id: cls for cls in (ScaleOffset, PaperAngles, CrossAxis, Linear, Nonlinearity,
                                  BiasDrift, GSensitivity, Saturation, StaleSamples, MotionTerm,
-                                 FieldDisturbance, Thermal, Temperature)}
+                                 FieldDisturbance, FieldDrift, Thermal, ChipLag, Temperature,
+                                 TemperatureCurve, TemperatureHysteresis)}
 
 
 # --------------------------------------------------------------------------
@@ -350,7 +352,9 @@ class BoardSampler:
         self.field_world = self.env.field_world()
         base = seed_key(_SALT, seed, board.mote_id)
         self.tremor = None
-        self.temperature_c = board.temperature_c
+        chip_t = getattr(board, "chip_temperature_c", None)
+        self.chip_temp = {name: (lambda t, n=name: chip_t(n, t)) if chip_t is not None
+                          else board.temperature_c for name in SENSORS}
         for j, term in enumerate(board.board_terms):
             if isinstance(term, MotionTerm) and not term.is_null():
                 self.tremor = term.runtime(base + [9, j], trajectory, board)
@@ -426,7 +430,7 @@ class BoardSampler:
             sl = SENSOR_SLICES[name]
             nominal[:, sl] = x[expand]
             ctx = Ctx(sensor=name, K=K, t=ts, index=idx, motion=m,
-                      field_world=self.field_world, temp_c=self.temperature_c(ts))
+                      field_world=self.field_world, temp_c=self.chip_temp[name](ts))
             noised = not np.any(sigma)
             for run in runs:
                 if not noised and isinstance(run, Saturation):

@@ -163,8 +163,9 @@ def test_hysteresis_offsets_differ_between_warming_and_cooling(seed):
     traj = make_trajectory("idle", seed, duration=1.0)
     smp = b.sampler(traj, seed)
     run = next(r for r in smp.chain["accel"][0] if hasattr(r, "state"))
-    assert run.state("accel", np.array([0.0]))[0] == -1.0
-    assert abs(run.state("accel", np.array([50.0]))[0] - 1.0) < 1e-12     # warmed by > 1 C
+    temp_of = smp.chip_temperature("accel")
+    assert run.state(np.array([0.0]), temp_of)[0] == -1.0
+    assert abs(run.state(np.array([50.0]))[0] - 1.0) < 1e-12     # warmed by > 1 C
 
 
 def test_hysteresis_state0_and_check():
@@ -275,3 +276,26 @@ def test_suite_reads_do_not_depend_on_block_split():
     cuts = np.sort(np.random.default_rng(1).choice(len(t), 40, replace=False))
     parts = [smp.read(b) for b in np.split(t, cuts)]
     assert np.array_equal(np.concatenate(parts), whole)
+
+
+def test_a_measured_temperature_given_to_the_sampler_is_followed_through_the_lags():
+    """diagnose.compare gives a twin's sampler the session's measured
+    temperature (``sampler.temperature_c``): the gyro reads it as it is, the
+    lagging chips through their lags, the hysteresis through its history."""
+    m = _model([{"term": "thermal"}, {"term": "chip_lag", "accel_tau_s": 20.0}],
+               accel=[{"term": "temperature", "offset_per_c": [0, 0, 2.0]},
+                      {"term": "temperature_hysteresis", "offset_c": [1.0, 0, 0]}],
+               gyro=[{"term": "temperature", "offset_per_c": [3.0, 0, 0]}])
+    b = m.board(1, 0)
+    traj = make_trajectory("idle", 0, duration=200.0)
+    t = b.sample_times(200.0)
+    smp = b.sampler(traj, 0)
+    smp.temperature_c = lambda tt: 25.0 + 8.0 * np.minimum(np.asarray(tt, float) / 100.0, 1.0)
+    det = smp.read_detail(t)
+    ref = m.board(1, 0).sampler(traj, 0).read_detail(t)          # 25 C throughout
+    d = det.pre_chip - ref.pre_chip
+    T = smp.temperature_c(t)
+    assert np.allclose(d[:, 3], 3.0 * (T - 25.0))
+    Ta = _lowpass(T, t, 20.0)
+    assert np.abs(d[:, 2] - 2.0 * (Ta - 25.0)).max() < 1e-3
+    assert d[-1, 0] == pytest.approx(2.0)            # warmed: from -1 to +1 times offset_c

@@ -32,7 +32,7 @@ from ..sessions.session import HMC5883L_OVERFLOW, SENSOR_SLICES
 from .field import FieldDisturbance, FieldDrift
 from .termbase import (DEFAULT_TEMP_C, K_NOMINAL, REQUIRED, SENSORS, Ctx,  # noqa: F401
                        NormalStream, Param, SineProcess, Term, seed_key)
-from .thermal import (ChipLag, Temperature, TemperatureCurve, TemperatureHysteresis,
+from .thermal import (ChipLag, GridLag, Temperature, TemperatureCurve, TemperatureHysteresis,
                       Thermal)
 from .trajectory import Motion, Trajectory
 
@@ -352,9 +352,10 @@ class BoardSampler:
         self.field_world = self.env.field_world()
         base = seed_key(_SALT, seed, board.mote_id)
         self.tremor = None
-        chip_t = getattr(board, "chip_temperature_c", None)
-        self.chip_temp = {name: (lambda t, n=name: chip_t(n, t)) if chip_t is not None
-                          else board.temperature_c for name in SENSORS}
+        # the board temperature (the ITG3200's die): replaceable by a measured one
+        # (diagnose.compare's twin), which the chips then follow through their lags
+        self.temperature_c = self._own_temperature_c = board.temperature_c
+        self._given = (None, {})
         for j, term in enumerate(board.board_terms):
             if isinstance(term, MotionTerm) and not term.is_null():
                 self.tremor = term.runtime(base + [9, j], trajectory, board)
@@ -375,6 +376,24 @@ class BoardSampler:
                                 np.asarray(sm.noise, float))
         self._n = 0
         self._t_last = -np.inf
+
+    def chip_temperature(self, sensor: str):
+        """t -> the temperature of ``sensor``'s chip: the board's own
+        (``BoardModel.chip_temperature_c``), or, once ``temperature_c`` has
+        been given a measured temperature, that one through the chip's lag
+        (``thermal.GridLag``)."""
+        f = self.temperature_c
+        if f is self._own_temperature_c:
+            own = getattr(self.board, "chip_temperature_c", None)
+            return (lambda t: own(sensor, t)) if own is not None else f
+        if self._given[0] is not f:
+            self._given = (f, {})
+        lags = self._given[1]
+        if sensor not in lags:
+            lag = getattr(self.board, "chip_lag", None)
+            tau = lag.tau(sensor) if lag is not None else 0.0
+            lags[sensor] = GridLag(f, tau) if tau > 0 else f
+        return lags[sensor]
 
     def _motion(self, t) -> Motion:
         m = self.trajectory.at(t, self.env.gravity_g)
@@ -429,8 +448,9 @@ class BoardSampler:
             x = K * physical_input(name, m, self.field_world)
             sl = SENSOR_SLICES[name]
             nominal[:, sl] = x[expand]
-            ctx = Ctx(sensor=name, K=K, t=ts, index=idx, motion=m,
-                      field_world=self.field_world, temp_c=self.chip_temp[name](ts))
+            temp_of = self.chip_temperature(name)
+            ctx = Ctx(sensor=name, K=K, t=ts, index=idx, motion=m, field_world=self.field_world,
+                      temp_c=temp_of(ts), temp_of=temp_of)
             noised = not np.any(sigma)
             for run in runs:
                 if not noised and isinstance(run, Saturation):

@@ -112,7 +112,8 @@ class Ctx:
     index: np.ndarray              # (n,) noise index (read count, or update index when stale)
     motion: Motion                 # the board's motion at t
     field_world: np.ndarray        # (3,) gauss
-    temp_c: np.ndarray | None = None   # (n,) board temperature at t, degrees C
+    temp_c: np.ndarray | None = None   # (n,) the chip's temperature at t, degrees C
+    temp_of: object = None             # t -> the chip's temperature (its history: hysteresis)
 
 
 class Term:

@@ -176,36 +176,71 @@ class _HysteresisRun:
 
     def __init__(self, term, board):
         self.p = term.p
-        self.board = board
         self.w = 0.5 * float(term.p["band_c"])
         self.z = None            # the play's centre at grid points 0, 1, ...
+        self.temp_of = None
 
-    def _temp(self, sensor, t):
-        f = getattr(self.board, "chip_temperature_c", None)
-        if f is None:
-            return np.full(np.shape(t), DEFAULT_TEMP_C)
-        return f(sensor, t)
+    def _temp(self, t):
+        f = self.temp_of
+        return f(t) if f is not None else np.full(np.shape(t), DEFAULT_TEMP_C)
 
-    def _grid(self, sensor, k_max):
+    def _grid(self, k_max):
         if self.z is None:
-            T0 = float(self._temp(sensor, np.zeros(1))[0])
+            T0 = float(self._temp(np.zeros(1))[0])
             self.z = [T0 - float(self.p["state0"]) * self.w]
         n = len(self.z)
         if k_max < n:
             return
-        T = self._temp(sensor, np.arange(n, k_max + 1) * HYSTERESIS_STEP_S)
+        T = self._temp(np.arange(n, k_max + 1) * HYSTERESIS_STEP_S)
         z, w = self.z[-1], self.w
         for Tk in T:
             z = min(max(z, Tk - w), Tk + w)
             self.z.append(z)
 
-    def state(self, sensor, t) -> np.ndarray:
+    def state(self, t, temp_of=None) -> np.ndarray:
+        """s at times ``t`` for the chip temperature ``temp_of`` (t -> C; the
+        first one given is kept)."""
+        if self.temp_of is None:
+            self.temp_of = temp_of
         t = np.maximum(np.asarray(t, float), 0.0)
         k = np.floor(t / HYSTERESIS_STEP_S).astype(np.int64)
-        self._grid(sensor, int(k.max()) if len(k) else 0)
-        T = self._temp(sensor, t)
+        self._grid(int(k.max()) if len(k) else 0)
+        T = self._temp(t)
         z = np.clip(np.asarray(self.z)[k], T - self.w, T + self.w)
         return (T - z) / self.w
 
     def apply(self, x, ctx):
-        return x + self.p["offset_c"] * self.state(ctx.sensor, ctx.t)[:, None]
+        return x + self.p["offset_c"] * self.state(ctx.t, ctx.temp_of)[:, None]
+
+
+class GridLag:
+    """A first-order lag (time constant ``lag_s``) of any temperature
+    function ``f`` (t -> C; e.g. a measured one), at f(0) at power-on:
+    followed on a grid of ``step_s`` (exact for f linear between grid
+    points, cached) and interpolated."""
+
+    def __init__(self, f, lag_s: float, step_s: float = 0.25):
+        self.f, self.lag, self.h = f, float(lag_s), float(step_s)
+        self.y = None
+
+    def __call__(self, t) -> np.ndarray:
+        t = np.maximum(np.asarray(t, float), 0.0)
+        if not len(t):
+            return np.zeros(0)
+        u = t / self.h
+        k = np.floor(u).astype(np.int64)
+        need = int(k.max()) + 2
+        if self.y is None:
+            self.T = np.asarray(self.f(np.zeros(1)), float).reshape(1)
+            self.y = self.T.copy()
+        n = len(self.y)
+        if need > n:
+            T = np.concatenate([self.T, np.asarray(self.f(np.arange(n, need) * self.h), float)])
+            a = np.exp(-self.h / self.lag)
+            b = 1.0 / (1.0 - a) - self.lag / self.h        # weight of the newer point
+            y = list(self.y)
+            for i in range(n, need):
+                y.append(a * y[-1] + (1 - a) * ((1 - b) * T[i - 1] + b * T[i]))
+            self.T, self.y = T, np.asarray(y)
+        fr = u - k
+        return self.y[k] * (1 - fr) + self.y[k + 1] * fr

@@ -31,8 +31,8 @@ from ..inputs import check_input_file, read_input_bytes
 from ..line.protocol import (ITG3200_TEMP_AT_OFFSET_C, ITG3200_TEMP_LSB_PER_C,
                              ITG3200_TEMP_OFFSET, NINEDOF_RATE_HZ)
 from .options import option_parts
-from .session import (ADXL345_LSB_PER_G, COLUMNS, HMC5883L_LSB_PER_GAUSS, HMC5883L_OVERFLOW,
-                      ITG3200_LSB_PER_DPS, LABEL_MAX, LABEL_NONE, LABEL_ROT, NOMINAL_CHIPS, NOMINAL_SCALES,
+from .session import (ADXL345_LSB_PER_G, CHIP_RANGES, COLUMNS, HMC5883L_LSB_PER_GAUSS,
+                      HMC5883L_OVERFLOW, INT16_MAX, ITG3200_LSB_PER_DPS, LABEL_MAX, LABEL_NONE, LABEL_ROT, NOMINAL_CHIPS, NOMINAL_SCALES,
                       SENSOR_SLICES, UNITS, SessionData, batch_times, label_from_text,
                       label_to_text, rate_from_times)
 from .still import StillThresholds, segment_recording, window_rows
@@ -58,7 +58,8 @@ CHIP_SCALES = {
             "HMC5843": 1300.0},                      # default gain
 }
 # a reading at or beyond this many counts (absolute) is the sensor's full scale
-CLIP_COUNTS = {"MPU6050": 32767, "ITG3200": 32767, "ITG3205": 32767, "ADXL345": 4095}
+CLIP_COUNTS = {"MPU6050": INT16_MAX, "ITG3205": INT16_MAX,
+               **{chip: hi for chip, (lo, hi) in CHIP_RANGES.items() if chip != "HMC5883L"}}
 SENSOR_ALIASES = {"accel": "accel", "acc": "accel", "a": "accel",
                   "gyro": "gyro", "gyr": "gyro", "g": "gyro",
                   "mag": "mag", "m": "mag", "magnetometer": "mag"}

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..sessions.session import HMC5883L_OVERFLOW, SENSOR_SLICES
+from ..sessions.session import CHIP_LIMITS, HMC5883L_OVERFLOW, SENSOR_SLICES
 from .field import FieldDisturbance, FieldDrift
 from .termbase import (DEFAULT_TEMP_C, K_NOMINAL, REQUIRED, SENSORS, Ctx,  # noqa: F401
                        NormalStream, Param, SineProcess, Term, seed_key)
@@ -305,9 +305,6 @@ TERMS = {cls.id: cls for cls in (ScaleOffset, PaperAngles, CrossAxis, Linear, No
 # --------------------------------------------------------------------------
 # chip stage
 # --------------------------------------------------------------------------
-CHIP_LIMITS = {"accel": (-4096, 4095), "gyro": (-32768, 32767), "mag": (-2048, 2047)}
-
-
 def chip_stage(sensor: str, x: np.ndarray) -> np.ndarray:
     """Datasheet output: round to integer counts; ADXL345 full resolution +-16 g
     (-4096..4095), ITG3200 int16, HMC5883L -2048..2047 per axis and -4096 on

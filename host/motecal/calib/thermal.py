@@ -200,18 +200,26 @@ def _hold_rows(v, temp, lab, xt_of):
 # observation sets per sensor
 # --------------------------------------------------------------------------
 def gyro_sets(board, data, tc, t_ref) -> list[ObsSet]:
+    """The still blocks' calibrated rates against temperature, through the
+    bias at ``t_ref``; each hold has an offset of its own (a hold is one
+    orientation, not the poses' mean: with a g-sensitivity its still rate
+    differs by G a, which would otherwise be taken for temperature)."""
     sc = board.gyro
-    raw, temp, _ = _blocks(data, list(tc.holds) + _poses(data, tc), "gyro")
+    raw, temp, lab = _blocks(data, list(tc.holds) + _poses(data, tc), "gyro")
     if not len(raw):
         return []
     w = sc.apply(raw)
     dT = temp - t_ref
     m = len(w)
     Xt = np.zeros((3 * m, 3))
+    holds = [h for h in tc.holds if (lab == h).any()]
+    Xn = np.zeros((3 * m, 3 * len(holds)))
     for i in range(3):
         Xt[i * m:(i + 1) * m, i] = dT
+        for k, h in enumerate(holds):
+            Xn[i * m:(i + 1) * m, 3 * k + i] = lab == h
     fold = np.tile(np.arange(m) % FOLDS, 3)
-    return [ObsSet("still blocks", w.T.reshape(-1), Xt, np.zeros((3 * m, 0)), fold, temp)]
+    return [ObsSet("still blocks", w.T.reshape(-1), Xt, Xn, fold, temp)]
 
 
 def accel_sets(board, data, tc, t_ref) -> list[ObsSet]:

@@ -299,3 +299,37 @@ def test_a_measured_temperature_given_to_the_sampler_is_followed_through_the_lag
     Ta = _lowpass(T, t, 20.0)
     assert np.abs(d[:, 2] - 2.0 * (Ta - 25.0)).max() < 1e-3
     assert d[-1, 0] == pytest.approx(2.0)            # warmed: from -1 to +1 times offset_c
+
+
+def test_vector_error_at_follows_the_boards_whole_model():
+    """The benches' truth on the suite (tests/synthetic.py): through a board
+    with affine terms only it is vector_error; a planted nonlinearity and a
+    temperature term at the evaluation time show in it, not in the affine
+    truth."""
+    from synthetic import true_affine, vector_error, vector_error_at
+
+    from motecal.calib.models import lower_factor
+
+    class Perfect:                      # the affine truth inverted, in its gauge frame
+        sensor = "accel"
+
+        def __init__(self, pt):
+            A, c = true_affine(pt, "accel")
+            Q = A @ np.linalg.inv(lower_factor(A))
+            self.A, self.c = Q.T @ A, Q.T @ c
+
+        def apply(self, raw, temp_c=None):
+            return np.asarray(raw) @ self.A.T + self.c
+    g = load_model("general").board(1, SEED0)
+    sc = Perfect(g.physical_truth())
+    assert vector_error(sc, g.physical_truth()) < 1e-9
+    assert vector_error_at(sc, g, 100.0) < 1e-9
+    m = _model([{"term": "thermal", "rise_c": 10.0, "tau_s": 100.0}],
+               accel=[{"term": "nonlinearity", "q": [0, 0, 0.01]},
+                      {"term": "temperature", "offset_per_c": [0, 0, 1.0]}])
+    b = m.board(1, SEED0)
+    sc = Perfect(b.physical_truth())
+    assert vector_error(sc, b.physical_truth()) < 1e-9
+    cold, warm = vector_error_at(sc, b, 0.0), vector_error_at(sc, b, 600.0)
+    assert 3e-3 < cold < 1.2e-2                           # the nonlinearity: up to 10 mg
+    assert warm > cold                                    # + 10 C x 1 count/C on z

@@ -146,3 +146,62 @@ def shape_error(A, c, physical_truth: dict, sensor: str = "mag", field: float = 
     s = float(np.sum(w * u) / np.sum(w * w))
     e = s * w - u
     return float(np.sqrt(np.mean(np.sum(e * e, axis=1)))) / field
+
+
+def board_of(ses: SessionData, model: str = "general"):
+    """The simulated board of a session (``meta["truth"]``, its mote), in the
+    environment of the built-in ``model`` (every built-in model's field and
+    gravity are the same)."""
+    from motecal.sim import load_model
+    mote = int(ses.mote[0]) if len(ses.mote) else 1
+    return load_model(model).with_boards({mote: ses.meta["truth"]}).board(mote, 0)
+
+
+def true_reading(board, sensor: str, u: np.ndarray, t: float) -> np.ndarray:
+    """Noise-free counts (before rounding) of ``board``'s ``sensor`` for the
+    physical inputs ``u`` (n, 3: g, deg/s or gauss, body frame) at ``t``
+    seconds after power-on, the board still: every term of the board's
+    model (nonlinearity, temperature -- each chip at its own, lagged
+    temperature, a hysteresis after its history up to ``t`` --, ...), the
+    random ones (noise, random walks) left out."""
+    from motecal.sim import make_trajectory
+    from motecal.sim.physics import K_NOMINAL, Ctx, Saturation, StaleSamples
+    from motecal.sim.trajectory import Motion
+    u = np.atleast_2d(np.asarray(u, float))
+    n = len(u)
+    K = K_NOMINAL[sensor]
+    traj = make_trajectory("idle", 0, duration=max(float(t), 1.0))
+    smp = board.sampler(traj, 0)
+    temp_of = smp.chip_temperature(sensor)
+    tt = np.full(n, float(t))
+    force = u if sensor == "accel" else np.tile([0.0, 0.0, 1.0], (n, 1))
+    motion = Motion(R=np.broadcast_to(np.eye(3), (n, 3, 3)).copy(), omega=np.zeros((n, 3)),
+                    label=np.ones(n, np.int32), specific_force=force, pose=np.ones(n))
+    ctx = Ctx(sensor=sensor, K=K, t=tt, index=np.arange(n), motion=motion,
+              field_world=board.environment.field_world(), temp_c=temp_of(tt), temp_of=temp_of)
+    x = K * u
+    for j, term in enumerate(board.sensors[sensor].terms):
+        if isinstance(term, (StaleSamples, Saturation)) or term.is_null():
+            continue
+        if term.id in ("bias_drift", "field_disturbance", "field_drift"):
+            continue                        # random in time: not the calibration's to remove
+        x = term.runtime([0, j], traj, board).apply(x, ctx)
+    return x
+
+
+def vector_error_at(sc, board, t: float, temp_c=None, magnitude: float = 1.0,
+                    dirs: np.ndarray | None = None) -> float:
+    """``vector_error`` through the board's whole model at ``t`` s after
+    power-on (``true_reading``), calibrated at the temperature reading
+    ``temp_c`` (None: without a temperature), compared in the calibration's
+    gauge frame of the board's affine part.  On a board with affine terms
+    only it is ``vector_error``."""
+    A_t, c_t = true_affine(board.physical_truth(), sc.sensor)
+    dirs = fresh_directions() if dirs is None else dirs
+    u_true = magnitude * dirs
+    raw = true_reading(board, sc.sensor, u_true, t)
+    v = sc.apply(raw, temp_c)
+    L = lower_factor(A_t)
+    Q = A_t @ np.linalg.inv(L)
+    err = v - u_true @ Q
+    return float(np.sqrt(np.mean(np.sum(err * err, axis=1))))

@@ -68,13 +68,20 @@ def hold_session(board, seed: int, hold_s: float = 1200.0) -> SessionData:
 
 
 def twin(model: SimModel, board, t_ref: float, noise: bool = False):
-    """The same board kept at ``t_ref`` degrees C (and without noise)."""
+    """The same board kept at ``t_ref`` degrees C (and without noise).  All
+    its chips are at ``t_ref`` (a lag changes nothing at a constant
+    temperature); a ``temperature_hysteresis`` is on its warming branch
+    (``state0`` +1): the board as the calibration saw it, warmed up to
+    where it is."""
     d = copy.deepcopy(board.to_json())
     d["terms"] = [t for t in d["terms"] if t["term"] != "thermal"] + [
         {"term": "thermal", "ambient_c": float(t_ref)}]
     for s in ("accel", "gyro", "mag"):
         if not noise:
             d[s]["noise"] = [0.0, 0.0, 0.0]
+        for t in d[s]["terms"]:
+            if t["term"] == "temperature_hysteresis":
+                t["state0"] = 1.0
     return model.with_boards({board.mote_id: d}).board(board.mote_id, 0)
 
 
@@ -88,7 +95,7 @@ def thermal_error(sc, model, board, seed: int, t_ref: float, hold_s: float = 120
     tw = twin(model, board, t_ref).sampler(traj, seed).read_detail(t).pre_chip
     temp = board.temperature_reading_c(t)
     s = SL[sc.sensor]
-    v = sc.apply(raw[:, s], temp if compensated else None)
+    v = sc.apply(raw[:, s], temp if compensated else None, t)
     v0 = sc.apply(tw[:, s])
     n = int(board.rate_hz)
     k = len(t) // n
@@ -236,7 +243,7 @@ def hold_errors(bc, model, board, seed: int, hold_s: float = 1200.0, mote_c=None
             return float(np.sqrt(np.mean(d ** 2)))
         has_mote = mote is not None and name in mote
         out[name] = {"uncompensated": err(sc.apply(raw[:, s])),
-                     "compensated": err(sc.apply(raw[:, s], temp)),
+                     "compensated": err(sc.apply(raw[:, s], temp, t)),
                      "floor": noise_floor(board, name),
                      "mote": err(mote[name], 1) if has_mote else None,
                      "mote_first_s": err(mote[name], 0, 1) if has_mote else None}

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import UserError
 from ..jsonable import finite as _num, jsonable as _jsonable
+from .templag import lag_filter
 
 FORMAT_VERSION = 2      # 2: optional per-sensor temperature model (1 files still read)
 SENSORS = ("accel", "gyro", "mag")
@@ -53,7 +54,10 @@ class TempModel:
     ``offset_per_c`` (sensor unit per degree C) and ``scale_per_c`` (relative
     gain change per degree C), per axis, around ``t_ref_c``; only valid over
     ``range_c`` (the temperatures the fit saw): outside it the temperature is
-    clamped to the range, never extrapolated."""
+    clamped to the range, never extrapolated.  ``lag_s`` > 0: the chip
+    follows the recorded temperature (the ITG3200's) through a first-order
+    lag of that time constant (``calib.templag``), which ``lagged`` applies
+    to a recorded series; the coefficients are against the lagged one."""
     t_ref_c: float
     range_c: tuple                      # (lo, hi) degrees C covered by the data
     offset_per_c: np.ndarray            # (3,) unit/degC
@@ -62,6 +66,7 @@ class TempModel:
     scale_per_c_std: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     notes: list = field(default_factory=list)
     extra: dict = field(default_factory=dict)    # fit details (samples, span, residual, ...)
+    lag_s: float = 0.0                  # the chip's lag behind the recorded temperature (s)
 
     def __post_init__(self):
         lo, hi = (float(v) for v in self.range_c)
@@ -70,6 +75,14 @@ class TempModel:
         self.range_c = (lo, hi)
         for name in ("offset_per_c", "offset_per_c_std", "scale_per_c", "scale_per_c_std"):
             setattr(self, name, np.asarray(getattr(self, name), float).reshape(3))
+
+    def lagged(self, temp_c, t_s=None, part=None) -> np.ndarray:
+        """The chip's temperature from the recorded ``temp_c`` at times
+        ``t_s`` (s; rows of one recording, or ``part`` per row): the
+        recorded one itself without a lag or without times."""
+        if not self.lag_s or t_s is None or np.ndim(temp_c) == 0:
+            return np.asarray(temp_c, float)
+        return lag_filter(temp_c, t_s, self.lag_s, part)
 
     def dt(self, temp_c) -> np.ndarray:
         """Clamped temperature minus the reference; 0 where ``temp_c`` is NaN."""
@@ -83,7 +96,8 @@ class TempModel:
                 "offset_per_c_std": [_num(v) for v in self.offset_per_c_std],
                 "scale_per_c": [_num(v) for v in self.scale_per_c],
                 "scale_per_c_std": [_num(v) for v in self.scale_per_c_std],
-                "notes": list(self.notes), "extra": _jsonable(self.extra)}
+                "notes": list(self.notes), "extra": _jsonable(self.extra),
+                **({"lag_s": _num(self.lag_s)} if self.lag_s else {})}
 
     @classmethod
     def from_json(cls, d: dict) -> "TempModel":
@@ -92,7 +106,8 @@ class TempModel:
                    offset_per_c_std=[_unnum(v) for v in d.get("offset_per_c_std", [None] * 3)],
                    scale_per_c=[_unnum(v) for v in d.get("scale_per_c", [0, 0, 0])],
                    scale_per_c_std=[_unnum(v) for v in d.get("scale_per_c_std", [None] * 3)],
-                   notes=list(d.get("notes", [])), extra=d.get("extra", {}))
+                   notes=list(d.get("notes", [])), extra=d.get("extra", {}),
+                   lag_s=float(d.get("lag_s") or 0.0))
 
 
 @dataclass
@@ -138,15 +153,18 @@ class SensorCalibration:
         self.c = np.asarray(self.c, float).reshape(3)
 
     # -- use --------------------------------------------------------------------
-    def apply(self, raw_counts, temp_c=None) -> np.ndarray:
+    def apply(self, raw_counts, temp_c=None, t_s=None) -> np.ndarray:
         """Calibrated vectors (n, 3) in ``unit`` from raw counts (n, 3); with a
         temperature model and ``temp_c`` (per row, or one value), corrected
-        for temperature (rows with NaN temperature at the reference)."""
+        for temperature (rows with NaN temperature at the reference).  A
+        model with a lag (``TempModel.lag_s``) applies it when the rows'
+        times ``t_s`` (s, one recording) are given, else takes ``temp_c`` as
+        the chip's own."""
         y = np.asarray(raw_counts, float) @ self.A.T
         if self.temperature is None or temp_c is None:
             return y + self.c
         tm = self.temperature
-        dt = np.broadcast_to(tm.dt(temp_c), y.shape[:-1])[..., None]
+        dt = np.broadcast_to(tm.dt(tm.lagged(temp_c, t_s)), y.shape[:-1])[..., None]
         return y * (1.0 + tm.scale_per_c * dt) + self.c + tm.offset_per_c * dt
 
     def param(self, name: str) -> Param:

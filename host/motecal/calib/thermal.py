@@ -10,7 +10,7 @@ span once, for calibrate and diagnose):
   whose truth is 0; the slope per axis is fitted through the bias the
   calibration measured at ``t_ref`` (the mean temperature of its rows).  The
   sensitivity's coefficient per output axis comes from the moves between
-  poses when their temperatures span the same 2 C (``gyro_scale_fit``), and
+  poses when their temperatures span the same 2 C (``tempscale``), and
   is used only when determined to ``SCALE_STD_LIMIT`` and better on held-out
   moves; otherwise the note says why.
 * **accelerometer** -- the zero-g offset against temperature: within a hold
@@ -45,11 +45,12 @@ import numpy as np
 
 from ..maths.heldout import kfold_heldout
 from ..sessions.session import HMC5883L_OVERFLOW, LABEL_NONE, LABEL_ROT, SessionData
-from .content import MIN_POSE_ORIENTATIONS, MIN_TEMP_SPAN_C, TempContent
+from . import templag as TL
+from .tempscale import FOLDS, SCALE_STD_LIMIT, gyro_scale_fit  # noqa: F401
+from .content import MIN_POSE_ORIENTATIONS, MIN_TEMP_SPAN_C, TempContent, recording_parts
 from .result import BoardCalibration, TempModel
 
 BLOCK_S = 1.0              # still data are averaged over blocks this long
-FOLDS = 5
 MAX_SWEEP_ROWS = 3000      # sweep rows used for the magnetometer (evenly strided)
 STD_LIMITS = {"accel": 2e-4, "gyro": 0.01, "mag": 1e-4}   # g/C, deg/s/C, 1/C
 UNITS = {"accel": "g/C", "gyro": "deg/s/C", "mag": "/C"}
@@ -90,26 +91,72 @@ def without_holds(data: SessionData, tc: TempContent) -> SessionData:
 # --------------------------------------------------------------------------
 # still blocks
 # --------------------------------------------------------------------------
-def _blocks(data: SessionData, labels, sensor: str):
-    """Per still pose/hold in ``labels``: blocks of ``BLOCK_S`` (a pose
-    shorter than 1.5 blocks is one block): mean raw counts, mean
-    temperature, the pose label."""
-    t = data.sample_times()
+def _usable(data: SessionData, sensor: str) -> np.ndarray:
+    """Rows with the sensor's three values (not an overflow) and a temperature."""
     x = data.sensor(sensor)
-    ok = data.has(sensor) & np.isfinite(data.temp)
+    ok = ~np.isnan(x).any(axis=1) & np.isfinite(data.temp)
     if sensor == "mag":
         ok &= ~(x == HMC5883L_OVERFLOW).any(axis=1)
-    raw, temp, lab = [], [], []
+    return ok
+
+
+def _label_rows(label: np.ndarray, ok: np.ndarray, labels) -> dict:
+    """{p: the ``ok`` rows labelled p, ascending} for p in ``labels``."""
+    idx = np.flatnonzero(ok & np.isin(label, list(labels)))
+    lab = label[idx]
+    order = np.argsort(lab, kind="stable")
+    idx, lab = idx[order], lab[order]
+    if not len(idx):
+        return {}
+    cuts = np.flatnonzero(np.diff(lab)) + 1
+    return {int(p): rows for p, rows in zip(lab[np.r_[0, cuts]], np.split(idx, cuts))}
+
+
+def _group_means(values: np.ndarray, rows: np.ndarray, group: np.ndarray, n: int) -> np.ndarray:
+    """Mean of ``values`` (rows, or rows x columns) over each of ``n`` groups."""
+    cnt = np.bincount(group, minlength=n)
+    v = values[rows]
+    if v.ndim == 1:
+        return np.bincount(group, weights=v, minlength=n) / cnt
+    return np.column_stack([np.bincount(group, weights=v[:, j], minlength=n)
+                            for j in range(v.shape[1])]) / cnt[:, None]
+
+
+def _blocks(data: SessionData, labels, sensor: str):
+    """Per still pose/hold in ``labels``: blocks of ``BLOCK_S`` (a pose
+    shorter than 1.5 blocks is one block; consecutive rows split as
+    ``np.array_split`` does): mean raw counts, mean temperature, the pose
+    label."""
+    t = data.sample_times()
+    by = _label_rows(data.label, _usable(data, sensor), labels)
+    rows, group, lab, k = [], [], [], 0
     for p in labels:
-        idx = np.flatnonzero((data.label == p) & ok)
-        if len(idx) < 3:
+        idx = by.get(int(p))
+        if idx is None or len(idx) < 3:
             continue
         n = max(1, int(round((t[idx[-1]] - t[idx[0]]) / BLOCK_S)))
-        for part in np.array_split(idx, n):
-            raw.append(x[part].mean(axis=0))
-            temp.append(float(data.temp[part].mean()))
-            lab.append(int(p))
-    return np.array(raw).reshape(-1, 3), np.array(temp), np.array(lab, int)
+        q, r = divmod(len(idx), n)
+        rows.append(idx)
+        group.append(k + np.repeat(np.arange(n), [q + 1] * r + [q] * (n - r)))
+        lab += [int(p)] * n
+        k += n
+    if not k:
+        return np.zeros((0, 3)), np.zeros(0), np.zeros(0, int)
+    rows, group = np.concatenate(rows), np.concatenate(group)
+    return (_group_means(data.sensor(sensor), rows, group, k),
+            _group_means(data.temp, rows, group, k), np.array(lab, int))
+
+
+def _pose_means(data: SessionData, poses, sensor: str):
+    """Each pose's mean raw counts and temperature over its usable rows."""
+    by = _label_rows(data.label, _usable(data, sensor), poses)
+    keep = [p for p in poses if int(p) in by]
+    if not keep:
+        return np.zeros((0, 3)), np.zeros(0)
+    rows = np.concatenate([by[int(p)] for p in keep])
+    group = np.repeat(np.arange(len(keep)), [len(by[int(p)]) for p in keep])
+    return (_group_means(data.sensor(sensor), rows, group, len(keep)),
+            _group_means(data.temp, rows, group, len(keep)))
 
 
 def _t_ref(data: SessionData, rows) -> float:
@@ -153,18 +200,26 @@ def _hold_rows(v, temp, lab, xt_of):
 # observation sets per sensor
 # --------------------------------------------------------------------------
 def gyro_sets(board, data, tc, t_ref) -> list[ObsSet]:
+    """The still blocks' calibrated rates against temperature, through the
+    bias at ``t_ref``; each hold has an offset of its own (a hold is one
+    orientation, not the poses' mean: with a g-sensitivity its still rate
+    differs by G a, which would otherwise be taken for temperature)."""
     sc = board.gyro
-    raw, temp, _ = _blocks(data, list(tc.holds) + _poses(data, tc), "gyro")
+    raw, temp, lab = _blocks(data, list(tc.holds) + _poses(data, tc), "gyro")
     if not len(raw):
         return []
     w = sc.apply(raw)
     dT = temp - t_ref
     m = len(w)
     Xt = np.zeros((3 * m, 3))
+    holds = [h for h in tc.holds if (lab == h).any()]
+    Xn = np.zeros((3 * m, 3 * len(holds)))
     for i in range(3):
         Xt[i * m:(i + 1) * m, i] = dT
+        for k, h in enumerate(holds):
+            Xn[i * m:(i + 1) * m, 3 * k + i] = lab == h
     fold = np.tile(np.arange(m) % FOLDS, 3)
-    return [ObsSet("still blocks", w.T.reshape(-1), Xt, np.zeros((3 * m, 0)), fold, temp)]
+    return [ObsSet("still blocks", w.T.reshape(-1), Xt, Xn, fold, temp)]
 
 
 def accel_sets(board, data, tc, t_ref) -> list[ObsSet]:
@@ -178,14 +233,8 @@ def accel_sets(board, data, tc, t_ref) -> list[ObsSet]:
             out.append(ObsSet("holds", r[0], r[1], np.zeros((len(r[0]), 0)), r[2], r[3]))
     poses = _poses(data, tc)
     if len(poses) >= 12:
-        pm, pt = [], []
-        for p in poses:
-            rows = (data.label == p) & data.has("accel") & np.isfinite(data.temp)
-            if rows.any():
-                pm.append(data.sensor("accel")[rows].mean(axis=0))
-                pt.append(float(data.temp[rows].mean()))
-        v = sc.apply(np.array(pm))
-        pt = np.array(pt)
+        pm, pt = _pose_means(data, poses, "accel")
+        v = sc.apply(pm)
         nv = np.linalg.norm(v, axis=1)
         u = v / nv[:, None]
         out.append(ObsSet("poses", nv - 1.0, u * (pt - t_ref)[:, None], sym_cols(u, v),
@@ -209,7 +258,7 @@ def mag_sets(board, data, tc, t_ref, per_axis: bool = True) -> list[ObsSet]:
         if r is not None:
             out.append(ObsSet("holds", r[0], r[1], np.zeros((len(r[0]), 0)), r[2], r[3]))
     x = data.sensor("mag")
-    ok = data.has("mag") & np.isfinite(data.temp) & ~(x == HMC5883L_OVERFLOW).any(axis=1)
+    ok = _usable(data, "mag")
     if sc.dataset == "R":
         rows = np.flatnonzero(ok & ((data.label == LABEL_ROT) if (data.label != 0).any()
                                     else np.ones(len(data), bool)))
@@ -217,13 +266,7 @@ def mag_sets(board, data, tc, t_ref, per_axis: bool = True) -> list[ObsSet]:
             if len(rows) else rows
         vals, temps = x[rows], data.temp[rows]
     else:
-        vals, temps = [], []
-        for p in _poses(data, tc):
-            rows = ok & (data.label == p)
-            if rows.any():
-                vals.append(x[rows].mean(axis=0))
-                temps.append(float(data.temp[rows].mean()))
-        vals, temps = np.array(vals).reshape(-1, 3), np.array(temps)
+        vals, temps = _pose_means(data, _poses(data, tc), "mag")
     if len(vals) >= 12:
         v = sc.apply(vals)
         nv = np.linalg.norm(v, axis=1)
@@ -281,9 +324,10 @@ def _set_sigma(s: ObsSet) -> float:
     return float(np.sqrt(res @ res / max(1, len(s.y) - X.shape[1]))) or 1e-12
 
 
-def _heldout(sets) -> tuple[float, float]:
+def _heldout(sets, errors: bool = False):
     """rms of held-out observations without and with the temperature term
-    (each fold refitted on the others: ``maths.heldout.kfold_heldout``)."""
+    (each fold refitted on the others: ``maths.heldout.kfold_heldout``);
+    ``errors``: also each observation's held-out error with the term."""
     fold = np.concatenate([s.fold for s in sets]) if sets else np.zeros(0, int)
     ends = np.cumsum([len(s.y) for s in sets])
 
@@ -311,7 +355,8 @@ def _heldout(sets) -> tuple[float, float]:
             sq[th] += float(np.sum(e ** 2)) if ncol[th] else float(e @ e)
         n += int(te.sum())
     n = max(n, 1)
-    return float(np.sqrt(sq[False] / n)), float(np.sqrt(sq[True] / n))
+    rms = float(np.sqrt(sq[False] / n)), float(np.sqrt(sq[True] / n))
+    return (rms, r[:, 1]) if errors else rms
 
 
 def fit_sensor(sensor: str, sets: list[ObsSet]) -> dict:
@@ -332,9 +377,10 @@ def fit_sensor(sensor: str, sets: list[ObsSet]) -> dict:
     beta, cov, rank = _solve(X, y, w)
     q = sets[0].Xt.shape[1]
     theta, std = beta[:q], np.sqrt(np.clip(np.diag(cov)[:q], 0, None))
-    before, after = _heldout(sets)
+    (before, after), errors = _heldout(sets, errors=True)
     out.update(theta=theta, std=std, nuisance=beta[q:], rank=rank, params=X.shape[1],
                heldout_rms_before=before, heldout_rms_after=after,
+               heldout_errors=errors, heldout_sizes=[len(s.y) for s in sets],
                n_obs=int(len(y)), temp_lo=float(min(s.temp.min() for s in sets)),
                temp_hi=float(max(s.temp.max() for s in sets)))
     lim = STD_LIMITS[sensor]
@@ -364,27 +410,28 @@ def attach(board: BoardCalibration, data: SessionData, main: SessionData,
     fitted or why not, and returns ``board.settings["temperature"]``."""
     report = {"span_c": tc.span_c, "range_c": [tc.lo, tc.hi], "holds": list(tc.holds),
               "fitted": [], "not_fitted": {}}
+    times, part = data.sample_times(), recording_parts(data)
     for name, sc in board.sensors():
-        t_ref = _t_ref(main, _main_rows(main, name, sc))
-        builder = {"accel": accel_sets, "gyro": gyro_sets, "mag": mag_sets}[name]
-        res = fit_sensor(name, builder(board, data, tc, t_ref) if np.isfinite(t_ref) else [])
-        if name == "mag" and np.isfinite(t_ref):
-            # one coefficient for the three axes, when each axis' own is not
-            # determined or does not predict held-out blocks better
-            common = fit_sensor(name, mag_sets(board, data, tc, t_ref, per_axis=False))
-            if common["why"] is None and (
-                    res["why"] is not None
-                    or not res["heldout_rms_after"] < common["heldout_rms_after"]):
-                common["per_axis_why"] = res["why"] or (
-                    f"held-out rms {res['heldout_rms_after']:.3g}, not below the common "
-                    f"coefficient's {common['heldout_rms_after']:.3g}")
-                res = common
+        lag = None
+        if name in TL.SENSORS and data.has_temp:
+            # the ADXL345 and the HMC5883L lag the ITG3200's die (calib.templag)
+            def fit_at(lag_s, name=name, sc=sc):
+                T = TL.lag_filter(data.temp, times, lag_s, part)
+                return _fit_one(name, sc, board, dataclasses.replace(data, temp=T),
+                                dataclasses.replace(main, temp=T), tc)
+            lag = TL.choose_lag(fit_at)
+            res = lag["res"]
+        else:
+            res = _fit_one(name, sc, board, data, main, tc)
+        t_ref = res["t_ref"]
         why = res["why"]
         if why is not None:
             report["not_fitted"][name] = why
             sc.notes.append(f"temperature: not fitted: {why}")
             continue
         tm = _temp_model(name, sc, res, t_ref)
+        if lag is not None:
+            _lag_note(tm, lag)
         if name == "gyro":
             _gyro_scale(board, main, tm)
         sc.temperature = tm
@@ -392,6 +439,41 @@ def attach(board: BoardCalibration, data: SessionData, main: SessionData,
         sc.notes.extend(f"temperature: {n}" for n in tm.notes)
     board.settings["temperature"] = report
     return report
+
+
+def _fit_one(name, sc, board, data, main, tc) -> dict:
+    """``fit_sensor`` of one sensor with its reference temperature
+    (``res["t_ref"]``); the magnetometer falls back on one coefficient for
+    the three axes when each axis' own is not determined or does not predict
+    held-out blocks better."""
+    t_ref = _t_ref(main, _main_rows(main, name, sc))
+    builder = {"accel": accel_sets, "gyro": gyro_sets, "mag": mag_sets}[name]
+    res = fit_sensor(name, builder(board, data, tc, t_ref) if np.isfinite(t_ref) else [])
+    if name == "mag" and np.isfinite(t_ref):
+        common = fit_sensor(name, mag_sets(board, data, tc, t_ref, per_axis=False))
+        if common["why"] is None and (
+                res["why"] is not None
+                or not res["heldout_rms_after"] < common["heldout_rms_after"]):
+            common["per_axis_why"] = res["why"] or (
+                f"held-out rms {res['heldout_rms_after']:.3g}, not below the common "
+                f"coefficient's {common['heldout_rms_after']:.3g}")
+            res = common
+    res["t_ref"] = t_ref
+    return res
+
+
+def _lag_note(tm: TempModel, lag: dict) -> None:
+    """The chip's lag behind the recorded temperature, or why none."""
+    tried = ", ".join(f"{k:g} s {v:.3g}" for k, v in lag["tried"].items() if v is not None)
+    tm.extra["lag"] = {"lag_s": lag["lag_s"], "z": lag["z"], "why": lag["why"],
+                       "heldout_rms_by_lag": {str(k): v for k, v in lag["tried"].items()}}
+    if lag["why"] is None:
+        tm.lag_s = float(lag["lag_s"])
+        tm.notes.append(f"lag {tm.lag_s:.3g} s behind the ITG3200's temperature (first order; "
+                        f"held-out {lag['z']:+.1f} standard errors better than none; held-out "
+                        f"rms by lag: {tried}); on the mote: not applied (the set has no lag)")
+    else:
+        tm.notes.append(f"no lag behind the ITG3200's temperature: {lag['why']}")
 
 
 def _gyro_scale(board, main, tm: TempModel) -> None:
@@ -449,94 +531,3 @@ def _temp_model(name, sc, res, t_ref) -> TempModel:
         notes.append("A and c refined jointly with the temperature term (one linearised "
                      "step; the parameters listed are the static fit's)")
     return TempModel(t_ref, (lo, hi), o, std, notes=notes, extra=extra)
-
-
-# --------------------------------------------------------------------------
-# the gyroscope's sensitivity against temperature, from moves over a span
-# --------------------------------------------------------------------------
-SCALE_STD_LIMIT = 4e-4      # 1/C: half the ITG-3200's worst (0.08 %/C); tighter is rarely met
-
-
-def _move_residuals(ms, G, b_moves, scale):
-    """Gravity direction errors (n, 3) of the moves with a bias and an
-    output-axis scale per move (``scale`` (n, 3))."""
-    from . import gyro as _g
-    rate = np.einsum("nlj,ij->nli", ms.wm - b_moves[:, None, :], G) * scale[:, None, :]
-    q = _g._rotvec_quat(np.deg2rad(rate) * ms.dt[..., None])
-    while q.shape[1] > 1:
-        q = _g._qmul(q[:, 0::2], q[:, 1::2])
-    return _g._rotate_inv(q[:, 0], ms.a0) - ms.a1
-
-
-def gyro_scale_fit(board, main: SessionData, tm: TempModel) -> dict:
-    """The gyroscope's relative sensitivity per C and output axis from the
-    moves between still poses (the ones its matrix was fitted on) whose
-    temperatures span ``MIN_TEMP_SPAN_C``: the rotation each move integrates,
-    scaled by 1 + s dT, must turn one pose's gravity direction into the
-    next's.  Linearised around s = 0 (the static fit's G, the temperature
-    model's bias per move), least squares, 5 interleaved folds of moves.
-    ``{"s", "std", "why" (None: usable), ...}``."""
-    from . import gyro as _g
-    from .content import recording_parts
-    from ..maths.sphere import unit
-    sc, acc = board.gyro, board.accel
-    if sc is None or acc is None or sc.model != "bias+matrix":
-        return {"why": "no scale and misalignment fit from moves"}
-    lsb = main.scales["gyro"]
-    G = sc.A * lsb
-    b = -np.linalg.solve(G, sc.c)
-    slope_raw = -np.linalg.solve(G, tm.offset_per_c)          # raw deg/s per C
-    grav, ptemp = {}, {}
-    x = main.sensor("accel")
-    for p in np.unique(main.label[main.label >= 1]):
-        sel = (main.label == p) & main.has("accel")
-        if sel.any():
-            grav[int(p)] = unit(acc.apply(x[sel].mean(axis=0)[None])[0])
-            T = main.temp[sel]
-            ptemp[int(p)] = float(np.nanmean(T)) if np.isfinite(T).any() else np.nan
-    moves = _g.find_moves(main.label, main.sample_times(), main.seq, main.sensor("gyro") / lsb,
-                          main.sensor("gyro"), grav, main.meta.get("rate_hz") or 125.0,
-                          part=recording_parts(main))
-    temp = np.array([0.5 * (ptemp[m.pose0] + ptemp[m.pose1]) for m in moves]) if moves \
-        else np.empty(0)
-    ok = np.isfinite(temp)
-    moves = [m for m, k in zip(moves, ok) if k]
-    temp = temp[ok]
-    if len(moves) < _g.MIN_MOVES or float(np.ptp(temp)) < MIN_TEMP_SPAN_C:
-        return {"why": f"{len(moves)} moves over {float(np.ptp(temp)) if len(temp) else 0:.2f} C "
-                       f"(needs {_g.MIN_MOVES} over {MIN_TEMP_SPAN_C:g} C)"}
-    ms = _g.MoveSet(moves)
-    dT = tm.dt(temp)
-    bm = b + np.outer(dT, slope_raw)
-    one = np.ones((len(moves), 3))
-    r0 = _move_residuals(ms, G, bm, one)
-    eps = 1e-4
-    J = np.stack([((_move_residuals(ms, G, bm, one + eps * np.outer(dT, np.eye(3)[i])) - r0)
-                   / eps) for i in range(3)], axis=-1)                # (n, 3, 3)
-    Jf, rf = J.reshape(-1, 3), r0.reshape(-1)
-
-    def solve(rows):
-        s, *_ = np.linalg.lstsq(Jf[rows], -rf[rows], rcond=None)
-        return s
-    s = solve(np.ones(len(rf), bool))
-    res = rf + Jf @ s
-    dof = max(1, len(rf) - 3)
-    cov = np.linalg.pinv(Jf.T @ Jf) * float(res @ res) / dof
-    std = np.sqrt(np.clip(np.diag(cov), 0, None))
-    fold = np.repeat(np.arange(len(moves)) % FOLDS, 3)
-    before = after = 0.0
-    for f in range(FOLDS):
-        te = fold == f
-        sf = solve(~te)
-        before += float(rf[te] @ rf[te])
-        after += float(np.sum((rf[te] + Jf[te] @ sf) ** 2))
-    out = {"s": s, "std": std, "moves": len(moves), "span_c": float(np.ptp(temp)),
-           "heldout_rms_deg_before": float(np.degrees(np.sqrt(before / len(rf)))),
-           "heldout_rms_deg_after": float(np.degrees(np.sqrt(after / len(rf))))}
-    if std.max() > SCALE_STD_LIMIT:
-        out["why"] = f"poorly determined: std {std.max():.2g} /C (limit {SCALE_STD_LIMIT:g})"
-    elif not after < before:
-        out["why"] = "it does not predict held-out moves better"
-    else:
-        out["why"] = None
-    return out

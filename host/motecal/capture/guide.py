@@ -40,7 +40,7 @@ import numpy as np
 
 from ..maths.sphere import (COVERAGE_BANDS, COVERAGE_SECTORS, SphereCoverage, angle_deg,
                             fibonacci_sphere, sphere_centre, unit)
-from ..sessions.session import LABEL_ROT, NOMINAL_SCALES
+from ..sessions.session import HMC5883L_OVERFLOW, LABEL_ROT, NOMINAL_SCALES
 from ..sessions.still import StillThresholds, live_detector
 
 DEFAULT_POSES = 80
@@ -51,7 +51,7 @@ DEFAULT_COVERAGE = 0.9
 MAX_MIN_ANGLE = 90.0         # degrees: six poses (the +-axes) are 90 deg apart
 DEFAULT_SETTLE_S = 0.3       # the first rows of a still window are left out: the slow end
 #                              of a smooth move passes the integrated-rotation limit
-MAG_OVERFLOW = -4096
+MAG_OVERFLOW = HMC5883L_OVERFLOW
 
 
 # --------------------------------------------------------------------------

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..maths.sphere import unit
+from ..sessions.session import CHIP_LIMITS
 from ..sim.model import MODEL_FORMAT, MODEL_VERSION
 from ..sim.physics import K_NOMINAL
 from . import fitting as F
@@ -33,7 +34,7 @@ from .prepare import SensorObs
 from .regimes import MIN_SWEEP_ROWS, sweep_surrounds
 
 TAU_GRID_S = (5.0, 15.0, 50.0, 150.0, 500.0, 1500.0)
-SIM_LIMITS = {"accel": (-4096.0, 4095.0), "gyro": (-32768.0, 32767.0), "mag": (-2048.0, 2047.0)}
+SIM_LIMITS = {s: (float(lo), float(hi)) for s, (lo, hi) in CHIP_LIMITS.items()}
 
 
 def _r(x, nd=6):

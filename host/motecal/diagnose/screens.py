@@ -12,13 +12,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from ..sessions.session import CHIP_LIMITS, HMC5883L_OVERFLOW, INT16_MAX
 from .prepare import SensorObs, unique_updates
 
 # practical floors: below these an effect is not reported even when significant
 STALE_MIN_EXCESS = 0.02        # repeated-reading fraction above chance
 SAT_MIN_COUNT = 10             # readings at an arbitrary limit
 SAT_MIN_COUNT_FULL_SCALE = 3   # readings at a chip's full-scale code
-FULL_SCALE_CODES = (32767.0, -32767.0, -32768.0, 4095.0, -4096.0, 2047.0, -2048.0)
+# the chips' range ends, -32767 (an int16 clipped symmetrically) and the overflow code
+FULL_SCALE_CODES = tuple(sorted({float(v) for lo, hi in CHIP_LIMITS.values() for v in (lo, hi)}
+                                | {float(-INT16_MAX), float(HMC5883L_OVERFLOW)}))
 MOTION_SLOPE = (0.3, 3.0)      # a real turn moves the accelerometer ~1x the gyro's prediction
 SAT_MIN_RATIO = 4.0            # count at the limit / mean count of the 20 values inside it
 SAT_NEIGHBOURS = 20

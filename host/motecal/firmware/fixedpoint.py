@@ -35,16 +35,17 @@ import numpy as np
 
 from ..errors import QualityError
 from ..line import protocol as P
-from ..sessions.session import HMC5883L_OVERFLOW, NOMINAL_SCALES, SENSOR_SLICES, UNITS
+from ..sessions.session import (CHIP_LIMITS, HMC5883L_OVERFLOW, INT16_MAX, NOMINAL_SCALES,
+                                SENSOR_SLICES, UNITS)
 
 SHIFT_MIN, SHIFT_MAX = 8, 14
-INT16_MAX, INT32_MAX = 32767, 2**31 - 1
-MAG_LIMIT = 4095                    # corrected magnetometer saturates at +-4095
+INT32_MAX = 2**31 - 1
+# the corrected magnetometer saturates at +-4095: -4096 stays the overflow code
+MAG_LIMIT = -HMC5883L_OVERFLOW - 1
 
-# Largest raw magnitude each chip can output, for the worst-case error:
-# ADXL345 full resolution +-16 g is 13 bits; ITG3200 uses all 16 bits;
-# HMC5883L data registers span -2048..2047 (-4096 = overflow).
-INPUT_RANGE = {"accel": 4096, "gyro": 32768, "mag": 2048}
+# Largest raw magnitude each chip can output, for the worst-case error
+# (sessions.session.CHIP_LIMITS: ADXL345 13 bits, ITG3200 16, HMC5883L 12).
+INPUT_RANGE = {s: -lo for s, (lo, hi) in CHIP_LIMITS.items()}
 
 
 OSHIFT_MIN, OSHIFT_MAX = 14, 40      # ninedof_calset.h: NINEDOF_OSHIFT_MIN/MAX

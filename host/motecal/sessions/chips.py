@@ -10,8 +10,8 @@ import numpy as np
 from ..errors import UserError
 from .options import option_parts
 from .ranges import check_scale
-from .session import (ADXL345_LSB_PER_G, HMC5883L_LSB_PER_GAUSS, ITG3200_LSB_PER_DPS,
-                      NOMINAL_CHIPS, NOMINAL_SCALES)
+from .session import (ADXL345_LSB_PER_G, CHIP_RANGES, HMC5883L_LSB_PER_GAUSS, INT16_MAX,
+                      ITG3200_LSB_PER_DPS, NOMINAL_CHIPS, NOMINAL_SCALES)
 
 # LSB per unit (accel LSB/g, gyro LSB/(deg/s), mag LSB/gauss), datasheet nominal
 CHIP_SCALES = {
@@ -24,7 +24,8 @@ CHIP_SCALES = {
             "HMC5843": 1300.0},                      # default gain
 }
 # a reading at or beyond this many counts (absolute) is the sensor's full scale
-CLIP_COUNTS = {"MPU6050": 32767, "ITG3200": 32767, "ITG3205": 32767, "ADXL345": 4095}
+CLIP_COUNTS = {"MPU6050": INT16_MAX, "ITG3205": INT16_MAX,
+               **{chip: hi for chip, (lo, hi) in CHIP_RANGES.items() if chip != "HMC5883L"}}
 SENSOR_ALIASES = {"accel": "accel", "acc": "accel", "a": "accel",
                   "gyro": "gyro", "gyr": "gyro", "g": "gyro",
                   "mag": "mag", "m": "mag", "magnetometer": "mag"}

@@ -36,10 +36,22 @@ UNITS = {"accel": "g", "gyro": "deg/s", "mag": "gauss"}
 ADXL345_LSB_PER_G = 256.0          # full resolution, 3.9 mg/LSB
 ITG3200_LSB_PER_DPS = 14.375       # FS_SEL=3, +-2000 deg/s
 HMC5883L_LSB_PER_GAUSS = 1090.0    # default gain (CRB GN=001)
-HMC5883L_OVERFLOW = -4096          # data output register value on overflow
 NOMINAL_SCALES = {"accel": ADXL345_LSB_PER_G, "gyro": ITG3200_LSB_PER_DPS,
                   "mag": HMC5883L_LSB_PER_GAUSS}
 NOMINAL_CHIPS = {"accel": "ADXL345", "gyro": "ITG3200", "mag": "HMC5883L"}
+
+# The chips' output ranges and overflow code, in counts: the one definition
+# (issue 24.5) that the simulator's chip stage, the importer's full-scale
+# rule, the diagnosis' screens and the mote's correction read.
+# tests/test_chip_limits.py checks it against the C headers' macros
+# (ninedof_board.h NINEDOF_HMC5883L_OVERFLOW, ninedof_correct.h
+# NINEDOF_MAG_OVERFLOW).
+INT16_MIN, INT16_MAX = -32768, 32767
+CHIP_RANGES = {"ADXL345": (-4096, 4095),           # full resolution +-16 g: 13 bits
+               "ITG3200": (INT16_MIN, INT16_MAX),  # all 16 bits
+               "HMC5883L": (-2048, 2047)}          # 12 bits per axis
+CHIP_LIMITS = {s: CHIP_RANGES[c] for s, c in NOMINAL_CHIPS.items()}
+HMC5883L_OVERFLOW = -4096          # data output register value (all axes) on overflow
 
 LABEL_NONE = 0
 LABEL_ROT = -1

@@ -31,6 +31,8 @@ from ..line import protocol as P
 from .physics import (DEFAULT_TEMP_C, K_NOMINAL, REQUIRED, SENSORS, TERMS, BoardSampler,
                       Environment, GSensitivity, Saturation, StaleSamples, Term, Thermal,
                       seed_key)
+from . import mismatch
+from .thermal import ChipLag
 from .trajectory import Trajectory
 from . import contamination  # noqa: F401,E402 - registers glitch and disturbed_stretch in TERMS
 
@@ -44,7 +46,8 @@ _DISTS = ("uniform", "normal")
 
 
 def builtin_models() -> list[str]:
-    return sorted(p.stem for p in MODELS_DIR.glob("*.json"))
+    """The model files of ``models/`` and the mismatch suite's models (sim.mismatch)."""
+    return sorted([p.stem for p in MODELS_DIR.glob("*.json")] + list(mismatch.NAMES))
 
 
 class _Invalid(Exception):
@@ -261,6 +264,23 @@ class BoardModel:
         t = np.asarray(t, float)
         return th.temperature_c(t) if th is not None else np.full(t.shape, DEFAULT_TEMP_C)
 
+    @property
+    def chip_lag(self) -> ChipLag | None:
+        """The board's ``chip_lag`` term (each chip's own lag), None without one."""
+        return next((t for t in self.board_terms if isinstance(t, ChipLag)), None)
+
+    def chip_temperature_c(self, sensor: str, t) -> np.ndarray:
+        """The temperature of ``sensor``'s chip at ``t``: the ITG3200's die is
+        the board temperature (``temperature_c``); the ADXL345 and the
+        HMC5883L follow it through their ``chip_lag`` time constants (the
+        same temperature without that term)."""
+        lag = self.chip_lag
+        tau = lag.tau(sensor) if lag is not None else 0.0
+        th = self.thermal
+        if th is None or tau <= 0.0:
+            return self.temperature_c(t)
+        return th.lagged_c(np.asarray(t, float), tau)
+
     def temperature_reading_c(self, t) -> np.ndarray:
         """What the ITG3200's temperature sensor reads at ``t``: the board
         temperature rounded to its raw TEMP_OUT counts (280 LSB per degree C),
@@ -415,13 +435,16 @@ class SimModel:
 
 
 def load_model(path_or_name: str | Path | None) -> SimModel:
-    """A built-in model by name (``paper``, ``general``, ``full``) or a model
+    """A built-in model by name (``paper``, ``general``, ``full``, ``thermal``,
+    the mismatch suite's ``mismatch`` and ``mismatch-<block>``) or a model
     file; None gives ``general``.  Raises UserError with one line on a
     missing, unreadable or invalid file."""
     if path_or_name is None:
         path_or_name = DEFAULT_MODEL
     src = str(path_or_name)
     path = Path(src)
+    if not path.exists() and src in mismatch.NAMES:
+        return SimModel.from_json(mismatch.model_json(src), src)
     if not path.exists() and src in builtin_models():
         path = MODELS_DIR / f"{src}.json"
     if not path.is_file():

@@ -199,7 +199,9 @@ def run_guided(capture, model, seed: int, *, mote: int = 1, trajectory=None,
                max_s: float = 3600.0) -> tuple[SessionData, dict]:
     """One board's samples straight into ``capture`` (no radio) while
     ``person`` follows it, until the flow is done (or ``max_s``).  Returns the
-    session (labels as the flow set them, ``meta["truth"]``, ``physical_truth``)
+    session (labels as the flow set them, ``meta["truth"]``, ``physical_truth``;
+    a warming board -- a ``thermal`` term, e.g. the mismatch suite's -- gives
+    ``temp``, the ITG3200's reading per row, as ``simulate_session`` does)
     and the person's figures: ``time_s`` (from the start to the flow's end:
     holds, moves and reactions), ``moves``, ``poses``."""
     traj = trajectory or PersonTrajectory(seed, model.rate_hz)
@@ -234,7 +236,8 @@ def run_guided(capture, model, seed: int, *, mote: int = 1, trajectory=None,
         seq=np.arange(n, dtype=np.int64), t=t, label=label, flags=np.zeros(n, np.uint8),
         kind=capture.kind,
         meta={"source": "sim", "rate_hz": model.rate_hz, "seed": int(seed), "model": model.name,
-              "truth": board.to_json(), "physical_truth": board.physical_truth()})
+              "truth": board.to_json(), "physical_truth": board.physical_truth()},
+        temp=board.temperature_reading_c(t) if board.thermal is not None else None)
     figures = {"time_s": float(n * period), "moves": person.moves,
                "poses": len(getattr(capture, "accepted", ())),
                "samples_in_poses": int((label >= 1).sum())}

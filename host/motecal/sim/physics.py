@@ -12,12 +12,14 @@ Per sensor and sample::
                              so that clipping includes the noise)
     raw = chip(x)            round, datasheet range / overflow code -> int16
 
-Every term is a small class below with its parameters (name, shape,
-default, unit).  ``model.py`` reads them from JSON; this module only runs
-them, vectorised over samples.  Terms that need random numbers draw them
-from counter-based streams (``NormalStream``) keyed by the run seed, the mote
-and the term's position, so a ``BoardSampler`` gives the same samples however
-the times are split into blocks.
+Every term is a small class with its parameters (name, shape, default,
+unit): the sensors' static and motion terms below, the temperature terms in
+``thermal``, the magnetic field's in ``field``, all on the base of
+``termbase`` and collected in ``TERMS``.  ``model.py`` reads them from
+JSON; this module runs them, vectorised over samples.  Terms that need
+random numbers draw them from counter-based streams (``NormalStream``) keyed
+by the run seed, the mote and the term's position, so a ``BoardSampler``
+gives the same samples however the times are split into blocks.
 """
 from __future__ import annotations
 
@@ -26,13 +28,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..sessions.session import (ADXL345_LSB_PER_G, HMC5883L_LSB_PER_GAUSS, HMC5883L_OVERFLOW,
-                                ITG3200_LSB_PER_DPS, SENSOR_SLICES)
+from ..sessions.session import CHIP_LIMITS, HMC5883L_OVERFLOW, SENSOR_SLICES
+from .field import FieldDisturbance, FieldDrift
+from .termbase import (DEFAULT_TEMP_C, K_NOMINAL, REQUIRED, SENSORS, Ctx,  # noqa: F401
+                       NormalStream, Param, SineProcess, Term, seed_key)
+from .thermal import (ChipLag, GridLag, Temperature, TemperatureCurve, TemperatureHysteresis,
+                      Thermal)
 from .trajectory import Motion, Trajectory
 
-SENSORS = ("accel", "gyro", "mag")
-K_NOMINAL = {"accel": ADXL345_LSB_PER_G, "gyro": ITG3200_LSB_PER_DPS,
-             "mag": HMC5883L_LSB_PER_GAUSS}
 _SALT = 0x5E5A0B
 _INTERNAL_BLOCK = 16384            # samples evaluated at once (bounds memory)
 
@@ -57,137 +60,6 @@ class Environment:
         return {"gravity_g": self.gravity_g, "field_gauss": self.field_gauss,
                 "inclination_deg": self.inclination_deg,
                 "declination_deg": self.declination_deg}
-
-
-# --------------------------------------------------------------------------
-# random streams
-# --------------------------------------------------------------------------
-def seed_key(*parts: int) -> list[int]:
-    return [int(p) & (2**64 - 1) for p in parts]
-
-
-class NormalStream:
-    """Standard normals addressed by a non-negative integer index (counter
-    based: chunk c of the stream comes from SeedSequence(key + [c])), so a
-    value depends only on (key, index), never on how reads are split."""
-
-    CHUNK = 8192
-
-    def __init__(self, key: list[int], dim: int):
-        self.key = list(key)
-        self.dim = dim
-        self._cache: dict[int, np.ndarray] = {}
-
-    def _chunk(self, c: int) -> np.ndarray:
-        blk = self._cache.get(c)
-        if blk is None:
-            if len(self._cache) >= 4:
-                self._cache.pop(next(iter(self._cache)))
-            rng = np.random.default_rng(np.random.SeedSequence(self.key + [int(c)]))
-            blk = self._cache[c] = rng.standard_normal((self.CHUNK, self.dim))
-        return blk
-
-    def get(self, idx) -> np.ndarray:
-        idx = np.asarray(idx, np.int64)
-        out = np.empty((len(idx), self.dim))
-        if not len(idx):
-            return out
-        if idx.min() < 0:
-            raise ValueError("stream index must be >= 0")
-        c = idx // self.CHUNK
-        for ci in np.unique(c):
-            m = c == ci
-            out[m] = self._chunk(int(ci))[idx[m] - ci * self.CHUNK]
-        return out
-
-
-class SineProcess:
-    """A smooth random process: per axis a sum of ``k`` sinusoids with random
-    phases and given frequencies, amplitudes sqrt(2/k)*rms, so its rms over
-    time is ``rms``.  A pure function of t (any order, any block split)."""
-
-    def __init__(self, rng: np.random.Generator, rms, freqs: np.ndarray):
-        self.freqs = np.asarray(freqs, float)                     # (dim, k)
-        dim, k = self.freqs.shape
-        self.amp = np.broadcast_to(np.asarray(rms, float), (dim,))[:, None] * np.sqrt(2.0 / k)
-        self.phase = rng.uniform(0, 2 * np.pi, (dim, k))
-
-    def __call__(self, t, deriv: bool = False):
-        w = 2 * np.pi * self.freqs
-        arg = w[None] * t[:, None, None] + self.phase[None]       # (n, dim, k)
-        val = np.einsum("ndk,dk->nd", np.sin(arg), self.amp)
-        if not deriv:
-            return val
-        return val, np.einsum("ndk,dk->nd", np.cos(arg), self.amp * w)
-
-
-# --------------------------------------------------------------------------
-# terms
-# --------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Param:
-    name: str
-    shape: tuple            # (), (3,) or (3, 3)
-    default: object         # number, "zeros", "identity", None (= null) or REQUIRED
-    unit: str
-    doc: str
-    nullable: bool = False
-    positive: bool = False
-
-
-REQUIRED = object()
-
-
-@dataclass
-class Ctx:
-    """What a term sees for one block of samples of one sensor."""
-    sensor: str
-    K: float
-    t: np.ndarray                  # (n,) seconds since session start (sensor's sample time)
-    index: np.ndarray              # (n,) noise index (read count, or update index when stale)
-    motion: Motion                 # the board's motion at t
-    field_world: np.ndarray        # (3,) gauss
-    temp_c: np.ndarray | None = None   # (n,) board temperature at t, degrees C
-
-
-class Term:
-    """A forward error term.  ``p`` holds its parameters as float arrays."""
-    id = ""
-    level = "sensor"                       # "sensor" or "board"
-    sensors = SENSORS
-    params: tuple = ()
-    summary = ""
-
-    def __init__(self, p: dict):
-        self.p = p
-        self.check()
-
-    def check(self):
-        pass
-
-    def to_json(self) -> dict:
-        d = {"term": self.id}
-        for prm in self.params:
-            v = self.p[prm.name]
-            d[prm.name] = None if v is None else (np.asarray(v).tolist())
-        return d
-
-    # -- forward -------------------------------------------------------
-    def runtime(self, key: list[int], trajectory: Trajectory, board) -> "Term":
-        """Per-sampler instance (stateful terms override)."""
-        return self
-
-    def apply(self, x: np.ndarray, ctx: Ctx) -> np.ndarray:
-        return x
-
-    # -- truth -----------------------------------------------------------
-    def affine(self):
-        """(A, c) with x -> A x + c when the term is an affine map of x, else None."""
-        return None
-
-    def is_null(self) -> bool:
-        """True when the term has no effect with these parameters."""
-        return False
 
 
 def _diag3(v):
@@ -424,107 +296,15 @@ class _Tremor:
                       pose=m.pose)
 
 
-class FieldDisturbance(Term):
-    id = "field_disturbance"
-    sensors = ("mag",)
-    summary = ("mag only: the local field differs between poses (random world vector per pose) "
-               "and wanders slowly within them (smooth random process, correlation tau_s)")
-    params = (Param("pose_rms_gauss", (), 0.0, "gauss",
-                    "rms per world axis of the per-pose field change"),
-              Param("rms_gauss", (), 0.0, "gauss", "rms per world axis of the slow wander"),
-              Param("tau_s", (), 10.0, "s", "correlation time of the wander", positive=True))
-
-    def is_null(self):
-        return not (float(self.p["pose_rms_gauss"]) or float(self.p["rms_gauss"]))
-
-    def runtime(self, key, trajectory, board):
-        return _FieldDisturbanceRun(self, key, trajectory)
-
-
-class _FieldDisturbanceRun:
-    def __init__(self, term, key, trajectory):
-        rng = np.random.default_rng(key)
-        n = max(1, trajectory.n_poses) + 1
-        self.per_pose = rng.normal(0.0, float(term.p["pose_rms_gauss"]), (n, 3))
-        k = 16
-        # frequencies of an exponentially correlated process: |Cauchy(0, 1/(2 pi tau))|
-        f = np.abs(rng.standard_cauchy((3, k))) / (2 * np.pi * float(term.p["tau_s"]))
-        self.wander = SineProcess(rng, float(term.p["rms_gauss"]), f)
-
-    def disturbance(self, t, pose):
-        p = np.clip(pose, 0, len(self.per_pose) - 1)
-        lo = np.floor(p).astype(int)
-        hi = np.minimum(lo + 1, len(self.per_pose) - 1)
-        fr = (p - lo)[:, None]
-        return self.per_pose[lo] * (1 - fr) + self.per_pose[hi] * fr + self.wander(t)
-
-    def apply(self, x, ctx):
-        d = self.disturbance(ctx.t, ctx.motion.pose)          # world, gauss
-        return x + ctx.K * np.einsum("nji,nj->ni", ctx.motion.R, d)
-
-
-DEFAULT_TEMP_C = 25.0     # a board without a ``thermal`` term sits at this temperature
-
-
-class Thermal(Term):
-    """The board's temperature (what the ITG3200's sensor reads and every
-    chip on the board follows): a warm-up after power-on plus slow room
-    changes.  t = seconds since power-on (the session's start)."""
-    id = "thermal"
-    level = "board"
-    sensors = ()
-    summary = ("board temperature T(t) = ambient_c + rise_c (1 - exp(-t/tau_s)) "
-               "+ room_slope_c_per_h t/3600 + room_amp_c sin(2 pi t/room_period_s); "
-               "t = s since power-on (session start)")
-    params = (Param("ambient_c", (), DEFAULT_TEMP_C, "degC", "room temperature at power-on"),
-              Param("rise_c", (), 0.0, "degC", "warm-up: self-heating rise after power-on"),
-              Param("tau_s", (), 300.0, "s", "warm-up time constant", positive=True),
-              Param("room_slope_c_per_h", (), 0.0, "degC/h", "slow linear room change"),
-              Param("room_amp_c", (), 0.0, "degC", "amplitude of a slow room cycle"),
-              Param("room_period_s", (), 3600.0, "s", "period of that cycle", positive=True))
-
-    def is_null(self):
-        return not (float(self.p["rise_c"]) or float(self.p["room_slope_c_per_h"])
-                    or float(self.p["room_amp_c"])) and \
-            float(self.p["ambient_c"]) == DEFAULT_TEMP_C
-
-    def temperature_c(self, t) -> np.ndarray:
-        t = np.maximum(np.asarray(t, float), 0.0)
-        p = self.p
-        return (float(p["ambient_c"]) + float(p["rise_c"]) * (1.0 - np.exp(-t / float(p["tau_s"])))
-                + float(p["room_slope_c_per_h"]) * t / 3600.0
-                + float(p["room_amp_c"]) * np.sin(2 * np.pi * t / float(p["room_period_s"])))
-
-
-class Temperature(Term):
-    id = "temperature"
-    summary = ("x = x (1 + scale_per_c dT) + offset_per_c dT, dT = board temperature - t_ref_c "
-               "(the board's ``thermal`` term; 25 C without one)")
-    params = (Param("offset_per_c", (3,), 0.0, "counts/degC",
-                    "offset (zero-rate / zero-g) change per degree C"),
-              Param("scale_per_c", (3,), 0.0, "1/degC", "relative sensitivity change per degree C"),
-              Param("t_ref_c", (), DEFAULT_TEMP_C, "degC", "temperature where the term is zero"))
-
-    def apply(self, x, ctx):
-        T = ctx.temp_c if ctx.temp_c is not None else np.full(len(x), DEFAULT_TEMP_C)
-        dT = (T - float(self.p["t_ref_c"]))[:, None]
-        return x * (1.0 + self.p["scale_per_c"] * dT) + self.p["offset_per_c"] * dT
-
-    def is_null(self):
-        return not (np.any(self.p["offset_per_c"]) or np.any(self.p["scale_per_c"]))
-
-
 TERMS = {cls.id: cls for cls in (ScaleOffset, PaperAngles, CrossAxis, Linear, Nonlinearity,
                                  BiasDrift, GSensitivity, Saturation, StaleSamples, MotionTerm,
-                                 FieldDisturbance, Thermal, Temperature)}
+                                 FieldDisturbance, FieldDrift, Thermal, ChipLag, Temperature,
+                                 TemperatureCurve, TemperatureHysteresis)}
 
 
 # --------------------------------------------------------------------------
 # chip stage
 # --------------------------------------------------------------------------
-CHIP_LIMITS = {"accel": (-4096, 4095), "gyro": (-32768, 32767), "mag": (-2048, 2047)}
-
-
 def chip_stage(sensor: str, x: np.ndarray) -> np.ndarray:
     """Datasheet output: round to integer counts; ADXL345 full resolution +-16 g
     (-4096..4095), ITG3200 int16, HMC5883L -2048..2047 per axis and -4096 on
@@ -569,7 +349,10 @@ class BoardSampler:
         self.field_world = self.env.field_world()
         base = seed_key(_SALT, seed, board.mote_id)
         self.tremor = None
-        self.temperature_c = board.temperature_c
+        # the board temperature (the ITG3200's die): replaceable by a measured one
+        # (diagnose.compare's twin), which the chips then follow through their lags
+        self.temperature_c = self._own_temperature_c = board.temperature_c
+        self._given = (None, {})
         for j, term in enumerate(board.board_terms):
             if isinstance(term, MotionTerm) and not term.is_null():
                 self.tremor = term.runtime(base + [9, j], trajectory, board)
@@ -590,6 +373,24 @@ class BoardSampler:
                                 np.asarray(sm.noise, float))
         self._n = 0
         self._t_last = -np.inf
+
+    def chip_temperature(self, sensor: str):
+        """t -> the temperature of ``sensor``'s chip: the board's own
+        (``BoardModel.chip_temperature_c``), or, once ``temperature_c`` has
+        been given a measured temperature, that one through the chip's lag
+        (``thermal.GridLag``)."""
+        f = self.temperature_c
+        if f is self._own_temperature_c:
+            own = getattr(self.board, "chip_temperature_c", None)
+            return (lambda t: own(sensor, t)) if own is not None else f
+        if self._given[0] is not f:
+            self._given = (f, {})
+        lags = self._given[1]
+        if sensor not in lags:
+            lag = getattr(self.board, "chip_lag", None)
+            tau = lag.tau(sensor) if lag is not None else 0.0
+            lags[sensor] = GridLag(f, tau) if tau > 0 else f
+        return lags[sensor]
 
     def _motion(self, t) -> Motion:
         m = self.trajectory.at(t, self.env.gravity_g)
@@ -644,8 +445,9 @@ class BoardSampler:
             x = K * physical_input(name, m, self.field_world)
             sl = SENSOR_SLICES[name]
             nominal[:, sl] = x[expand]
-            ctx = Ctx(sensor=name, K=K, t=ts, index=idx, motion=m,
-                      field_world=self.field_world, temp_c=self.temperature_c(ts))
+            temp_of = self.chip_temperature(name)
+            ctx = Ctx(sensor=name, K=K, t=ts, index=idx, motion=m, field_world=self.field_world,
+                      temp_c=temp_of(ts), temp_of=temp_of)
             noised = not np.any(sigma)
             for run in runs:
                 if not noised and isinstance(run, Saturation):

@@ -35,6 +35,7 @@ from motecal.calib import BoardCalibration
 from motecal.calib.design import describe_poses_needed
 from motecal.commands.main import main
 from motecal.report import poses as RP
+from motecal.report import temperature as TT
 from motecal.report import tables as T
 from motecal.sessions.store import open_store
 from warmup import thermal_board, warmup_session
@@ -135,6 +136,29 @@ def test_temperature_section_draws_each_sensor_raw_and_corrected(warm):
     raw = np.concatenate([_arr(_series(c, "without the temperature term")["y"]) for c in axes])
     cor = np.concatenate([_arr(_series(c, "corrected (as delivered)")["y"]) for c in axes])
     assert np.sqrt(np.mean(cor ** 2)) < np.sqrt(np.mean(raw ** 2)) / 3, (raw, cor)
+
+
+def test_a_chip_lagging_the_recorded_temperature_is_drawn_against_its_own(warm):
+    """With a lag in the accelerometer's term (calibrate's calib.templag), its
+    points sit at the recorded temperature through that lag, and the
+    session's figure draws the chip's temperature."""
+    from motecal.calib.content import recording_parts
+    board = BoardCalibration.from_json(copy.deepcopy(warm["cal_json"]))
+    tm = board.accel.temperature
+    tm.lag_s = 20.0
+    data = warm["data"]
+    holds = board.settings["temperature"]["holds"]
+    sd = TT.SensorData("accel", board.accel, data, holds)
+    chip = tm.lagged(data.temp, data.sample_times(), recording_parts(data))
+    assert np.abs(chip - data.temp)[np.isfinite(data.temp)].max() > 0.3   # a lag that shows
+    t = data.sample_times()
+    ok = data.has("accel") & np.isfinite(chip)
+    want = [chip[g].mean() for g in TT.blocks(t, data.label, ok, holds)]
+    assert np.allclose(sd.axes[0][0][:len(want)], want)
+    charts = TT.sensor_charts(sd)
+    assert "20 s lag" in charts[0]["xlabel"]
+    sess = TT.session_chart(data, board)
+    assert any(s.get("label") == "accel chip: 20 s behind" for s in sess["series"])
 
 
 def test_temperature_table_is_the_calibrations(warm):

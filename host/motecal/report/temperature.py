@@ -22,7 +22,9 @@ sensor's still data show on each axis:
   add at most tan 30 deg of theirs), and the magnitude error itself.
 
 The magnetometer's term is a relative sensitivity: its panels are in % of
-the reading.  The held-out error with and without the term is the one
+the reading.  A chip that calibrate found lagging the recorded temperature
+(``TempModel.lag_s``, ``calib.templag``) is drawn against its own: the
+recorded temperature through that lag, also drawn over the session.  The held-out error with and without the term is the one
 calibrate measured (``TempModel.extra``).
 """
 from __future__ import annotations
@@ -94,10 +96,17 @@ class SensorData:
         tm = sc.temperature
         t = data.sample_times()
         x = data.sensor(sensor)
-        ok = data.has(sensor) & np.isfinite(data.temp)
+        # a chip that lags the recorded (ITG3200) temperature is drawn against
+        # its own, the recorded one through the lag calibrate fitted
+        self.lag_s = float(getattr(tm, "lag_s", 0.0) or 0.0) if tm is not None else 0.0
+        temp = data.temp
+        if self.lag_s:
+            from ..calib.content import recording_parts
+            temp = tm.lagged(data.temp, t, recording_parts(data))
+        self.temp = temp
+        ok = data.has(sensor) & np.isfinite(temp)
         if sensor == "mag":
             ok &= ~(x == HMC5883L_OVERFLOW).any(axis=1)
-        temp = data.temp
         self.axes = [([], [], [], "") for _ in range(3)]      # (T, unc, cor, what)
         self.mag_T = self.mag_unc = self.mag_cor = None
         self.what = []
@@ -207,6 +216,8 @@ def sensor_charts(sd: SensorData) -> list:
     lo, hi = _xlim(tm, [a[0] for a in sd.axes] + [sd.mag_T if sd.mag_T is not None else []])
     grid = np.linspace(lo, hi, 200)
     quantity = "sensitivity change" if sensor == "mag" else "still offset"
+    xlabel = (f"chip temperature (C): the board's through a {sd.lag_s:.3g} s lag"
+              if sd.lag_s else "board temperature (C)")
     out = []
     for i in range(3):
         T, yu, yc, _ = sd.axes[i]
@@ -227,14 +238,14 @@ def sensor_charts(sd: SensorData) -> list:
         if len(T):
             ser.append(C.points(T, yu, C.BLUE, "without the temperature term"))
             ser.append(C.points(T, yc, C.ORANGE, "corrected (as delivered)"))
-        out.append(C.chart(f"{'xyz'[i]} axis", "board temperature (C)",
-                           f"{quantity} ({unit})", ser, xlim=(lo, hi)))
+        out.append(C.chart(f"{'xyz'[i]} axis", xlabel, f"{quantity} ({unit})", ser,
+                           xlim=(lo, hi)))
     if sd.mag_T is not None:
         mu = "%" if sensor == "mag" else unit
         what = "of the field" if sensor == "mag" else "(|v| - 1 g)"
         rms = [float(np.sqrt(np.mean(v ** 2))) for v in (sd.mag_unc, sd.mag_cor)]
         out.append(C.chart(f"magnitude error {what}: rms {rms[0]:.3g} -> {rms[1]:.3g} {mu}",
-                           "board temperature (C)",
+                           xlabel,
                            f"|v| error ({mu})",
                            [C.hline(0.0, C.GREY),
                             C.points(sd.mag_T, sd.mag_unc, C.BLUE,
@@ -275,6 +286,12 @@ def session_chart(data, board) -> dict:
     for r, names in refs.items():
         ser.append(C.hline(r, C.GREY, f"t_ref {r:.2f} C ({', '.join(names)})"))
     ser.append(C.line(t[order], T[order], C.BLACK, "board temperature", width=1.0))
+    for (n, tm), colour in zip(models, (C.RED, C.GREEN, C.BROWN)):
+        if getattr(tm, "lag_s", 0.0):
+            from ..calib.content import recording_parts
+            chip = tm.lagged(T, data.sample_times(), recording_parts(data))
+            ser.append(C.line(t[order], chip[order], colour,
+                              f"{n} chip: {tm.lag_s:.3g} s behind", dash=True, width=1.0))
     poses = [p for p in np.unique(data.label[data.label >= 1]) if p not in holds]
     if poses:
         pt = np.array([t[data.label == p].mean() for p in poses])
@@ -371,7 +388,9 @@ def part(mr, out: Path) -> Part:
                             f"mean temperatures; shaded: holds (still poses of 30 s or more) "
                             f"and the sweep; green band: the range each sensor's temperature "
                             f"term is valid in (clamped outside); dashed: its reference "
-                            f"temperature t_ref, where the static calibration holds."))
+                            f"temperature t_ref, where the static calibration holds; "
+                            f"dashed lines, when calibrate found a chip lagging the recorded "
+                            f"temperature: that chip's temperature through its lag."))
     view.append(("board temperature", [sess]))
     if tc.why:
         notes.append(f"mote {m}: no temperature term can be determined: {tc.why}")
@@ -407,6 +426,8 @@ def part(mr, out: Path) -> Part:
                 f"in (clamped there, as on the mote). "
                 + ("In % of the reading: the magnetometer's term is a relative sensitivity. "
                    if name == "mag" else "")
+                + (f"Against the chip's temperature: the recorded one through the "
+                   f"{sd.lag_s:.3g} s lag calibrate found. " if sd.lag_s else "")
                 + ("Per-axis points from poses or a sweep: readings within 30 deg of that "
                    "axis, magnitude error / its share. " if sd.mag_T is not None else "")
                 + f"Calibrate: {model or head}; the title's held-out rms is without -> with "

@@ -1,6 +1,7 @@
 """``motecal report``: the seed paper's tables and figures for one session.
 
     motecal report --db FILE --session NAME --out DIR [--mote ID] [--cal cal.json] [--seed N]
+                   [--diagnosis-report DIR]
 
 writes into ``DIR``:
 
@@ -11,8 +12,16 @@ writes into ``DIR``:
 * PNG figures per mote (magnitude per sample, 3D and three-plane scatter,
   residual against direction, coverage of directions, gyroscope Allan
   deviation, GA convergence);
+* what the calibration did, per mote (``choices``, ``temperature``,
+  ``poses``, ``diagnosis``, put together by ``calsections``): the model of
+  each sensor and why, the quality gate's verdict and metrics, the
+  temperature terms against the session's still data, the promised error
+  against the number of poses, the diagnosis kept with the session -- tables
+  and figures, the charts described once (``charts``) and drawn by matplotlib
+  and by view.html;
 * ``view.html``: the 3D views of ``motecal log --view`` for the stored session
-  (``motecal.view``; one self-contained file, the data embedded);
+  (``motecal.view``; one self-contained file, the data embedded) with those
+  charts;
 * ``index.html`` tying them together (relative links only; opens from disk).
 
 The report is built in a temporary directory beside ``DIR`` and renamed into

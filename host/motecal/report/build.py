@@ -11,7 +11,8 @@ Every number comes from the calibration engine (``motecal.calib``):
 
 A table the session has no usable data for (no accelerometer, no still
 gyroscope rows, no magnetometer set) is left out with a note; a session with
-nothing to report raises ``QualityError``.
+nothing to report raises ``QualityError``.  The sections on what the
+calibration did come from the modules named in ``calsections``.
 """
 from __future__ import annotations
 
@@ -27,6 +28,7 @@ from ..sessions.session import SENSOR_SLICES, UNITS, SessionData
 from ..view import static_page
 from ..view.state import session_state
 from . import charts as CH
+from . import calsections as CS
 from . import choices, diagnosis, poses, temperature
 from . import figures as F
 from . import html as H
@@ -505,39 +507,6 @@ def _view_section(store, session, data, out: Path, charts: dict) -> H.Section:
                      links=[(VIEW, "open the 3D views")])
 
 
-PART_TABLES = {"choices": ("What the calibration chose", choices.COLUMNS, choices.NOTES),
-               "temperature": ("Temperature terms", temperature.COLUMNS, temperature.NOTES),
-               "diagnosis": ("Findings of the diagnosis", diagnosis.COLUMNS, diagnosis.NOTES)}
-
-
-def _part_tables(parts: list, out: Path) -> None:
-    """Write each part table (all motes' rows) and put it in the first
-    section of its kind."""
-    for name, (title, cols, notes) in PART_TABLES.items():
-        rows = [r for p in parts for r in p.rows.get(name, [])]
-        home = next((p.section for p in parts if name in p.rows and p.section is not None),
-                    None)
-        if not rows or home is None:
-            continue
-        # a column no row fills (a term no calibration of these has) is left out
-        cols = [c for c in cols if any(r.get(c.key) not in (None, "") for r in rows)]
-        t = Table(name, title, cols, rows, notes)
-        write_table(t, out)
-        home.tables.append(t)
-
-
-def _meta_rows(parts: list) -> list:
-    """The parts' lines for the page's head, one row per key (the same text
-    for every mote once)."""
-    keyed: dict = {}
-    for p in parts:
-        for k, v in p.meta:
-            keyed.setdefault(k, [])
-            if v not in keyed[k]:
-                keyed[k].append(v)
-    return [(k, "; ".join(v)) for k, v in keyed.items()]
-
-
 def build_report(store, session, out_dir, *, mote=None, cal=None, seed: int = 0,
                  log=None, diagnosis_report=None) -> Path:
     """Write every file of the report into ``out_dir`` (an existing, empty
@@ -606,7 +575,7 @@ def build_report(store, session, out_dir, *, mote=None, cal=None, seed: int = 0,
         if figs or other:
             sections.append(H.Section(f"mote{mr.mote}", f"Figures, mote {mr.mote}",
                                       mr.source, figures=figs, notes=other))
-    _part_tables(parts, out)
+    CS.part_tables(parts, out)
     sections.append(_view_section(store, session, data, out, view_charts))
     meta = [("session", name), ("kind", data.kind),
             ("motes", ", ".join(map(str, motes))), ("samples", str(len(data))),
@@ -621,7 +590,7 @@ def build_report(store, session, out_dir, *, mote=None, cal=None, seed: int = 0,
              for mr in reports if mr.gate]
     if gates:
         meta.append(("quality gate of the calibration shown", "; ".join(gates)))
-    meta += _meta_rows(parts)
+    meta += CS.meta_rows(parts)
     index = out / "index.html"
     index.write_text(H.render(f"motecal report: session {name}", meta, sections),
                      encoding="utf-8")

@@ -269,6 +269,14 @@ RECT = """(function(e){var r=e.getBoundingClientRect();
           height: r.height};})"""
 
 
+def _whole_page(b, width=1100):
+    """The viewport as tall as the page: what a clip beyond the viewport
+    shows is then painted (text far below it may not be)."""
+    h = int(b.eval("document.documentElement.scrollHeight"))
+    b.call("Emulation.setDeviceMetricsOverride", width=width, height=h, deviceScaleFactor=1,
+           mobile=False)
+
+
 def _region_var(b, tmp_path, js_el, name) -> float:
     rect = b.eval(f"{RECT}({js_el})")
     assert rect["width"] > 50 and rect["height"] > 50, (name, rect)
@@ -292,6 +300,7 @@ def test_report_in_chromium(warm, tmp_path):
     with Browser(tmp_path, width=1100, height=900) as b:
         b.open((out / "index.html").as_uri())
         b.wait_for("Array.from(document.images).every(function(i){return i.complete;})")
+        _whole_page(b)
         for s in SECTIONS:
             sel = f"document.getElementById('{s}-mote1')"
             assert b.eval(f"!!{sel}"), s
@@ -307,6 +316,7 @@ def test_report_in_chromium(warm, tmp_path):
         # view.html: the same drawings on canvases
         b.open((out / "view.html").as_uri())
         b.wait_for("document.querySelectorAll('canvas.chart').length > 0")
+        _whole_page(b)
         want = sum(len(g["charts"]) for g in _view_doc(out)["motes"][0]["calibration"])
         n = b.eval("document.querySelectorAll('canvas.chart').length")
         assert n == want >= 10, (n, want)

@@ -31,6 +31,7 @@ from motecal.calib import rotations as R  # noqa: E402
 from motecal.targets import FORMATS, export  # noqa: E402
 from motecal.targets import ardupilot as AP, cheader as CH, imucal as IM, razor as RZ  # noqa: E402
 from motecal.targets import common as C  # noqa: E402
+from motecal.targets.common import ExportOptions  # noqa: E402
 
 try:
     from synthetic import paper_sized_session  # noqa: E402
@@ -117,8 +118,9 @@ def imucal_example():
 
 def unformatted(board, fmt):
     """The target's arithmetic on the float64 constants before formatting."""
+    opts = ExportOptions(axis_frame=(board.settings or {}).get("axis_frame"))
     if fmt in ("razor-c", "razor-yaml"):
-        return RZ._apply_fns(RZ.constants(board), board)
+        return RZ._apply_fns(RZ.constants(board, opts), board, opts)
     if fmt == "ardupilot":
         return AP.apply_fns(AP.params(board), board)
     if fmt == "imucal":
@@ -130,7 +132,12 @@ def stated(e, board, s):
     """The rounding a format states for a sensor, in the sensor's unit."""
     if e.fmt == "c-header":
         return float(np.max(CH.build(board)[1][s].worst_units))
-    return 1e-6 * (1.0 if s != "gyro" else 100.0)     # 9 digits in float32
+    bound = 1e-6 * (1.0 if s != "gyro" else 100.0)     # 9 digits in float32
+    if e.fmt == "razor-yaml" and s == "mag":
+        # entries under 1e-4 written to 4 decimals (no exponent for the ROS node's
+        # str()): up to 5e-5 of each count of |raw - centre| in the transform
+        bound += 5e-5 * 3 * 4096 / board.mag.lsb_per_unit
+    return bound
 
 
 def writers(board, data, title, tag=None):

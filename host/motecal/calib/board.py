@@ -34,6 +34,7 @@ from ..maths.sphere import coverage, distinct_directions, unit
 from ..sessions.session import (HMC5883L_OVERFLOW, LABEL_NONE, LABEL_ROT, NOMINAL_CHIPS, UNITS,
                                 SessionData)
 from ..sessions.still import StillThresholds
+from ..sessions.importer import CSV_FRAME
 from . import fit as _fit
 from .content import poses_from_stillness, temperature_content
 from . import gate as _gate
@@ -81,7 +82,10 @@ def calibrate_board(data: SessionData, *, model: str = "full", groups=None, seed
     board.settings = {"model": model, "params": list(groups) if groups else None,
                       "seed": seed, "gauge": gauge, "field_gauss": field,
                       "gyro_matrix": bool(gyro_matrix), "kfold": kfold,
-                      "skipped": {}, "insufficient": {}}
+                      "skipped": {}, "insufficient": {},
+                      # the axes the calibration is in (export-cal's Razor frame): a
+                      # session without it is the mote's own samples, in the chips' axes
+                      "axis_frame": (data.meta or {}).get("axis_frame") or CSV_FRAME}
     if found:
         board.settings["poses_found"] = found
     chips = dict(NOMINAL_CHIPS)

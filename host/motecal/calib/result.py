@@ -151,7 +151,9 @@ class SensorCalibration:
             return y + self.c
         tm = self.temperature
         dt = np.broadcast_to(tm.dt(temp_c), y.shape[:-1])[..., None]
-        return y * (1.0 + tm.scale_per_c * dt) + self.c + tm.offset_per_c * dt
+        # a coefficient that was not fitted (NaN, null in cal.json) is 0, as on the mote
+        scale, offset = np.nan_to_num(tm.scale_per_c), np.nan_to_num(tm.offset_per_c)
+        return y * (1.0 + scale * dt) + self.c + offset * dt
 
     def param(self, name: str) -> Param:
         for p in self.params:

@@ -56,7 +56,10 @@ def write(board, opts: ExportOptions = ExportOptions()) -> Export:
                          f"and gain per TEMP_OUT count: tinyos/ninedof_correct.c) */")
         rounding[s] = (f"fixed point Q{fs.shift}, worst "
                        + ", ".join(f"{v:.2f}" for v in r.worst_lsb)
-                       + f" LSB ({np.max(r.worst_units):.3g} {FP.UNITS[s]})")
+                       + f" LSB ({np.max(r.worst_units):.3g} {FP.UNITS[s]})"
+                       + ("" if r.temp is None else
+                          f"; its temperature terms held (rounding over the range: offset <= "
+                          f"{r.temp_offset_error:.2g} counts, gain <= {r.temp_gain_error:.2g})"))
     body = ", ".join(f"0x{b:02x}" for b in calset)
     lines += ["/* the ninedof_calset (tinyos/NineDofMsg.h) as stored and uploaded */",
               f"static const uint8_t motecal_calset[{len(calset)}] = {{{body}}};", "",

@@ -1,7 +1,8 @@
 # motecal: `make demo` and `make test` do all set-up on a fresh Debian machine.
 #
 #   make demo    the main job end to end on the simulator (sqlite), ends with a report
-#   make test    every test: Python (pytest), C logic with gcc, and avr-gcc + simavr
+#   make test    every test: Python (pytest), C logic with gcc, and avr-gcc + simavr,
+#                in parallel on every core
 #   make bench   benchmarks: measured figures next to the goals (not pass/fail),
 #                written to bench/RESULTS.md and README.md's goals table
 
@@ -57,8 +58,13 @@ emudeps:
 	@$(if $(call missing,$(EMU_PACKAGES)),$(call apt_install,$(call missing,$(EMU_PACKAGES))),true)
 
 # --- the two commands -----------------------------------------------------
+# in parallel (pytest-xdist): one worker per core, a test module at a time on a
+# worker, modules with slow tests first (tests/conftest.py); TEST_JOBS=0: all in
+# this process
+TEST_JOBS ?= auto
 test: venv sysdeps
-	$(PY) -m pytest -q -p no:cacheprovider $(PYTEST_ARGS) tests
+	$(PY) -m pytest -q -p no:cacheprovider -n $(TEST_JOBS) --dist loadfile --no-loadscope-reorder \
+	  $(PYTEST_ARGS) tests
 
 demo: venv demodeps
 	$(PY) scripts/demo.py --out $(DEMO_DIR)

@@ -337,11 +337,6 @@ int main(int argc, char **argv)
     }
     if (settle < 0)
         settle = seconds >= 10 ? 5.0 : 0.0;
-    /* a TCP client of a serial port that goes away must not end the run:
-     * write() then fails with EPIPE, which uart.c handles (the default
-     * SIGPIPE would kill the harness before it reports) */
-    signal(SIGPIPE, SIG_IGN);
-
     FILE *log = NULL;
     if (twi_log && !(log = fopen(twi_log, "w"))) {
         fprintf(stderr, "ninedof-emu: cannot write %s: %s\n", twi_log, strerror(errno));

@@ -102,6 +102,7 @@ def test_stop_rule():
         assert cap.met is met
 
 
+@pytest.mark.slow
 def test_adaptive_reaches_the_target_with_few_poses():
     """Fast path (the same guide and person, no radio), a few boards: the flow
     stops once the promise meets 0.5 mg, with at most a third of 80 poses on
@@ -118,6 +119,7 @@ def test_adaptive_reaches_the_target_with_few_poses():
     assert len(bad) <= 1, f"seeds failing: {bad}"
 
 
+@pytest.mark.slow
 def test_end_to_end_through_the_simulator(tmp_path):
     """sim (person following the suggestions) -> radio -> BaseStation ->
     serial -> logger with the adaptive guide -> sqlite -> calibrate: every
@@ -155,6 +157,7 @@ def test_end_to_end_through_the_simulator(tmp_path):
     assert need["best_subset"] is not None and need["best_subset"] <= need["in_order"]
 
 
+@pytest.mark.slow
 def test_calibrate_reports_the_poses_needed(tmp_path):
     """`motecal calibrate` on a finished guided session: a 'poses needed'
     section, and the same figures in cal.json (the accelerometer's quality);

@@ -56,6 +56,7 @@ def raw_records(rng, n):
     return raw.astype(np.int16)
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None)
 @given(st.integers(0, 2**32 - 1))
 def test_within_one_lsb_of_the_float_reference(seed):

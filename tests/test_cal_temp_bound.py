@@ -13,6 +13,7 @@ output is also the integer model's (fixedpoint.feedback_correct) bit for
 bit.  The mean of still samples stays unbiased (within about 1/N LSB).
 """
 import numpy as np
+import pytest
 
 from motecal.firmware import fixedpoint as FP
 from motecal.firmware import mote_c as M
@@ -129,6 +130,7 @@ def _run(seed):
     return worst, edge, sat, clamp
 
 
+@pytest.mark.slow
 def test_within_the_bound_over_random_sets_and_worst_cases():
     results = {seed: _run(seed) for seed in SEEDS}
     bad = {s: r[0] for s, r in results.items() if not r[0] < FP.TEMP_BOUND_LSB}

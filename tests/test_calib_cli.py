@@ -6,6 +6,7 @@ import pytest
 
 from motecal.commands.calibrate import out_path
 from motecal.sessions import importer
+from clirun import store_db
 from synthetic import paper_sized_session
 from motecal.commands.main import main
 from motecal.sessions.session import SessionData
@@ -23,22 +24,12 @@ def _concat(name, parts):
 
 
 @pytest.fixture(scope="module")
-def db(tmp_path_factory, request):
-    """Two simulated motes ("two") and, when the measured data are here, the
-    disturbed HMC5843 sweep ("disturbed": its test asks for them itself)."""
-    from conftest import MEASURED
-    path = tmp_path_factory.mktemp("calcli") / "t.db"
-    with open_store(str(path), create=True) as st:
-        st.save_session(_concat("two", [paper_sized_session(3, mote=1, rotation=False,
-                                                            n_poses=30, per_pose=100),
-                                        paper_sized_session(3, mote=2, rotation=False,
-                                                            n_poses=30, per_pose=100)]))
-        if MEASURED.is_dir():
-            bad = importer.read_razor_float(MEASURED / "hmc5843-disturbed-sweep" /
-                                            "magnetom.float", chip="hmc5843")
-            bad.name = "disturbed"
-            st.save_session(bad)
-    return str(path)
+def db(tmp_path_factory):
+    """Two simulated motes ("two")."""
+    return store_db(tmp_path_factory.mktemp("calcli"), _concat(
+        "two", [paper_sized_session(3, mote=1, rotation=False, n_poses=30, per_pose=100),
+                paper_sized_session(3, mote=2, rotation=False, n_poses=30, per_pose=100)]),
+        "two")
 
 
 def test_two_motes_two_files_and_the_database(db, tmp_path, capsys):
@@ -101,7 +92,10 @@ def test_any_accel_subset_with_a_magnetometer(db, tmp_path, capsys, params):
     assert not any("the magnetometer is fitted with" in n for n in d["mag"]["notes"])
 
 
-def test_refused_board_exit_3_and_force(db, measured, tmp_path, capsys):
+def test_refused_board_exit_3_and_force(measured, tmp_path, capsys):
+    """The disturbed HMC5843 sweep (measured)."""
+    db = store_db(tmp_path, importer.read_razor_float(
+        measured / "hmc5843-disturbed-sweep" / "magnetom.float", chip="hmc5843"), "disturbed")
     out = tmp_path / "bad.json"
     rc = main(["calibrate", "--db", db, "--session", "disturbed", "--out", str(out),
                "--seed", "0"])

@@ -62,12 +62,11 @@ def test_bad_diagnosis_file_is_one_line_exit_2(tmp_path, capsys):
         assert rc == 2 and len(err.strip().splitlines()) == 1 and "--diagnosis" in err
 
 
-def test_disturbed_sweep_one_decision(tmp_path, capsys):
+def test_disturbed_sweep_one_decision(measured, tmp_path, capsys):
     """The HMC5843 sweep in a disturbed place: diagnose says the field cannot
     give a trustworthy calibration, and calibrate (with or without the
     diagnosis) refuses the magnetometer, for the same rms limit."""
-    from conftest import MEASURED
-    data = read_razor_float(MEASURED / "hmc5843-disturbed-sweep" / "magnetom.float",
+    data = read_razor_float(measured / "hmc5843-disturbed-sweep" / "magnetom.float",
                             chip="hmc5843")
     db = store_db(tmp_path, data)
     dj = tmp_path / "d.json"

@@ -125,6 +125,7 @@ def repeated_boards():
     return out
 
 
+@pytest.mark.slow
 def test_gyro_bias_std_is_the_error_of_the_reported_bias(repeated_boards):
     z = []
     for d, b in repeated_boards:

@@ -30,6 +30,7 @@ def _gsens_session(seed):
     return P.simulate([P.make_plant("g_sensitivity", "gyro", rng, scale=2.0)], "static80", seed)
 
 
+@pytest.mark.slow
 def test_kept_diagnosis_is_used_by_default_and_said(tmp_path, capsys):
     ses = _gsens_session(5)
     db = store_db(tmp_path, ses)
@@ -110,6 +111,7 @@ def test_data_key_changes_with_the_rows():
     assert data_key(other) != k and k.startswith(f"{len(ses)}:")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cause", ["stale_samples-accel", "saturation-accel"])
 def test_never_worse_than_without(cause):
     """Leaving readings out is kept only when the held-out error falls: on 3

@@ -56,6 +56,7 @@ def boards():
     return out
 
 
+@pytest.mark.slow
 def test_one_drift_model_and_both_correct_twice(boards):
     """Per board: none, temperature only, warm-up only, both.  Both (the warm-up's
     end-of-session bias and the temperature slope through the session-mean

@@ -129,12 +129,11 @@ def test_razor_board_calibrate_command_accepts_it(measured, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("board", ["razor1", "razor2"])
-def test_razor_gyro_hold_calibrates_the_gyro_bias_alone(board):
+def test_razor_gyro_hold_calibrates_the_gyro_bias_alone(measured, board):
     """The Razor ``*_gyr_xyz.raw`` files are still holds recorded for the gyro
     bias: calibrated (gate accepted), the accelerometer and magnetometer
     reported skipped, not refused."""
-    from conftest import MEASURED
-    d = importer.read_any([str(MEASURED / "sensorstick-boards" / board / f"{board}_gyr_xyz.raw")])
+    d = importer.read_any([str(measured / "sensorstick-boards" / board / f"{board}_gyr_xyz.raw")])
     b = calibrate_board(d, seed=1, kfold=0)
     dec = gate.decide(b)
     assert dec.accepted and b.gyro is not None and b.accel is None and b.mag is None, dec

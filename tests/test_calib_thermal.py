@@ -59,6 +59,7 @@ def test_constant_temperature_gives_no_model_and_says_why():
     assert bc.to_json()["format_version"] == 1
 
 
+@pytest.mark.slow
 def test_gyro_and_accel_coefficients_match_the_planted_ones(warm):
     """The fitted correction per degree equals minus the planted slope seen
     at the output (offset + gain x the still reading, through the

@@ -54,6 +54,7 @@ CASES = ["idle-constant-accel-x", "idle-constant-all", "idle-clipped-mag-y", "id
          "static-constant-accel-x", "static-nan-cells", "static-dup-times", "static-huge"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", CASES)
 def test_no_traceback_on_hostile_imports(name, tmp_path, capsys):
     rng = np.random.default_rng(abs(hash(name)) % 2**32)

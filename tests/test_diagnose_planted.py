@@ -60,6 +60,7 @@ def _runs(key):
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("key", KEYS, ids=[f"{c}-{s}" for c, s in KEYS])
 def test_planted_cause_is_named_with_the_truths_gain(key):
     """Named in every seed but at most one (a tool that names the cause in
@@ -102,6 +103,7 @@ def test_planted_causes_name_nothing_on_other_sensors():
 CLEAN = [(k, lab) for k in ("static80", "idle", "rotation") for lab in (True, False)]
 
 
+@pytest.mark.slow
 def test_clean_boards_give_no_finding():
     """Clean boards of every session kind, labelled and not: at most one
     board of the 18 with any finding (the criterion's family-wise level is

@@ -60,6 +60,7 @@ def test_export_import_calibrate_gives_the_logged_calibration(logged, capsys):
         assert pb[k][0] == pytest.approx(pa[k][0], rel=1e-6, abs=1e-9), k
 
 
+@pytest.mark.slow
 def test_unlabelled_export_imports_as_static_poses(logged, capsys):
     """With the labels blanked the importer finds the poses itself (at the
     batch times it saw 22730 Hz, no still window, and called it rotation)."""

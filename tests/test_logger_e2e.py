@@ -11,6 +11,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from motecal.sessions.session import LABEL_ROT
 from motecal.sessions.store import open_store
@@ -32,6 +33,7 @@ def _sent_equals_stored(world, data, m):
     return sent, dm
 
 
+@pytest.mark.slow
 def test_static80_three_motes_over_tcp(tmp_path):
     world = World(motes=3, session="static80", seed=1)
     server, port = serve_in_thread(world)

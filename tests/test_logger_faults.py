@@ -293,6 +293,7 @@ def test_signal_ends_the_session_cleanly(tmp_path, sig, word):
     assert {m: c["samples"] for m, c in stats["motes"].items()} == stored
 
 
+@pytest.mark.slow
 def test_bad_command_lines(tmp_path):
     db = str(tmp_path / "ok.db")
     with open_store(db, create=True) as st:

@@ -107,6 +107,7 @@ def measured_db(tmp_path_factory, measured):
 
 # ------------------------------------------------------------------ the simulated report
 
+@pytest.mark.slow
 def test_files_exist_images_decode_and_are_not_blank(sim):
     out = sim["out"]
     pngs = sorted(out.glob("*.png"))
@@ -266,6 +267,7 @@ def test_csv_and_markdown_agree(sim):
 
 # ------------------------------------------------------------------ measured data, CLI
 
+@pytest.mark.slow
 def test_cli_measured_two_motes_tables_per_mote(measured_db, tmp_path, capsys):
     out = tmp_path / "rep"
     assert main(["report", "--db", str(measured_db), "--session", "razor_sweep",

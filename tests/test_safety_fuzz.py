@@ -254,3 +254,202 @@ test_fuzz_sim = _test("sim", 10)
 test_fuzz_log = _test("log", 15)
 test_fuzz_upload = _test("upload", 15)
 test_fuzz_export_cal = _test("export-cal", 12)
+
+
+# ---------------------------------------------------------------- imports: options and float logs
+# (issue 28: tracebacks 0 and silent corruptions 0 over import options and float logs)
+
+import math                                                    # noqa: E402
+
+import interop_data as D                                        # noqa: E402
+from motecal.sessions import floatlog as FL                     # noqa: E402
+from motecal.sessions import ranges as RG                       # noqa: E402
+
+G_STD = 9.80665
+# each sensor's file: its name, its LSB per unit, its unit, the value of one count in it
+FLOAT_FILES = {"accel": ("fz_acc.txt", 2048.0, "m/s^2", G_STD / 2048),
+               "gyro": ("fz_gyr.txt", 1 / 0.07, "rad/s", math.radians(0.07)),
+               "mag": ("fz_mag.txt", 1090.0, "uT", 100 / 1090)}
+OPTION_VALUES = {
+    "--scale": ["accel=2048", "gyro=14.2857", "mag=1090", "accel=1e-300", "gyro=1e-300",
+                "mag=1e9", "accel=0.5", "accel=1", "accel=32767", "accel=32768", "gyro=4096",
+                "gyro=4097", "mag=50", "mag=49", "accel=nan", "accel=-3", "x"],
+    "--gravity": ["9.80665", "9.81", "9.5", "10", "10.01", "9.49", "-9.81", "0", "nan", "inf",
+                  "1e300", "x", ""],
+    "--rate-hz": ["100", "0.01", "0.0099", "100000", "100001", "1e-300", "1e300", "nan", "-1",
+                  "0", "x"],
+    "--angle-deg": ["360", "-360", "10", "9.99", "3600", "3601", "6.28", "nan", "inf", "x"],
+    "--rpm": ["33.333", "45", "33.333,45", "0.1", "1e300", "nan", "x"],
+    "--rate-dps": ["200", "1", "0.99", "4000", "4001", "nan"],
+    "--units": ["si", "accel=g", "accel=m/s^2", "gyro=deg/s", "mag=ut", "mag=gauss", "counts",
+                "x"],
+    "--chip": ["accel=mine:2048", "accel=mine:1e-300", "gyro=mpu6050", "mag=hmc5843",
+               "accel=mine:nan", "mag=mine:40"],
+    "--columns": ["accel", "gyro", "mag", "accel,gyro", "x"],
+}
+
+
+def _counts(sensor, n, rng):
+    """Integer counts a still-then-turning board gives at the file's LSB."""
+    lsb = FLOAT_FILES[sensor][1]
+    base = {"accel": [0, 0, 2048], "gyro": [3, -2, 1], "mag": [200, -150, 400]}[sensor]
+    c = np.array(base, float) + rng.normal(0, 3, (n, 3))
+    c[n // 2:] += rng.normal(0, 0.1 * lsb, 3)                   # a second pose
+    return np.rint(c)
+
+
+def _check_stored(db, name, values, units_given, tmp):
+    """An import that exited 0 stored nothing silently wrong: each sample is
+    its line's value at the stored scale within half a count, a line is left
+    out only beyond every chip's reading (and the notes say so), the scales
+    and rates lie in their ranges, the metadata is JSON without NaN, and the
+    session exports and imports back unchanged."""
+    from motecal.sessions.store import open_store
+    with open_store(db) as st_:
+        d = st_.load_session(name)
+    json.dumps(d.meta, allow_nan=False)
+    assert np.isfinite(d.t).all()
+    left_out = np.setdiff1d(np.arange(len(values)), d.seq)
+    for s, v in values.items():
+        unit = d.meta["units_in"][s]
+        lsb = d.scales[s]
+        assert RG.SCALE[s].holds(lsb), (s, lsb)
+        f = 1 / lsb if unit == "counts" else FL.unit_factor(unit, d.meta["gravity_mss"])
+        want = v[d.seq] * f * lsb
+        got = d.sensor(s)
+        assert (np.abs(got - want) <= 0.5 + 1e-6 * np.abs(want) + (np.abs(got) == 32767)).all(), \
+            (s, unit, lsb, np.abs(got - want).max())
+        if len(left_out):
+            assert "left out" in d.meta["notes"]
+        if unit == FL.SI_UNITS[s]:
+            # the physics: the readings in g, deg/s, gauss are the file's, at a gravity
+            # within 3 % of the standard one (a flipped or absurd --gravity is not)
+            si = v[d.seq] * FL.unit_factor(unit, G_STD)
+            assert np.allclose(d.physical(s), si, rtol=0.035, atol=0.5 / lsb + 1e-9), s
+    for i in left_out:
+        assert any(not (np.abs(v[i] * FL.unit_factor(d.meta["units_in"][s], d.meta["gravity_mss"]))
+                        <= RG.READING_MAX[s].hi).all() for s, v in values.items()), i
+    for r in d.meta["rates_hz"].values():
+        assert RG.RATE_HZ.holds(r)
+    out = f"{tmp}/back.csv"
+    assert motecal("export", "--db", db, "--session", name, "--csv", out)[0] == 0
+    rc, _, err = motecal("import", out, "--db", db, "--session", name + "_back")
+    assert rc == 0, err
+    with open_store(db) as st_:
+        b = st_.load_session(name + "_back")
+    np.testing.assert_array_equal(b.raw, d.raw)
+    np.testing.assert_array_equal(b.seq, d.seq)
+
+
+def _run_import(tmp, argv, values=None):
+    db = f"{tmp}/m.db"
+    make_db(db, "board")
+    before = digest(db)
+    rc, out, err = motecal("import", *argv, "--db", db, "--session", "fz")
+    where = f"motecal import {' '.join(map(repr, argv))}"
+    assert rc in (0, 2), f"{where}: exit {rc}: {err}"
+    assert "Traceback" not in err, where
+    if rc:
+        assert err.count("\n") == 1 and err.endswith("\n"), f"{where}: {err!r}"
+        assert digest(db) == before, f"{where}: the database changed"
+    elif values is not None:
+        _check_stored(db, "fz", values, None, tmp)
+    return rc, err
+
+
+@st.composite
+def import_option_runs(draw):
+    fmt = draw(st.sampled_from(["float-log"] * 3 + ["imucal-session", "motioncal"]))
+    opts = []
+    for opt in draw(st.lists(st.sampled_from(sorted(OPTION_VALUES)), unique=True, min_size=1,
+                             max_size=3)):
+        opts += [opt, draw(st.sampled_from(OPTION_VALUES[opt]))]
+    sensor = draw(st.sampled_from(sorted(FLOAT_FILES)))
+    return fmt, sensor, opts, draw(st.integers(0, 2 ** 16))
+
+
+@settings(FUZZ, max_examples=40)
+@given(import_option_runs())
+def test_fuzz_import_options(run):
+    """Every float option of `import`, valid, at its range's edges or hostile,
+    on a float log, an imucal session or a MotionCal log."""
+    fmt, sensor, opts, seed = run
+    rng = np.random.default_rng(seed)
+    with tempfile.TemporaryDirectory(prefix="motecal-fuzz-") as tmp:
+        values = None
+        if fmt == "float-log":
+            name, lsb, unit, step = FLOAT_FILES[sensor]
+            counts = _counts(sensor, 300, rng)
+            path = D.write_float_log(counts * step, f"{tmp}/{name}", "{:.8f}")
+            if "--columns" not in opts and "--units" not in opts and "--chip" not in opts:
+                values = {sensor: counts * step}
+        elif fmt == "imucal-session":
+            path, _ = D.write_session(D.ferraris(seed % 50, hold_s=0.5, turn_s=1.0),
+                                      f"{tmp}/sess.csv")
+        else:
+            raw = rng.integers(-500, 500, (200, 9))
+            raw[:, 2] += 8000
+            path = f"{tmp}/motioncal.log"
+            Path(path).write_text("".join("Raw:" + ",".join(map(str, r)) + "\n" for r in raw))
+        _run_import(tmp, [path, *opts], values)
+
+
+GOOD_LINE = object()
+LINE_KINDS = {
+    "glitch": ["1e20 0.1 9.8", "1e39 0 0", "-1e20 0 0", "1e300 1e300 1e300", "0 0 1e25"],
+    "offgrid": ["9.80001 0.1 9.8", "0.333 0.2 0.1"],
+    "bad": ["nan 0 0", "inf 1 2", "x 1 2", "1 2", "1 2 3 4", "1,,2,3", "1e400 0 0", "é 1 2"],
+    "blank": ["", "   ", "\t"],
+}
+
+
+@st.composite
+def float_log_files(draw):
+    sensor = draw(st.sampled_from(sorted(FLOAT_FILES)))
+    n = draw(st.integers(1, 400))
+    plan = draw(st.lists(st.tuples(st.integers(0, n), st.sampled_from(
+        ["glitch", "offgrid", "bad", "blank", "zeros"])), max_size=4))
+    sep = draw(st.sampled_from([" ", ",", ";", "\t", "  ", ", "]))
+    rate = draw(st.sampled_from([None, "50", "0.5"]))
+    return sensor, n, plan, sep, rate, draw(st.integers(0, 2 ** 16))
+
+
+@settings(FUZZ, max_examples=30)
+@given(float_log_files())
+def test_fuzz_float_logs(case):
+    """Float logs of good lines with glitches, values off the grid, bad lines,
+    blank lines and runs of zeros: a bad line or a zero run is one line, a
+    glitch is left out and named, nothing else is lost or changed."""
+    sensor, n, plan, sep, rate, seed = case
+    rng = np.random.default_rng(seed)
+    name, lsb, unit, step = FLOAT_FILES[sensor]
+    good = _counts(sensor, n, rng) * step
+    lines = [sep.join(f"{v:.8f}" for v in row) for row in good]
+    values = [row for row in good]
+    must_fail = False
+    for at, kind in sorted(plan, reverse=True):
+        if kind == "zeros":
+            k = int(rng.integers(1, 40))
+            lines[at:at] = [sep.join(["0"] * 3)] * k
+            values[at:at] = [np.zeros(3)] * k
+            must_fail |= k >= RG.ZERO_RUN and sensor != "gyro"
+            continue
+        text = LINE_KINDS[kind][int(rng.integers(len(LINE_KINDS[kind])))]
+        lines.insert(at, text)
+        if kind == "blank":
+            continue
+        if kind == "bad":
+            must_fail = True
+            values.insert(at, np.full(3, np.nan))
+        else:
+            values.insert(at, np.array([float(x) for x in text.split()]))
+    with tempfile.TemporaryDirectory(prefix="motecal-fuzz-") as tmp:
+        path = f"{tmp}/{name}"
+        Path(path).write_text("\n".join(lines) + "\n")
+        argv = [path] + (["--rate-hz", rate] if rate else [])
+        v = np.array(values) if values else np.zeros((0, 3))
+        glitches = ~(np.abs(v * FL.unit_factor(FL.SI_UNITS[sensor])) <= RG.READING_MAX[sensor].hi).all(axis=1)
+        must_fail |= glitches.sum() > RG.ABSURD_MAX_FRACTION * len(v) or not len(v)
+        rc, err = _run_import(tmp, argv, {sensor: v} if len(v) and not np.isnan(v).any() else None)
+        if must_fail:
+            assert rc == 2, f"{lines[:3]}...: a bad file was stored ({plan})"

@@ -76,6 +76,7 @@ def static80(tmp_path_factory):
     return out.read_bytes(), json.loads(truth.read_text()), r.stderr
 
 
+@pytest.mark.slow
 def test_out_decodes_identically_with_tinyos3(static80):
     data, _, _ = static80
     ours = P.decode_stream(data)

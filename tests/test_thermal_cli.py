@@ -10,6 +10,7 @@ import json
 import os
 
 import numpy as np
+import pytest
 
 from clirun import motecal
 from motecal.sessions.store import open_store
@@ -18,6 +19,7 @@ from warmup import plant_temperature, simulate_plant, thermal_board, warmup_sess
 SEED = int(os.environ.get("MOTECAL_TEST_SEED", "0")) + 11
 
 
+@pytest.mark.slow
 def test_calibrate_and_diagnose_a_session_with_temperature(tmp_path):
     m, b = thermal_board(SEED)
     ses = warmup_session(b, SEED, hold_s=300.0, n_poses=40)

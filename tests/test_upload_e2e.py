@@ -22,6 +22,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from motecal import upload as U
 from motecal.capture.guide import DEFAULT_MIN_ANGLE, DEFAULT_POSE_SAMPLES, GuidedFlow
@@ -65,6 +66,7 @@ def _pose_means(rec, label, sl, k):
         np.array([np.linalg.norm(rec[label == p, sl] / k, axis=1).std() for p in poses])
 
 
+@pytest.mark.slow
 def test_log_calibrate_upload_log_again(tmp_path):
     ee = tmp_path / "eeprom.json"
     world = World(motes=1, session="static80,static80", seed=1, eeprom=ee)

@@ -119,6 +119,7 @@ def test_view_address():
 
 
 # ------------------------------------------------------------------ a static80 run
+@pytest.mark.slow
 def test_static80_page_state_and_events_follow_the_logger(run):
     r = run(kind="static80", motes=1, speed=30)
     # the page, its script and style: served by motecal, nothing from elsewhere
@@ -164,6 +165,7 @@ def test_static80_page_state_and_events_follow_the_logger(run):
 
 
 # ------------------------------------------------------------------ a sweep
+@pytest.mark.slow
 def test_rotation_sweep_points_fit_and_coverage(run):
     r = run(kind="rotation", motes=1, seed=5, speed=4)
     sw = None
@@ -282,6 +284,7 @@ def test_port_taken_one_line_exit_2_nothing_logged(tmp_path):
     assert bad.returncode == 2 and "--view" in bad.stderr and not db.exists()
 
 
+@pytest.mark.slow
 def test_stuck_viewers_cost_nothing_and_the_last_state_is_the_database(run):
     """Read as fast as it goes, with one viewer reading and nine that connect
     and never read (more than the stream limit): every sample reaches the

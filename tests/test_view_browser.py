@@ -89,6 +89,7 @@ INK = """(function(id){var c=document.getElementById(id); var d=c.getContext('2d
   return n;})"""
 
 
+@pytest.mark.slow
 def test_static80_in_chromium(procs, tmp_path):
     with Browser(tmp_path) as b:        # the browser first: its start-up is no race
         log, url, db = _serve_and_log(procs, tmp_path, "static80", motes=2, speed=15, seed=8)
@@ -143,6 +144,7 @@ def st_events(db):
         return st.events("static80")
 
 
+@pytest.mark.slow
 def test_sweep_in_chromium(procs, tmp_path):
     with Browser(tmp_path) as b:
         log, url, db = _serve_and_log(procs, tmp_path, "rotation", motes=1, speed=2, seed=9)

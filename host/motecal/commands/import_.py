@@ -3,6 +3,9 @@ other tools' formats by ``sessions.foreign``, docs/interop.md) and saved as
 one session; nothing is written when a file is bad."""
 from __future__ import annotations
 
+import argparse
+
+from ..sessions import ranges
 from ..sessions.foreign import FORMATS as FOREIGN, read_session
 from ..sessions.importer import FORMATS, KINDS, summary
 from ..sessions.store import open_store
@@ -31,7 +34,8 @@ def register(subparsers) -> None:
         description="Read measured data (the motecal CSV, Razor AHRS text or float logs, "
                     "timestamped CSV pairs; imucal's Ferraris sessions, FreeIMU-cal float "
                     "logs and turntable runs, MotionCal Raw: logs) and save it as one "
-                    "session; nothing is written when a file is bad.")
+                    "session; nothing is written when a file is bad.",
+        epilog=ranges.help_text(), formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("files", nargs="+", metavar="FILE",
                    help="data files (or one timestamped run directory)")
     p.add_argument("--db", required=True, metavar="FILE", help="session database (created if missing)")
@@ -51,18 +55,24 @@ def register(subparsers) -> None:
                         "e.g. gyro=deg/s (repeatable)")
     g.add_argument("--scale", action="append", default=[], metavar="SENSOR=LSB",
                    help="LSB per g, deg/s or gauss to turn floats into counts (default: the "
-                        "chip's, else the file's own step); repeatable")
+                        "chip's, else the file's own step); repeatable. Range: "
+                        + "; ".join(f"{s} {r.text()}" for s, r in ranges.SCALE.items()))
     g.add_argument("--gravity", type=float, metavar="M/S2",
-                   help="m/s^2 per g for m/s^2 inputs (default 9.80665; imucal's example: 9.81)")
+                   help="m/s^2 per g for m/s^2 inputs (default 9.80665; imucal's example: 9.81). "
+                        f"Range: {ranges.GRAVITY.text()}")
     g.add_argument("--rate-hz", type=float, metavar="HZ",
-                   help="sample rate of files without times (imucal formats need it)")
+                   help="sample rate of files without times (imucal formats need it). "
+                        f"Range: {ranges.RATE_HZ.text()}")
     g.add_argument("--rate-dps", action="append", default=[], metavar="DPS",
-                   help="turntable speed(s), deg/s: steady turns at it become rotations")
+                   help="turntable speed(s), deg/s: steady turns at it become rotations. "
+                        f"Range: {ranges.TURN_DPS.text()}")
     g.add_argument("--rpm", action="append", default=[], metavar="RPM",
-                   help="turntable speed(s) in rpm, e.g. 33.333,45")
+                   help="turntable speed(s) in rpm, e.g. 33.333,45. Range: "
+                        f"{ranges.TURN_DPS.lo / 6:.3g}..{ranges.TURN_DPS.hi / 6:.4g} rpm")
     g.add_argument("--columns", metavar="SENSORS",
                    help="sensors of a float log's columns, e.g. gyro or accel,gyro "
                         "(default: from the file name)")
     g.add_argument("--angle-deg", type=float, metavar="DEG",
-                   help="size of the imucal session's turns (default 360)")
+                   help="size of the imucal session's turns (default 360). "
+                        f"Range: +-{ranges.ANGLE_DEG.text()}")
     p.set_defaults(func=run)

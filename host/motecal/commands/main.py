@@ -78,6 +78,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("motecal: interrupted", file=sys.stderr)
         return 130
+    except MemoryError:
+        # the system failed under a correct command (exit 1); what it was writing is one
+        # transaction or an atomic file, so nothing is half-written
+        print("motecal: error: out of memory: the data needs more memory than the system "
+              "gives this process (import a long recording in parts)", file=sys.stderr)
+        return 1
     except BrokenPipeError:
         return 141
 

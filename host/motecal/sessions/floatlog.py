@@ -1,7 +1,8 @@
 """Float inputs with a declared scale: physical values (m/s^2, rad/s, uT, ...)
-back to the integer counts a session holds, and the readers of plain float
-logs (FreeIMU-cal's text logs: three numbers a line, one sensor a file) and
-turntable recordings at a known rate.
+back to the integer counts a session holds; the lines of plain float logs
+(FreeIMU-cal's text logs: three numbers a line, one sensor a file) and the
+turns of turntable recordings at a known rate.  ``floatsession`` puts these
+together into sessions (and reads the float logs).
 
 Converting
 ----------
@@ -9,22 +10,31 @@ A value ``v`` in unit ``u`` becomes ``counts = v * f_u * lsb`` where ``f_u``
 converts ``u`` to motecal's unit of that sensor (g, deg/s, gauss; m/s^2 ->
 g divides by ``gravity``, 9.80665 unless given) and ``lsb`` is the LSB per
 motecal unit: declared with ``--scale SENSOR=LSB`` or a chip (``--chip``),
-else the file's own resolution (its smallest step, so the counts are the
-integers the logger saw).  Counts are rounded to integers (the store keeps
-int16); :class:`Rounding` says how far the rounding moved them: at most half
-a count, and about 0 when the file holds scaled integers.  A declared scale
-that does not match the file's step is reported (the rounding then adds up
-to half a count of quantisation, sd 0.29 count).
+else the file's own resolution (its smallest recurring step, so the counts
+are the integers the logger saw).  Counts are rounded to integers (the store
+keeps int16); :class:`Rounding` says how far the rounding moved them: at
+most half a count, and about 0 when the file holds scaled integers.  A
+declared scale that does not match the file's step is reported (the
+rounding then adds up to half a count of quantisation, sd 0.29 count).
+
+Every scale, rate and gravity, given or inferred, lies in its physical range
+(``ranges``), or the import stops with one line.  A line whose reading no
+chip gives (beyond ``ranges.READING_MAX``: a serial glitch such as
+``1e20 0.1 9.8``) is left out of the session and of the inferred scale, and
+named in the notes, up to ``ranges.ABSURD_MAX_FRACTION`` of the lines.
 """
 from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from itertools import chain
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import UserError
+from . import ranges as R
+from .cells import Rows, _fail, _number, text_chunks
 from .options import option_parts
 from .session import LABEL_ROT, SENSOR_SLICES, UNITS
 
@@ -90,7 +100,7 @@ def parse_scales(scales) -> dict:
         if not np.isfinite(val) or val <= 0:
             raise UserError(f"--scale {part}: the scale must be a positive number of LSB per "
                             f"{UNITS[s]}")
-        out[s] = val
+        out[s] = R.check_scale(s, val, f"--scale {part}")
     return out
 
 
@@ -101,9 +111,13 @@ def unit_factor(unit: str, gravity: float = G0) -> float:
 
 
 def file_step(values: np.ndarray) -> float | None:
-    """The smallest step between the values of a quantised signal (its
-    resolution), or None when the values show no common step."""
-    v = np.unique(np.asarray(values, float)[np.isfinite(values)])
+    """The step between the values of a quantised signal (its resolution):
+    the smallest difference between values that recurs, refined by least
+    squares over the values on its grid; None when the values show no common
+    step (more than 1 % of them off every multiple by ``INTEGRAL_TOL``).  A
+    few values off the grid (a glitch) move neither the step nor the test."""
+    x = np.asarray(values, float)
+    v, count = np.unique(x[np.isfinite(x)], return_counts=True)
     if len(v) < 3:
         return None
     d = np.diff(v)
@@ -111,24 +125,34 @@ def file_step(values: np.ndarray) -> float | None:
     d = d[d > span * 1e-9]
     if not len(d):
         return None
-    q0 = float(d.min())
+    # the smallest difference that recurs (within 5 %): a value off the grid
+    # makes two odd differences, once each (a handful of values: the smallest)
+    ds = np.sort(d)
+    need = 1 if len(ds) < 10 else max(2, int(0.01 * len(ds)))
+    near = np.searchsorted(ds, ds * (1 + INTEGRAL_TOL), side="right") - np.arange(len(ds))
+    common = np.flatnonzero(near >= need)
+    if not len(common):
+        return None
+    q0 = float(ds[common[0]])
     k = np.round(d / q0)
     small = (k >= 1) & (k <= 50)
     if not small.any():
         return None
     q = float(np.median(d[small] / k[small]))
-    # refine: v ~ q * integer, small values first (their integers are sure), then wider
+    # refine: v ~ q * integer over the values on the grid, small values first
+    # (their integers are sure), then wider
     limit, top = 50.0, float(np.abs(v).max())
     while True:
         sel = v[np.abs(v) <= limit * q]
         nk = np.round(sel / q)
-        if np.any(nk):
-            q = float(sel @ nk / (nk @ nk))
+        on = np.abs(sel / q - nk) < INTEGRAL_TOL
+        if np.any(nk[on]):
+            q = float(sel[on] @ nk[on] / (nk[on] @ nk[on]))
         if limit * q >= top:
             break
         limit *= 4
     resid = np.abs(v / q - np.round(v / q))
-    if np.percentile(resid, 99) > INTEGRAL_TOL:
+    if count[resid > INTEGRAL_TOL].sum() > 0.01 * count.sum():
         return None
     return q
 
@@ -183,6 +207,11 @@ def to_counts(values: np.ndarray, sensor: str, unit: str, *, lsb: float | None =
             raise UserError(f"{where}{sensor} values ({unit}) show no common step: give the "
                             f"scale, --scale {sensor}=LSB_PER_{UNITS[sensor].upper()} or --chip")
         lsb, scale_from = 1.0 / step, "file step"
+        R.check_scale(sensor, lsb, f"{where}{sensor}", f"(the scale the file's step of "
+                      f"{step:.4g} {UNITS[sensor]} gives; declare it: --scale {sensor}=LSB or "
+                      f"--chip)")
+    else:
+        R.check_scale(sensor, lsb, f"{where}{sensor} ({scale_from} scale)")
     c = x * f * lsb
     r = np.rint(c)
     ok = np.isfinite(c)
@@ -229,7 +258,10 @@ def sensors_of_file(path, columns=None) -> list[str]:
     ``...mag...``, as FreeIMU-cal names them)."""
     if columns:
         items = columns if isinstance(columns, (list, tuple)) else str(columns).split(",")
-        return [_sensor(c, "--columns") for c in items if str(c).strip()]
+        out = [_sensor(c, "--columns") for c in items if str(c).strip()]
+        if len(set(out)) != len(out):
+            raise UserError(f"--columns {columns}: a sensor named twice")
+        return out
     name = Path(path).name.lower()
     found = [s for key, s in FILE_SENSOR if key in name]
     if len(found) != 1:
@@ -238,30 +270,51 @@ def sensors_of_file(path, columns=None) -> list[str]:
     return found
 
 
-def parse_float_log(path, lines: list[str], ncol: int, fail) -> tuple[np.ndarray, list]:
-    """(n, ncol) floats and each row's line; a bad line -> ``fail(path, line, message)``."""
-    rows, where = [], []
-    for lineno, line in enumerate(lines, start=1):
-        s = line.strip()
-        if not s:
+_SEPARATORS = re.compile(r"[\s,;]+")
+
+
+def _tokens(s: str) -> list[str]:
+    """A stripped line's numbers, split at white space, commas or semicolons
+    (``str.split`` where there is no comma or semicolon: the same, faster)."""
+    return s.split() if "," not in s and ";" not in s else _SEPARATORS.split(s)
+
+
+def parse_float_log(path, ncol: int, fail=_fail) -> tuple[np.ndarray, np.ndarray]:
+    """(n, ncol) floats and each row's line number, read in chunks (memory
+    bounded by the chunk, not the file); a bad line -> ``fail(path, line,
+    message)``.  A chunk is converted at once; only when that fails is it
+    read again line by line, for the message naming the first bad line."""
+    rows, where, last = Rows(ncol), Rows(1, np.int64), 0
+    for first, lines in text_chunks(path):
+        last = first + len(lines) - 1
+        toks, nums = [], []
+        for i, line in enumerate(lines):
+            s = line.strip()
+            if s:
+                toks.append(_tokens(s))
+                nums.append(first + i)
+        if not toks:
             continue
-        toks = re.split(r"[\s,;]+", s)
-        if len(toks) != ncol:
-            raise fail(path, lineno, f"expected {ncol} numbers, found {len(toks)}")
-        vals = []
-        for j, tok in enumerate(toks, start=1):
-            try:
-                v = float(tok)
-            except ValueError:
-                raise fail(path, lineno, f"column {j} is not a number: {tok!r}") from None
-            if not np.isfinite(v):
-                raise fail(path, lineno, f"column {j} is not a finite number: {tok!r}")
-            vals.append(v)
-        rows.append(vals)
-        where.append(lineno)
-    if not rows:
-        raise fail(path, len(lines) or 1, "no samples")
-    return np.array(rows, float), where
+        try:
+            if any(len(tk) != ncol for tk in toks):
+                raise ValueError
+            x = np.fromiter(map(float, chain.from_iterable(toks)), float,
+                            ncol * len(toks)).reshape(-1, ncol)
+            if not np.isfinite(x).all():
+                raise ValueError
+        except ValueError:                 # line by line: the first bad line's message
+            x = np.array([_float_row(path, tk, n, ncol, fail) for tk, n in zip(toks, nums)])
+        rows.extend(x)
+        where.extend(np.array(nums))
+    if not len(rows):
+        raise fail(path, last or 1, "no samples")
+    return rows.array(), where.array()[:, 0]
+
+
+def _float_row(path, toks, lineno, ncol, fail) -> list[float]:
+    if len(toks) != ncol:
+        raise fail(path, lineno, f"expected {ncol} numbers, found {len(toks)}")
+    return [_number(tok, path, lineno, f"column {j}") for j, tok in enumerate(toks, start=1)]
 
 
 # ------------------------------------------------------------------ turntable runs
@@ -285,10 +338,12 @@ def _rates(v) -> list:
 def turntable_rates_dps(rate_dps=None, rpm=None) -> list:
     """The turntable's speeds in deg/s from ``--rate-dps`` and/or ``--rpm``
     (each a number, a comma list or a list: FreeIMU-cal's 33 1/3 and 45)."""
-    rates = _rates(rate_dps) + [r * 6.0 for r in _rates(rpm)]
-    for r in rates:
-        if not np.isfinite(r) or r <= 0:
-            raise UserError("a turntable rate must be a positive number")
+    rates = []
+    for opt, given, factor in (("--rate-dps", rate_dps, 1.0), ("--rpm", rpm, 6.0)):
+        for r in _rates(given):
+            if not np.isfinite(r) or r <= 0:
+                raise UserError("a turntable rate must be a positive number")
+            rates.append(R.check(r * factor, R.TURN_DPS, f"{opt} {r:g}"))
     return sorted(set(rates))
 
 

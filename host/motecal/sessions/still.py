@@ -196,6 +196,8 @@ def segment_still(raw: np.ndarray, rate_hz: float, scales: dict | None = None,
 
 
 SEPARATE_CLOCKS_GRID_HZ = 100.0     # grid for stillness of sensors on separate clocks
+GRID_ROWS_PER_ROW = 4               # a longer grid than this per row is split at pauses ...
+GRID_PAUSE_S = 1.0                  # ... longer than this (seconds without a row)
 
 
 def segment_recording(raw: np.ndarray, t: np.ndarray, rate_hz: float,
@@ -222,6 +224,17 @@ def segment_recording(raw: np.ndarray, t: np.ndarray, rate_hz: float,
     t0 = t.min()
     hz = SEPARATE_CLOCKS_GRID_HZ
     ng = int(np.floor((t.max() - t0) * hz)) + 1
+    if ng > GRID_ROWS_PER_ROW * n + 1000:
+        # a grid far longer than the rows (pauses of hours, or absurd times): one
+        # grid per stretch without a pause, so memory follows the rows, not the span
+        cut = np.flatnonzero(np.diff(t) > GRID_PAUSE_S) + 1
+        if len(cut):
+            out, k = np.zeros(n, np.int32), 0
+            for a, b in zip(np.r_[0, cut], np.r_[cut, n]):
+                lab = segment_recording(raw[a:b], t[a:b], rate_hz, scales, th, trim_s)
+                out[a:b] = np.where(lab > 0, lab + k, 0)
+                k += int(lab.max(initial=0))
+            return out
     grid_t = t0 + np.arange(ng) / hz
     grid = np.full((ng, 9), np.nan)
     for s in present:

@@ -54,8 +54,13 @@ def test_every_format_exports(board):
 
 def test_the_docs_table_lists_the_registry():
     """docs/interop.md's table of export targets has one row per registered
-    target (the first cell names it), no more, no fewer."""
-    doc = (Path(__file__).resolve().parent.parent / "docs" / "interop.md").read_text()
+    target (the first cell names it), no more, no fewer; every ``--to a|b``
+    list in the docs and the README names exactly the registry's targets."""
+    root = Path(__file__).resolve().parent.parent
+    for page in [root / "README.md"] + sorted((root / "docs").glob("*.md")):
+        for listed in re.findall(r"--to ([a-z0-9-]+(?:\|[a-z0-9-]+)+)", page.read_text()):
+            assert listed.split("|") == list(FORMATS), (page.name, listed)
+    doc = (root / "docs" / "interop.md").read_text()
     table = doc[doc.index("| target | accelerometer |"):]
     table = table[:table.index("\n\n")]
     named = set()

@@ -30,8 +30,8 @@ def options(args, board, data):
     takes = TARGETS[args.to].options
     for name, flag in OPTION_FLAGS.items():
         if getattr(args, name) is not None and name not in takes:
-            users = [t.name for t in TARGETS.values() if name in t.options]
-            raise UserError(f"{flag} goes with --to {' or '.join(users)}, not {args.to}")
+            raise UserError(f"{flag} goes with --to {takers(name).replace(', ', ' or ')}, "
+                            f"not {args.to}")
     # the session's own record first (targets.export falls back on cal.json's)
     frame = data.meta.get("axis_frame") if data is not None and data.meta else None
     orientation = 0 if args.orientation is None else ardupilot.parse_rotation(args.orientation)
@@ -74,6 +74,12 @@ def run(args) -> int:
     return 0
 
 
+def takers(option: str) -> str:
+    """The targets that take an option (the registry's ``Target.options``)."""
+    from ..targets import TARGETS
+    return ", ".join(t.name for t in TARGETS.values() if option in t.options)
+
+
 def register(subparsers) -> None:
     from ..targets import FORMATS, described
     p = subparsers.add_parser(
@@ -89,11 +95,11 @@ def register(subparsers) -> None:
     p.add_argument("--session", metavar="NAME",
                    help="session to measure on (default: the one named in the calibration)")
     p.add_argument("--axes", choices=("chip", "razor"),
-                   help="razor-c, razor-yaml: the calibration's axes, the chips' (remapped "
+                   help=f"{takers('axes')}: the calibration's axes, the chips' (remapped "
                         "into the Razor firmware's board frame) or the firmware's (default: "
                         "the session's, as recorded)")
     p.add_argument("--orientation", metavar="ROTATION",
-                   help="ardupilot: AHRS_ORIENTATION, ArduPilot's Rotation number or name "
-                        "(e.g. 2 or YAW_90; default 0, none); the compass is written in the "
-                        "frame after it")
+                   help=f"{takers('orientation')}: AHRS_ORIENTATION, ArduPilot's Rotation "
+                        "number or name (e.g. 2 or YAW_90; default 0, none); the compass is "
+                        "written in the frame after it")
     p.set_defaults(func=run)

@@ -228,6 +228,7 @@ def documents(draw):
     return d, draw(st.sampled_from(FORMATS))
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None, database=None,
           suppress_health_check=[HealthCheck.too_slow])
 @given(documents())

@@ -55,6 +55,7 @@ def test_errors_never_echo_a_password(url, tmp_path):
         assert SECRET not in out + err and SECRET[:6] not in out + err, err
 
 
+@pytest.mark.slow
 def test_import_to_mariadb_does_not_print_the_password(mariadb, tmp_path):
     """The import's last line names the database, password hidden."""
     from dbservers import MARIADB_PASSWORD

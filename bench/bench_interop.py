@@ -31,6 +31,7 @@ from motecal.calib import rotations as R  # noqa: E402
 from motecal.targets import FORMATS, export  # noqa: E402
 from motecal.targets import ardupilot as AP, cheader as CH, imucal as IM, razor as RZ  # noqa: E402
 from motecal.targets import common as C  # noqa: E402
+from motecal.targets.common import ExportOptions  # noqa: E402
 
 from synthetic import paper_sized_session  # noqa: E402
 
@@ -114,8 +115,9 @@ def imucal_example():
 
 def unformatted(board, fmt):
     """The target's arithmetic on the float64 constants before formatting."""
+    opts = ExportOptions(axis_frame=(board.settings or {}).get("axis_frame"))
     if fmt in ("razor-c", "razor-yaml"):
-        return RZ._apply_fns(RZ.constants(board), board)
+        return RZ._apply_fns(RZ.constants(board, opts), board, opts)
     if fmt == "ardupilot":
         return AP.apply_fns(AP.params(board), board)
     if fmt == "imucal":
@@ -127,7 +129,12 @@ def stated(e, board, s):
     """The rounding a format states for a sensor, in the sensor's unit."""
     if e.fmt == "c-header":
         return float(np.max(CH.build(board)[1][s].worst_units))
-    return 1e-6 * (1.0 if s != "gyro" else 100.0)     # 9 digits in float32
+    bound = 1e-6 * (1.0 if s != "gyro" else 100.0)     # 9 digits in float32
+    if e.fmt == "razor-yaml" and s == "mag":
+        # entries under 1e-4 written to 4 decimals (no exponent for the ROS node's
+        # str()): up to 5e-5 of each count of |raw - centre| in the transform
+        bound += 5e-5 * 3 * 4096 / board.mag.lsb_per_unit
+    return bound
 
 
 def writers(board, data, title, tag=None):
@@ -159,6 +166,49 @@ def writers(board, data, title, tag=None):
           "the float calibration; the others are number formatting and float32)")
 
 
+def _rms(d):
+    return float(np.sqrt(np.mean(np.sum(np.asarray(d) ** 2, axis=1))))
+
+
+def frames(board, data):
+    """Issue 28.5: the targets' frames on the simulated board (chip axes).
+    ArduPilot under AHRS_ORIENTATION Yaw90: the compass as written now and as
+    written before (in the sensor frame), through ArduPilot's order of
+    operations (targets.ardupilot.apply_fns; restated independently from
+    ArduPilot's source in tests/test_export_frames.py).  Razor: the constants
+    remapped into the firmware's board frame, and as before (unremapped),
+    read as the firmware reads the chips."""
+    print("== export-cal in the target's frame (simulated board, chip axes)")
+    m = data.sensor("mag")[C.cal_rows(data, "mag")]
+    U, _ = C.polar(board.mag.A)
+    want = board.mag.apply(m) @ U                       # what the parameters can hold
+    new = AP.apply_fns(AP.params(board, ExportOptions(orientation=2)), board)["mag"](m)
+    old_p = AP.params(board, ExportOptions(orientation=0))
+    old_p["AHRS_ORIENTATION"] = 2
+    old = AP.apply_fns(old_p, board)["mag"](m)
+    rn, ro = _rms(new - want) * 1000, _rms(old - want) * 1000
+    print(f"   ardupilot, AHRS_ORIENTATION Yaw90: compass rms {rn:.2g} mGauss as written now, "
+          f"{ro:.1f} mGauss written in the sensor frame (before)")
+    record("export-cal ardupilot compass under AHRS_ORIENTATION Yaw90 (simulated board)",
+           "as calibrated, within float32 (#28)", rn, "mGauss rms", bool(rn < 1e-3),
+           f"written in the sensor frame (before): {ro:.1f} mGauss")
+    opts = ExportOptions(axis_frame=(board.settings or {}).get("axis_frame"))
+    for s, unit, k in (("accel", "mg", 1000.0), ("gyro", "deg/s", 1.0)):
+        cal = getattr(board, s)
+        raw = data.sensor(s)[C.cal_rows(data, s)]
+        truth = cal.apply(raw)
+        now = RZ._apply_fns(RZ.constants(board, opts), board, opts)[s](raw)
+        before_k = RZ.constants(board, ExportOptions(axes="razor"))   # unremapped
+        before = RZ._apply_fns(before_k, board, ExportOptions(axes="chip"))[s](raw)
+        cost = C.costs(board, export(board, "razor-c"), data)[s]["rms"]
+        rn, rb = _rms(now - truth) * k, _rms(before - truth) * k
+        print(f"   razor-c on a Razor, {s}: rms {rn:.3g} {unit} vs the calibration (its per-axis "
+              f"model's cost {cost * k:.3g}), {rb:.3g} {unit} unremapped (before)")
+        record(f"export-cal razor-c, chip-axis session on a Razor: {s} vs the calibration "
+               "(simulated board)", "the per-axis model's cost only (#28)", rn, f"{unit} rms",
+               bool(abs(rn - cost * k) < 1e-3 * k), f"unremapped (before): {rb:.3g} {unit}")
+
+
 def main():
     board, d = imucal_example()
     writers(board, d, "imucal's example (accel + gyro, gyro bias only)")
@@ -168,6 +218,7 @@ def main():
     writers(board, d, "imucal's example with the gyro scale from the rotations")
     writers(b, sess, "a simulated 9-DOF board (general model, 40 poses + sweep, full model)",
             tag="simulated board")
+    frames(b, sess)
     return 0
 
 

@@ -3,14 +3,16 @@ own parser where there is one: imucal from PyPI, gcc for the Razor constants, th
 IRIS firmware's C for the fixed-point header) -> apply to the session -> the same
 corrected values within the stated rounding; the restricted models' costs."""
 import json
+import re
 import shutil
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from motecal.calib import calibrate_board
-from motecal.targets import FORMATS, export
+from motecal.targets import FORMATS, TARGETS, export
 from motecal.targets import ardupilot as AP
 from motecal.targets import cheader as CH
 from motecal.targets import common as C
@@ -41,15 +43,34 @@ def _diag_model(cal, raw):
 
 
 def test_every_format_exports(board):
-    assert set(FORMATS) == {"razor-c", "razor-yaml", "ardupilot", "imucal", "c-header"}
     for f in FORMATS:
         e = export(board, f)
-        assert e.text.endswith("\n") and e.apply
+        assert e.text.endswith("\n") and e.apply and e.frame
+        assert TARGETS[f].name == f and TARGETS[f].what
+
+
+def test_the_docs_table_lists_the_registry():
+    """docs/interop.md's table of export targets has one row per registered
+    target (the first cell names it), no more, no fewer; every ``--to a|b``
+    list in the docs and the README names exactly the registry's targets."""
+    root = Path(__file__).resolve().parent.parent
+    for page in [root / "README.md"] + sorted((root / "docs").glob("*.md")):
+        for listed in re.findall(r"--to ([a-z0-9-]+(?:\|[a-z0-9-]+)+)", page.read_text()):
+            assert listed.split("|") == list(FORMATS), (page.name, listed)
+    doc = (root / "docs" / "interop.md").read_text()
+    table = doc[doc.index("| target | accelerometer |"):]
+    table = table[:table.index("\n\n")]
+    named = set()
+    for row in table.splitlines()[2:]:
+        named |= set(re.findall(r"`([a-z0-9-]+)`", row.split("|")[1]))
+    assert named == set(FORMATS), (named, FORMATS)
 
 
 def test_razor_c_compiles_and_matches(board, sess, tmp_path):
-    """gcc reads the block; the firmware's formulas (restated in the harness)
-    give the per-axis model to float32 rounding; the magnetometer whole."""
+    """gcc reads the block; the firmware's formulas (restated in the harness),
+    on the readings in its board frame (Sensors.ino's map of the chips'
+    registers), give the per-axis model of the calibration in that frame to
+    float32 rounding; the magnetometer whole."""
     if not shutil.which("gcc"):
         pytest.fail("gcc missing (make test installs it)")
     e = export(board, "razor-c")
@@ -83,19 +104,26 @@ int main(void) {
 """)
     exe = tmp_path / "h"
     subprocess.run(["gcc", "-std=c99", "-O1", "-o", str(exe), str(tmp_path / "h.c")], check=True)
-    raw = sess.raw[np.isfinite(sess.raw).all(axis=1)][::7]
+    chip = sess.raw[np.isfinite(sess.raw).all(axis=1)][::7]
+    assert "remapped from the chips' axes" in e.text         # a motecal session: chip axes
+    M = RZ.CHIP_TO_BOARD
+    raw = np.hstack([chip[:, sl] @ M[s].T for s, sl in
+                     (("accel", slice(0, 3)), ("gyro", slice(3, 6)), ("mag", slice(6, 9)))])
     out = subprocess.run([str(exe)], input="\n".join(" ".join(f"{v:.0f}" for v in r) for r in raw),
                          capture_output=True, text=True, check=True).stdout
     got = np.array([[float(x) for x in line.split()] for line in out.splitlines()])
-    acc = _diag_model(board.accel, raw[:, 0:3])
+    Ab, cb = RZ.in_board_frame("accel", board.accel.A, board.accel.c, True)
+    acc = raw[:, 0:3] * np.diag(Ab) + cb
     np.testing.assert_allclose(got[:, 0:3] / 256.0, acc, atol=2e-6)
-    gb = -np.linalg.solve(board.gyro.A, board.gyro.c)
+    gb = M["gyro"] @ -np.linalg.solve(board.gyro.A, board.gyro.c)
     np.testing.assert_allclose(got[:, 3:6], (raw[:, 3:6] - gb) * 0.06957, rtol=1e-5, atol=1e-4)
     assert board.gyro.lsb_per_unit == 14.375 and "GYRO_GAIN 0.06957" in e.text
-    mag = board.mag.apply(raw[:, 6:9]) * board.mag.lsb_per_unit
+    mag = board.mag.apply(chip[:, 6:9]) @ M["mag"].T * board.mag.lsb_per_unit
     np.testing.assert_allclose(got[:, 6:9], mag, rtol=1e-5, atol=2e-3)
-    # the module's own reading back agrees with gcc's
-    np.testing.assert_allclose(e.apply["accel"](raw[:, 0:3]), got[:, 0:3] / 256.0, atol=1e-6)
+    # the module's own reading back (raw in the session's axes, output turned
+    # back into them) agrees with gcc's
+    np.testing.assert_allclose(e.apply["accel"](chip[:, 0:3]), got[:, 0:3] @ M["accel"] / 256.0,
+                               atol=1e-6)
 
 
 def test_razor_yaml_same_numbers_as_c(board):

@@ -20,6 +20,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from clirun import digest, make_db, motecal, session, snapshot
 from motecal.sessions import importer
+from motecal.targets import FORMATS as TARGET_FORMATS
 from test_logger_streams import sample_frames
 
 import numpy as np
@@ -131,9 +132,9 @@ COMMANDS = {
              "--poses": "num", "--pose-samples": "num", "--min-angle": "num",
              "--rot-samples": "num", "--coverage": "num", "--lock-timeout": "num",
              "--baud": ["250000", "0", "x"]}),
-    "export-cal": ("in", {"--to": ["razor-c", "razor-yaml", "ardupilot", "imucal",
-                                   "c-header", "x"]},
-                   {"--out": "out", "--db": "db", "--session": "name"}),
+    "export-cal": ("in", {"--to": list(TARGET_FORMATS) + ["x"]},     # from the registry
+                   {"--out": "out", "--db": "db", "--session": "name",
+                    "--axes": ["chip", "razor", "x"], "--orientation": ["2", "YAW_90", "38", "x"]}),
     "upload": ("in", {"--dry-run": None},
                {"--mote": "num", "--version": "num", "--timeout": "num", "--retries": "num",
                 "--force": None}),

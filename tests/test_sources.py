@@ -147,7 +147,9 @@ def test_serialforwarder_protocol():
     sent = got["sent"]
     assert sent[0] == len(sent) - 1 and sent[1] == P.DISPATCH_AM
     am = P.parse_am(sent[2:])
-    assert am.am_type == P.AM_NINEDOF_CAL_QUERY_MSG and P.decode_message(am) == {"mote": 5, "offset": 20}
+    # (the query carries its flags since the stored-set report: 0 when not given)
+    assert am.am_type == P.AM_NINEDOF_CAL_QUERY_MSG
+    assert P.decode_message(am) == {"mote": 5, "offset": 20, "flags": 0}
 
 
 def test_not_a_serialforwarder():

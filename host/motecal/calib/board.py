@@ -45,6 +45,7 @@ from ..errors import UserError
 from ..maths.sphere import coverage, distinct_directions, unit
 from ..sessions.session import NOMINAL_CHIPS, UNITS, SessionData
 from ..sessions.still import StillThresholds
+from ..sessions.importer import CSV_FRAME
 from . import fit as _fit
 from .content import (MIN_POSE_ORIENTATIONS, ORIENTATIONS_NEEDED, Judgement, judge_poses,
                       labelled_poses, magnetometer_sets, model_key, pose_means,
@@ -104,7 +105,10 @@ def calibrate_board(data: SessionData, *, model: str | None = None, groups=None,
     board.settings = {"model": model or "auto", "params": list(groups) if groups else None,
                       "seed": seed, "gauge": gauge, "field_gauss": field,
                       "gyro_matrix": bool(gyro_matrix), "kfold": kfold,
-                      "skipped": {}, "insufficient": {}, "models": {}}
+                      "skipped": {}, "insufficient": {}, "models": {},
+                      # the axes the calibration is in (export-cal's Razor frame): a
+                      # session without it is the mote's own samples, in the chips' axes
+                      "axis_frame": (data.meta or {}).get("axis_frame") or CSV_FRAME}
     if found:
         board.settings["poses_found"] = found
     if data.meta.get("axis_frame"):

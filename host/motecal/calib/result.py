@@ -8,10 +8,15 @@ For every sensor ``calibrated = A @ raw_counts + c`` in the sensor's unit
 (element-wise per axis; the scale term is zero where it was not identifiable).  Everything else (parameters with names, standard
 deviations and units, errors before/after, magnitude ranges, validation, GA
 trace, quality metrics) documents how that map was obtained.
+
+``read_document`` / ``check_document`` are the one validation of a cal.json
+that every reader shares (``upload``, ``export-cal``, ``report``): types,
+shapes, finite numbers, ranges, before numpy or a writer sees a value.
 """
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -23,6 +28,9 @@ from .templag import lag_filter
 
 FORMAT_VERSION = 2      # 2: optional per-sensor temperature model (1 files still read)
 SENSORS = ("accel", "gyro", "mag")
+UNITS = {"accel": "g", "gyro": "deg/s", "mag": "gauss"}
+MOTE_MAX = 0xFFFF       # a mote id is a uint16 wherever it is written (sets, headers)
+COND_MAX = 1e12         # an A more ill-conditioned than this is no calibration
 
 
 def _unnum(x):
@@ -165,7 +173,9 @@ class SensorCalibration:
             return y + self.c
         tm = self.temperature
         dt = np.broadcast_to(tm.dt(tm.lagged(temp_c, t_s)), y.shape[:-1])[..., None]
-        return y * (1.0 + tm.scale_per_c * dt) + self.c + tm.offset_per_c * dt
+        # a coefficient that was not fitted (NaN, null in cal.json) is 0, as on the mote
+        scale, offset = np.nan_to_num(tm.scale_per_c), np.nan_to_num(tm.offset_per_c)
+        return y * (1.0 + scale * dt) + self.c + offset * dt
 
     def param(self, name: str) -> Param:
         for p in self.params:
@@ -256,28 +266,25 @@ class BoardCalibration:
         return json.dumps(self.to_json(), indent=1, allow_nan=False) + "\n"
 
     @classmethod
-    def from_json(cls, d: dict) -> "BoardCalibration":
-        if not isinstance(d, dict) or "format_version" not in d:
-            raise UserError("not a motecal calibration (no format_version)")
-        if int(d["format_version"]) > FORMAT_VERSION:
-            raise UserError(f"calibration format_version {d['format_version']} is newer than "
-                            f"this motecal understands ({FORMAT_VERSION})")
-        kw = {s: SensorCalibration.from_json(d[s]) if d.get(s) else None for s in SENSORS}
-        return cls(mote=int(d["mote"]), session=d.get("session", ""), created=d.get("created", ""),
-                   mag_sets=d.get("mag_sets", {}), gate=d.get("gate", {}),
-                   settings=d.get("settings", {}), tool=d.get("tool", ""),
-                   format_version=int(d["format_version"]), **kw)
+    def from_json(cls, d: dict, where: str = "calibration") -> "BoardCalibration":
+        """A checked cal.json document (``check_document``, with each sensor's
+        ``lsb_per_unit``) as a BoardCalibration; UserError, one line, if not."""
+        check_document(d, where, need_scale=True)
+        try:
+            kw = {s: SensorCalibration.from_json({"sensor": s, "unit": UNITS[s], "model": "",
+                                                  **d[s]}) if d.get(s) is not None else None
+                  for s in SENSORS}
+            return cls(mote=d["mote"], session=d.get("session") or "",
+                       created=d.get("created") or "", mag_sets=d.get("mag_sets") or {},
+                       gate=d.get("gate") or {}, settings=d.get("settings") or {},
+                       tool=d.get("tool") or "", format_version=d["format_version"], **kw)
+        except (KeyError, TypeError, ValueError, OverflowError, RecursionError) as e:
+            raise UserError(f"{where} is malformed: {type(e).__name__}: "
+                            f"{' '.join(str(e).split())[:200]}") from None
 
     @classmethod
-    def loads(cls, text: str) -> "BoardCalibration":
-        try:
-            d = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise UserError(f"calibration file is not JSON: {e}") from None
-        try:
-            return cls.from_json(d)
-        except (KeyError, TypeError, ValueError) as e:
-            raise UserError(f"calibration file is malformed: {e!r}") from None
+    def loads(cls, text: str, where: str = "calibration file") -> "BoardCalibration":
+        return cls.from_json(read_document(text, where), where)
 
     def save(self, path) -> Path:
         path = Path(path)
@@ -294,3 +301,128 @@ class BoardCalibration:
         except OSError as e:
             raise UserError(f"cannot read {path}: {e.strerror or e}") from None
         return cls.loads(text)
+
+
+# --------------------------------------------------------------------------
+# The one validation of a cal.json (upload, export-cal, report)
+# --------------------------------------------------------------------------
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _numbers(v, depth: int = 0) -> bool:
+    """Nested lists of JSON numbers only (a string "1.0" or true is not one)."""
+    if isinstance(v, list):
+        return depth < 3 and all(_numbers(x, depth + 1) for x in v)
+    return _is_number(v)
+
+
+def checked_array(d: dict, key: str, shape: tuple, where: str) -> np.ndarray:
+    """``d[key]`` as a finite float array of ``shape``; UserError naming the field."""
+    if key not in d:
+        raise UserError(f"{where}: no {key!r}")
+    if not _numbers(d[key]):
+        raise UserError(f"{where}: {key!r} is not a list of numbers")
+    try:
+        a = np.array(d[key], dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise UserError(f"{where}: {key!r} is not a list of numbers") from None
+    if a.shape != shape:
+        raise UserError(f"{where}: {key!r} must be {'x'.join(map(str, shape))}, not "
+                        f"{'x'.join(map(str, a.shape)) or 'a number'}")
+    if not np.all(np.isfinite(a)):
+        raise UserError(f"{where}: {key!r} holds a missing or infinite value")
+    return a
+
+
+def _positive(d: dict, key: str, where: str) -> None:
+    v = d[key]
+    if not _is_number(v) or not math.isfinite(v) or v <= 0:
+        raise UserError(f"{where}: {key!r} must be a positive finite number, not {v!r:.40}")
+
+
+def read_document(text: str, where: str = "calibration file") -> dict:
+    """cal.json text -> its checked document (``check_document``)."""
+    try:
+        d = json.loads(text)
+    except (json.JSONDecodeError, RecursionError, ValueError) as e:
+        raise UserError(f"{where} is not JSON: {' '.join(str(e).split())[:200]}") from None
+    check_document(d, where)
+    return d
+
+
+def check_document(d, where: str = "calibration", need_scale: bool = False) -> None:
+    """The checks every reader of a cal.json relies on, each failure one
+    line naming the field: a ``format_version`` this motecal reads (a whole
+    number 1..FORMAT_VERSION, not text or true), a ``mote`` id 0..65535,
+    ``session``/``created``/``tool`` as text, and per calibrated sensor (an
+    object; null or absent: not calibrated) ``A`` (3x3) and ``c`` (3) of
+    finite JSON numbers with ``A`` invertible, ``lsb_per_unit`` (required
+    with ``need_scale``) and ``field_gauss`` positive and finite, and a
+    temperature model whose numbers are finite."""
+    if not isinstance(d, dict) or "format_version" not in d:
+        raise UserError(f"{where} is not a motecal calibration (no format_version)")
+    fv = d["format_version"]
+    if isinstance(fv, bool) or not isinstance(fv, int) or not 1 <= fv <= FORMAT_VERSION:
+        raise UserError(f"{where}: calibration format_version {fv!r:.40} is not one this "
+                        f"motecal reads (1..{FORMAT_VERSION})")
+    mote = d.get("mote")
+    if isinstance(mote, bool) or not isinstance(mote, int) or not 0 <= mote <= MOTE_MAX:
+        raise UserError(f"{where}: no mote id (\"mote\": an integer 0..{MOTE_MAX}, "
+                        f"not {mote!r:.40})")
+    for key in ("session", "created", "tool"):
+        if d.get(key) is not None and not isinstance(d[key], str):
+            raise UserError(f"{where}: {key!r} is not a text")
+    for key in ("gate", "settings", "mag_sets"):
+        if d.get(key) is not None and not isinstance(d[key], dict):
+            raise UserError(f"{where}: {key!r} is not an object")
+    calibrated = 0
+    for name in SENSORS:
+        s = d.get(name)
+        if s is None:
+            continue
+        at = f"{where}: {name}"
+        if not isinstance(s, dict):
+            raise UserError(f"{at} is not an object")
+        if s.get("sensor", name) != name:
+            raise UserError(f"{at}: \"sensor\" says {s['sensor']!r:.40}")
+        A = checked_array(s, "A", (3, 3), at)
+        checked_array(s, "c", (3,), at)
+        if not np.linalg.cond(A) < COND_MAX:
+            raise UserError(f"{at}: 'A' is singular (not invertible): no calibration maps "
+                            "counts so")
+        if need_scale or "lsb_per_unit" in s:
+            if "lsb_per_unit" not in s:
+                raise UserError(f"{at}: no 'lsb_per_unit'")
+            _positive(s, "lsb_per_unit", at)
+        if s.get("field_gauss") is not None:
+            _positive(s, "field_gauss", at)
+        _check_temperature(s.get("temperature"), at)
+        calibrated += 1
+    if not calibrated:
+        raise UserError(f"{where}: no calibrated sensor (accel, gyro or mag with A and c)")
+
+
+def _check_temperature(t, where: str) -> None:
+    if t is None:
+        return
+    if not isinstance(t, dict):
+        raise UserError(f"{where}: \"temperature\" is not an object")
+    at = f"{where}: temperature"
+    for key in ("t_ref_c",):
+        if key not in t:
+            raise UserError(f"{at}: no {key!r}")
+        if not _is_number(t[key]) or not math.isfinite(t[key]):
+            raise UserError(f"{at}: {key!r} is not a finite number")
+    checked_array(t, "range_c", (2,), at)
+    if "offset_per_c" not in t:
+        raise UserError(f"{at}: no 'offset_per_c'")
+    for key in ("offset_per_c", "offset_per_c_std", "scale_per_c", "scale_per_c_std"):
+        v = t.get(key)                      # null entries: not fitted (not identifiable)
+        if v is not None and not (isinstance(v, list) and len(v) == 3 and all(
+                x is None or _is_number(x) and math.isfinite(x) for x in v)):
+            raise UserError(f"{at}: {key!r} is not 3 finite numbers (or nulls)")
+    try:
+        TempModel.from_json(t)
+    except (KeyError, TypeError, ValueError) as e:
+        raise UserError(f"{at}: {' '.join(str(e).split())[:200]}") from None

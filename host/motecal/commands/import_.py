@@ -40,10 +40,11 @@ def run(args) -> int:
             print(f"Appended {added} rows to session '{args.session}' ({len(old)} before).")
         else:
             store.save_session(data, replace=args.replace)
+        where = store.target                 # as shown: never a password
     print(summary(data))
     for line in (data.meta.get("rounding") or {}).values():
         print(f"  {line}")
-    print(f"Saved to {args.db} as session '{args.session}'.")
+    print(f"Saved to {where} as session '{args.session}'.")
     return 0
 
 

@@ -18,7 +18,7 @@ def list_sessions(args) -> int:
             print()
             return 0
     if not rows:
-        print(f"{args.db}: no sessions")
+        print(f"{store.target}: no sessions")
         return 0
     head = ("name", "kind", "motes", "samples", "poses", "started", "ended", "source")
     table = [head] + [(r["name"], r["kind"], ",".join(map(str, r["motes"])), str(r["samples"]),

@@ -10,7 +10,9 @@ BaseStation and the radio, then verified (the protocol: ``upload.uploader``).
 Errors are one line on stderr: bad input exits 2, a set that cannot be
 represented or that the mote's own checks would refuse exits 3, and an
 upload that fails (no answer, rejected, verification failed, not stored in
-the mote's EEPROM within --store-timeout) exits 1.
+the mote's EEPROM within --store-timeout) exits 1.  A failure after the mote
+acknowledged the commit says that the set was acknowledged in force and is
+neither verified nor known to be stored (``CommittedNotFinished``).
 """
 from __future__ import annotations
 
@@ -21,8 +23,9 @@ from ..line import sources as S
 from ..upload.calfile import build_set, cal_from_board, check_set, load_cal
 from ..upload.describe import dry_run_lines, show_lines
 from ..upload.link import DEFAULT_RETRIES, DEFAULT_TIMEOUT, Link
-from ..upload.uploader import (MAX_VERSION, STORE_WAIT, NotStored, Options, Result, Uploader,
-                               check_cal, choose_version, summary, upload_cal)
+from ..upload.uploader import (MAX_VERSION, STORE_WAIT, CommittedNotFinished, InForceChanged,
+                               NotStored, Options, Result, Uploader, check_cal, choose_version,
+                               summary, upload_cal)
 from .args import baud_rate, int_range, mote_id, positive
 from .upload_screen import PlainProgress, make_progress
 
@@ -174,6 +177,9 @@ def calibrate_step(args):
         except NotStored as e:              # in force on the mote, not in its EEPROM
             raise UserError(f"calibration saved ({where}) and in force on mote {board.mote}, "
                             f"but not stored there: {e}", exit_code=e.exit_code) from None
+        except (CommittedNotFinished, InForceChanged) as e:   # committed: not "not uploaded"
+            raise UserError(f"calibration saved ({where}) and committed to mote {board.mote}, "
+                            f"but the upload did not finish: {e}", exit_code=e.exit_code) from None
         except UserError as e:              # same exit status, saying what was done
             raise UserError(f"calibration saved ({where}), not uploaded: {e}",
                             exit_code=e.exit_code) from None

@@ -13,6 +13,14 @@ Accepted port specifications (``--port``, else the ``MOTECOM`` variable):
 
 Every source turns what it reads into checked ``protocol.Frame`` objects and
 counts what it had to skip in ``stats`` (``protocol.DecoderStats``).
+
+A serial device is one program's at a time: it is opened with an exclusive
+``flock`` (pyserial's ``exclusive=True``), and a UUCP lock file of a running
+process (``/run/lock/LCK..ttyUSB1``, as minicom and RXTX write them) is
+honoured; the second opener gets one line (``PortError``, exit 2).  Two
+readers of one line would each lose what the other read.  URLs
+(``socket://``, ``loop://``), SerialForwarder and files are not locked: a
+SerialForwarder is how several programs share one BaseStation.
 """
 from __future__ import annotations
 
@@ -21,6 +29,7 @@ import os
 import select
 import socket
 import stat
+import struct
 from dataclasses import dataclass
 
 import serial
@@ -42,6 +51,7 @@ def baud_problem(value) -> str | None:
 
 
 DEFAULT_BAUD = 250000          # the BaseStation's rate in this project
+LOCK_DIRS = ("/run/lock", "/var/lock")   # UUCP lock files of other serial programs (read only)
 SF_DEFAULT_PORT = 9002
 READ_TIMEOUT = 0.05            # seconds a read waits for data
 READ_SIZE = 1 << 16
@@ -233,23 +243,65 @@ def _open_keeping_input(ser) -> None:
             delattr(ser, name)
 
 
+def lock_file_holder(device: str) -> int | None:
+    """The PID of another running process that holds a UUCP lock file
+    (``LCK..<name>`` in LOCK_DIRS: ten ASCII digits, or a binary int) for
+    ``device``; None when there is none, or only a stale one."""
+    name = "LCK.." + os.path.basename(os.path.realpath(device))
+    for folder in LOCK_DIRS:
+        try:
+            with open(os.path.join(folder, name), "rb") as f:
+                data = f.read(64)
+        except OSError:
+            continue
+        try:
+            pid = struct.unpack("=i", data)[0] if len(data) == 4 else int(data.strip())
+        except ValueError:
+            continue
+        if pid <= 0 or pid == os.getpid():
+            continue
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            continue                        # stale: its process is gone
+        except PermissionError:
+            pass                            # alive, another user's
+        return pid
+    return None
+
+
+IN_USE = ("in use by another program (another motecal log or upload?); a serial port "
+          "serves one program at a time: stop the other, or share the BaseStation through "
+          "a SerialForwarder (sf@HOST:PORT)")
+
+
 class SerialSource(Source):
-    """A serial port: device path or any pyserial URL, TinyOS HDLC framing."""
+    """A serial port: device path or any pyserial URL, TinyOS HDLC framing.
+    A device is opened exclusively (module doc)."""
 
     def __init__(self, spec: PortSpec):
         super().__init__(spec)
         self.decoder = P.FrameDecoder()
         self.stats = self.decoder.stats
         self._socket = spec.target.startswith("socket://")
+        device = "://" not in spec.target
+        if device:
+            holder = lock_file_holder(spec.target)
+            if holder is not None:
+                raise PortError(f"cannot open port {spec}: {IN_USE} (process {holder} holds "
+                                f"its lock file)")
         try:
             if self._socket:
                 self.ser = _SocketSerial(None, baudrate=spec.baud, timeout=READ_TIMEOUT)
                 self.ser.port = spec.target
             else:
                 self.ser = serial.serial_for_url(spec.target, baudrate=spec.baud,
-                                                 timeout=READ_TIMEOUT, do_not_open=True)
+                                                 timeout=READ_TIMEOUT, do_not_open=True,
+                                                 **({"exclusive": True} if device else {}))
             _open_keeping_input(self.ser)
         except (serial.SerialException, OSError, ValueError) as e:
+            if device and "exclusively lock" in str(e):
+                raise PortError(f"cannot open port {spec}: {IN_USE}") from None
             raise PortError(f"cannot open port {spec}: {_reason(e)}") from None
 
     def read(self) -> list[P.Frame]:

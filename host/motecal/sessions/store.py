@@ -38,7 +38,7 @@ import numpy as np
 
 from ..errors import UserError
 from .session import NOMINAL_CHIPS, NOMINAL_SCALES, SessionData
-from .store_backend import Backend, StoreBusy, StoreError, store_fault
+from .store_backend import Backend, StoreBusy, StoreError, shown_url, store_fault
 from .store_schema import (APPLICATION_ID, LINE_COUNTERS, LINK_COUNTERS, MIGRATIONS,
                            SAMPLE_COLUMNS, SCHEMA_VERSION, SIGNATURE, SIGNATURE_SINCE)
 from .store_sqlite import SqliteBackend
@@ -570,11 +570,14 @@ def _backend_for(target: str, create: bool, readonly: bool = False) -> Backend:
         from .store_mysql import MysqlBackend        # its driver only when asked for
         return MysqlBackend(target, create, readonly)
     if target.startswith("sqlite:///"):
+        if "?" in target:
+            raise UserError(f"database URL {shown_url(target)}: a sqlite:/// URL takes no "
+                            "options (sqlite files have no passwords)")
         target = target[len("sqlite:///") - 1:] if target.startswith("sqlite:////") \
             else target[len("sqlite:///"):]
     elif "://" in target:
-        raise UserError(f"unsupported database URL {target} (use a sqlite file path, "
-                        "postgresql://... or mysql://...)")
+        raise UserError(f"unsupported database URL {shown_url(target)} (use a sqlite file "
+                        "path, postgresql://... or mysql://...)")
     return SqliteBackend(target, create, readonly)
 
 

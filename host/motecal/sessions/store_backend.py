@@ -19,6 +19,8 @@ CONFLICT DO NOTHING`` / ``ON CONFLICT (key) DO UPDATE SET c = excluded.c``,
 from __future__ import annotations
 
 import abc
+import re
+import urllib.parse
 from typing import Any, ClassVar, Iterable, Protocol
 
 from ..errors import UserError
@@ -115,13 +117,58 @@ class Backend(abc.ABC):
     def close(self) -> None: ...
 
 
-def shown_url(url: str) -> str:
-    """A server URL as shown to the user: its password replaced by ``***``."""
-    head, sep, tail = url.partition("://")
-    cred, at, rest = tail.rpartition("@")
-    if at and ":" in cred:
-        return f"{head}{sep}{cred.split(':', 1)[0]}:***@{rest}"
-    return url
+SERVER_SCHEMES = ("postgresql", "postgres", "mysql", "mariadb")
+# query options whose value is a secret (libpq's password/sslpassword, and the
+# like): never shown
+_SECRET_OPTION = re.compile(r"(?i)([?&;](?:[a-z_]*pass(?:word|wd)?|pwd|secret|token|"
+                            r"[a-z_]*key)=)[^&;#]*")
+
+
+def shown_url(url) -> str:
+    """A database target as shown to the user, with every secret replaced by
+    ``***``: the password of ``user:password@`` (for a scheme motecal does not
+    know, the whole user part), and the value of a ``password=`` (or
+    ``sslpassword=``, ``secret=``, ``token=``, ``...key=``) option."""
+    text = str(url)
+    head, sep, tail = text.partition("://")
+    if sep:
+        cred, at, rest = tail.rpartition("@")
+        if at:
+            user, colon, _ = cred.partition(":")
+            known = head.lower() in SERVER_SCHEMES
+            cred = f"{user}:***" if colon and known and "/" not in user else \
+                (cred if known and not colon and "/" not in cred else "***")
+            tail = f"{cred}@{rest}"
+        text = f"{head}{sep}{tail}"
+    return _SECRET_OPTION.sub(r"\1***", text)
+
+
+def url_secrets(url) -> list[str]:
+    """The secrets ``shown_url`` hides, as written and percent-decoded (to
+    scrub them from a driver's message, which may quote them)."""
+    text = str(url)
+    found = []
+    head, sep, tail = text.partition("://")
+    if sep:
+        cred, at, _ = tail.rpartition("@")
+        if at:
+            user, colon, pw = cred.partition(":")
+            found += [pw] if colon else [cred]
+    for m in re.finditer(r"(?i)[?&;](?:[a-z_]*pass(?:word|wd)?|pwd|secret|token|[a-z_]*key)="
+                         r"([^&;#]*)", text):
+        found.append(m.group(1))
+    out = set()
+    for f in found:
+        if f:
+            out |= {f, urllib.parse.unquote(f), urllib.parse.unquote_plus(f)}
+    return sorted((f for f in out if f), key=len, reverse=True)
+
+
+def scrubbed(message: str, url) -> str:
+    """A driver's message with the URL's secrets (``url_secrets``) replaced by ``***``."""
+    for secret in url_secrets(url):
+        message = message.replace(secret, "***")
+    return message
 
 
 class StoreError(UserError):

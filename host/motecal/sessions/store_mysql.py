@@ -38,7 +38,7 @@ import re
 import urllib.parse
 
 from ..errors import UserError
-from .store_backend import Backend, shown_url
+from .store_backend import Backend, scrubbed, shown_url
 
 SCHEMES = ("mysql://", "mariadb://")
 DEFAULT_SOCKET = "/run/mysqld/mysqld.sock"
@@ -67,7 +67,7 @@ def parse_url(url: str) -> tuple[dict, str]:
         u = urllib.parse.urlsplit(url)
         port = u.port
     except ValueError as e:
-        raise UserError(f"bad database URL {shown_url(url)}: {e}") from None
+        raise UserError(f"bad database URL {shown_url(url)}: {scrubbed(str(e), url)}") from None
     db = urllib.parse.unquote(u.path.lstrip("/"))
     if not db or "/" in db:
         raise UserError(f"database URL {shown_url(url)} names no database "
@@ -75,7 +75,9 @@ def parse_url(url: str) -> tuple[dict, str]:
     args = dict(database=db, user=urllib.parse.unquote(u.username) if u.username else None,
                 password=urllib.parse.unquote(u.password) if u.password else "")
     query = urllib.parse.parse_qs(u.query, keep_blank_values=True)
-    unknown = set(query) - {"unix_socket", "socket"}
+    if query.get("password") and not u.password:
+        args["password"] = query["password"][-1]
+    unknown = set(query) - {"unix_socket", "socket", "password"}
     if unknown:
         raise UserError(f"database URL {shown_url(url)}: unknown option(s) "
                         f"{', '.join(sorted(unknown))} (known: unix_socket)")
@@ -209,7 +211,8 @@ class MysqlBackend(Backend):
             self.conn = pymysql.connect(**args, charset="utf8mb4", autocommit=True,
                                         connect_timeout=10)
         except pymysql.Error as e:
-            raise UserError(f"cannot connect to {self.display}: {_first_line(e)}") from None
+            raise UserError(f"cannot connect to {self.display}: "
+                            f"{scrubbed(_first_line(e), url)}") from None
         self._locked = False
         self.lock_name = f"{MIGRATION_LOCK}.{args['database']}"[:64]
         try:
@@ -226,7 +229,7 @@ class MysqlBackend(Backend):
                 self.max_statement = min(MAX_STATEMENT, int(cur.fetchone()[0]) // 2)
         except pymysql.Error as e:
             self.conn.close()
-            raise UserError(f"cannot use {self.display}: {_first_line(e)}") from None
+            raise UserError(f"cannot use {self.display}: {scrubbed(_first_line(e), url)}") from None
         collation = next((c for c in _COLLATIONS if c in have), "utf8mb4_bin")
         self.table_options = f"ENGINE=InnoDB DEFAULT CHARSET=utf8mb4 COLLATE={collation}"
 

@@ -11,7 +11,7 @@ read-only session for commands that only read.
 from __future__ import annotations
 
 from ..errors import UserError
-from .store_backend import Backend, shown_url
+from .store_backend import Backend, scrubbed, shown_url
 
 
 class PostgresBackend(Backend):
@@ -38,8 +38,8 @@ class PostgresBackend(Backend):
             if readonly:
                 self.conn.execute("SET SESSION CHARACTERISTICS AS TRANSACTION READ ONLY")
         except psycopg.Error as e:
-            raise UserError(f"cannot connect to {self.display}: "
-                            f"{str(e).strip().splitlines()[0] if str(e).strip() else e}") from None
+            first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+            raise UserError(f"cannot connect to {self.display}: {scrubbed(first, url)}") from None
 
     def sql(self, text: str) -> str:
         return text.replace("?", "%s")

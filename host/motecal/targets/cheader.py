@@ -13,26 +13,29 @@ import numpy as np
 
 from ..firmware import fixedpoint as FP
 from ..sessions.session import NOMINAL_SCALES, SENSOR_SLICES
-from .common import Export
+from .common import Export, ExportOptions, Target, header_words
 
 VERSION = 1
 
 
 def build(board):
+    """The set and fixedpoint's report, with each sensor's temperature model
+    (the 164-byte set the IRIS firmware applies on the mote)."""
     physical = {s: (cal.A, cal.c) for s, cal in board.sensors()}
-    return FP.build_calset(board.mote, VERSION, physical)
+    temps = {s: cal.temperature for s, cal in board.sensors() if cal.temperature is not None}
+    return FP.build_calset(board.mote, VERSION, physical, temps or None)
 
 
-def write(board) -> Export:
+def write(board, opts: ExportOptions = ExportOptions()) -> Export:
     calset, report = build(board)
-    g = f"MOTECAL_CAL_MOTE{board.mote}_H"
-    lines = [f"/* motecal calibration for mote {board.mote}, session '{board.session}' "
-             f"({board.created}).",
+    mote = int(board.mote)
+    g = f"MOTECAL_CAL_MOTE{mote}_H"
+    lines = [f"/* motecal calibration for {header_words(board)}.",
              " * Fixed point as the IRIS firmware applies it (tinyos/ninedof_correct.c):",
              " *   out = sat((a * raw + c + 2^(shift-1)) >> shift), in nominal counts",
              " *   (256 LSB/g, 14.375 LSB/(deg/s), 1090 LSB/gauss). */",
              f"#ifndef {g}", f"#define {g}", "#include <stdint.h>", "",
-             f"#define MOTECAL_CAL_MOTE {board.mote}", f"#define MOTECAL_CAL_VERSION {VERSION}"]
+             f"#define MOTECAL_CAL_MOTE {mote}", f"#define MOTECAL_CAL_VERSION {VERSION}"]
     rounding = {}
     for s in FP.P.SENSORS:
         r = report.get(s)
@@ -48,15 +51,27 @@ def write(board) -> Export:
                   + ", ".join(str(int(v)) for v in np.asarray(fs.a).reshape(9)) + "};",
                   f"static const int32_t motecal_{s}_c[3] = {{"
                   + ", ".join(str(int(v)) for v in fs.c) + "};"]
+        if r.temp is not None:
+            lines.append(f"/* {s}: temperature terms in the set below (t_ref, range, offset "
+                         f"and gain per TEMP_OUT count: tinyos/ninedof_correct.c) */")
         rounding[s] = (f"fixed point Q{fs.shift}, worst "
                        + ", ".join(f"{v:.2f}" for v in r.worst_lsb)
-                       + f" LSB ({np.max(r.worst_units):.3g} {FP.UNITS[s]})")
+                       + f" LSB ({np.max(r.worst_units):.3g} {FP.UNITS[s]})"
+                       + ("" if r.temp is None else
+                          f"; its temperature terms held (rounding over the range: offset <= "
+                          f"{r.temp_offset_error:.2g} counts, gain <= {r.temp_gain_error:.2g})"))
     body = ", ".join(f"0x{b:02x}" for b in calset)
     lines += ["/* the ninedof_calset (tinyos/NineDofMsg.h) as stored and uploaded */",
               f"static const uint8_t motecal_calset[{len(calset)}] = {{{body}}};", "",
               f"#endif /* {g} */"]
     text = "\n".join(lines) + "\n"
-    return Export("c-header", text, apply_fns(parse(text)), {}, rounding)
+    return Export("c-header", text, apply_fns(parse(text)), {}, rounding,
+                  frame="as the calibration's (the mote's sample frame)",
+                  holds_temperature=tuple(s for s, r in report.items() if r.temp is not None))
+
+
+TARGETS = (Target("c-header", "the IRIS fixed-point set as a C header (the bytes upload "
+                              "sends)", write),)
 
 
 _BYTES = re.compile(r"motecal_calset\[(\d+)\]\s*=\s*\{([^}]*)\}")

@@ -14,7 +14,7 @@ import json
 
 import numpy as np
 
-from .common import Export
+from .common import Export, ExportOptions, Target
 
 GRAV = 9.81                   # imucal's FerrarisCalibration default
 
@@ -56,7 +56,7 @@ def apply_fns(d: dict) -> dict:
     return out
 
 
-def write(board) -> Export:
+def write(board, opts: ExportOptions = ExportOptions()) -> Export:
     d = info(board)
     text = json.dumps(d, indent=4) + "\n"
     lost = {}
@@ -67,4 +67,8 @@ def write(board) -> Export:
                         "does not fit it)"]
     return Export("imucal", text, apply_fns(json.loads(text)), lost,
                   {s: "JSON floats (17 digits): exact" for s in ("accel", "gyro")
-                   if getattr(board, s) is not None})
+                   if getattr(board, s) is not None},
+                  frame="as the calibration's (imucal's sensor frame is the data's)")
+
+
+TARGETS = (Target("imucal", "imucal's FerrarisCalibrationInfo JSON (format 2.0)", write),)

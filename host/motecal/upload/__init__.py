@@ -12,9 +12,10 @@ until the mote reports the set stored in its EEPROM, over the BaseStation.
 from .calfile import (CalFile, build_set, cal_from_board, check_set, load_cal,  # noqa: F401
                       mote_check)
 from .describe import dry_run_lines, show_lines  # noqa: F401
-from .link import (SERIAL_ACK_TIMEOUT, SERIAL_RETRIES, Link, LinkStats, NoAnswer,  # noqa: F401
-                   NullProgress, Rejected, UploadFailed)
+from .link import (SERIAL_ACK_TIMEOUT, SERIAL_RETRIES, Link, LinkStats,  # noqa: F401
+                   NoAnswer, NullProgress, PortLost, Rejected, UploadFailed)
 from .uploader import (MAX_VERSION, OLD_IMAGE_WAIT, STORE_WAIT, VERIFY_MESSAGES,  # noqa: F401
-                       InForce, NoTemperature, NotStored, Options, Result, StoreCheck,
+                       CommittedNotFinished, InForce, InForceChanged, NoTemperature,
+                       NotStored, Options, Result, StoreCheck,
                        Uploader, check_cal, describe_flags, flags_for, fragments, next_version,
                        sensor_names, summary, upload_cal)

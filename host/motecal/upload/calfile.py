@@ -2,7 +2,6 @@
 fixed-point set, checked by the mote's own C code before anything is sent."""
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -14,32 +13,9 @@ from ..line import protocol as P
 from ..line.protocol import MOTE_ID_MAX, MOTE_ID_MIN
 
 # --------------------------------------------------------------------------
-# cal.json -> the set
+# cal.json -> the set (checked by calib.result.check_document, the one
+# validation of cal.json that export-cal and report share)
 # --------------------------------------------------------------------------
-def _numbers(v) -> bool:
-    """Nested lists of JSON numbers only (a string "1.0" or true is not one)."""
-    if isinstance(v, list):
-        return all(_numbers(x) for x in v)
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
-def _matrix(d, key, shape, where):
-    if key not in d:
-        raise UserError(f"{where}: no {key!r}")
-    if not _numbers(d[key]):
-        raise UserError(f"{where}: {key!r} is not a list of numbers")
-    try:
-        a = np.array(d[key], dtype=np.float64)
-    except (TypeError, ValueError, OverflowError):
-        raise UserError(f"{where}: {key!r} is not a list of numbers") from None
-    if a.shape != shape:
-        raise UserError(f"{where}: {key!r} must be {'x'.join(map(str, shape))}, not "
-                        f"{'x'.join(map(str, a.shape)) or 'a number'}")
-    if not np.all(np.isfinite(a)):
-        raise UserError(f"{where}: {key!r} holds a missing or infinite value")
-    return a
-
-
 @dataclass
 class CalFile:
     """What upload needs of a cal.json: per sensor (A, c), the mote, the gate."""
@@ -56,79 +32,41 @@ class CalFile:
 
 
 def load_cal(path) -> CalFile:
-    """Read and check a cal.json (the JSON of ``calib.result.BoardCalibration``).
-
-    Only what upload needs must be there: ``format_version``, ``mote`` and,
-    per calibrated sensor, ``A`` (3x3) and ``c`` (3); the messages name the
-    field that is missing or wrong."""
-    from ..calib.result import FORMAT_VERSION
+    """Read and check a cal.json (the JSON of ``calib.result.BoardCalibration``,
+    checked by ``calib.result.read_document``): only what upload needs must be
+    there: ``format_version``, ``mote`` and, per calibrated sensor, ``A``
+    (3x3) and ``c`` (3); the messages name the field that is missing or
+    wrong.  The mote must be one the upload can address (1..65534)."""
+    from ..calib.result import read_document
     text = read_input_text(path)         # a regular file of sane size: never /dev/zero
-    try:
-        d = json.loads(text)
-    except (json.JSONDecodeError, RecursionError) as e:
-        raise UserError(f"{path} is not JSON: {e}") from None
-    if not isinstance(d, dict) or "format_version" not in d:
-        raise UserError(f"{path} is not a motecal calibration (no format_version)")
-    fv = d["format_version"]
-    if isinstance(fv, bool) or not isinstance(fv, int) or not 1 <= fv <= FORMAT_VERSION:
-        raise UserError(f"{path}: calibration format_version {fv!r} is not one this motecal "
-                        f"reads (1..{FORMAT_VERSION})")
-    mote = d.get("mote")
-    if isinstance(mote, bool) or not isinstance(mote, int) or \
-            not MOTE_ID_MIN <= mote <= MOTE_ID_MAX:
-        raise UserError(f"{path}: no mote id (\"mote\": an integer "
-                        f"{MOTE_ID_MIN}..{MOTE_ID_MAX})")
-    gate = d.get("gate") or {}
-    if not isinstance(gate, dict):
-        raise UserError(f"{path}: \"gate\" is not an object")
-    return CalFile(str(path), mote, _physical(d, str(path)), str(d.get("session") or ""), gate,
-                   _temps(d, str(path)))
+    d = read_document(text, str(path))
+    return _calfile(d, str(path))
 
 
 def cal_from_board(board, where: str = "calibration") -> CalFile:
+    from ..calib.result import check_document
     d = board.to_json()
-    return CalFile(where, int(board.mote), _physical(d, where), board.session,
-                   dict(board.gate or {}), _temps(d, where))
+    check_document(d, where)
+    return _calfile(d, where)
 
 
-def _temps(d: dict, where: str) -> dict:
-    """Each calibrated sensor's temperature model (cal.json format 2)."""
+def _calfile(d: dict, where: str) -> CalFile:
+    """A checked document (``check_document``) as what upload needs of it."""
     from ..calib.result import TempModel
-    temps = {}
+    mote = d["mote"]
+    if not MOTE_ID_MIN <= mote <= MOTE_ID_MAX:
+        raise UserError(f"{where}: no mote id an upload can address (\"mote\": an integer "
+                        f"{MOTE_ID_MIN}..{MOTE_ID_MAX}, not {mote})")
+    physical, temps = {}, {}
     for name in P.SENSORS:
         s = d.get(name)
-        t = s.get("temperature") if isinstance(s, dict) and s.get("A") is not None else None
-        if not t:
+        if s is None:
             continue
-        if not isinstance(t, dict):
-            raise UserError(f"{where}: {name}: \"temperature\" is not an object")
-        try:
-            tm = TempModel.from_json(t)
-        except KeyError as e:
-            raise UserError(f"{where}: {name}: temperature: no {e}") from None
-        except (TypeError, ValueError) as e:
-            raise UserError(f"{where}: {name}: temperature: {e}") from None
-        if not (np.isfinite(tm.t_ref_c) and np.all(np.isfinite(tm.range_c))):
-            raise UserError(f"{where}: {name}: temperature: t_ref_c or range_c is not finite")
-        temps[name] = tm
-    return temps
-
-
-def _physical(d: dict, where: str) -> dict:
-    physical = {}
-    for name in P.SENSORS:
-        s = d.get(name)
-        if not s:
-            continue
-        if not isinstance(s, dict):
-            raise UserError(f"{where}: {name} is not an object")
-        A = _matrix(s, "A", (3, 3), f"{where}: {name}")
-        c = _matrix(s, "c", (3,), f"{where}: {name}")
-        physical[name] = (A, c)
-    if not physical:
-        raise UserError(f"{where}: no calibrated sensor (accel, gyro or mag with A and c): "
-                        "nothing to upload")
-    return physical
+        physical[name] = (np.array(s["A"], dtype=np.float64), np.array(s["c"], dtype=np.float64))
+        if s.get("temperature") is not None:
+            temps[name] = TempModel.from_json(s["temperature"])
+    return CalFile(where, mote, physical, str(d.get("session") or ""), dict(d.get("gate") or {}),
+                   temps)
 
 
 def build_set(cal: CalFile, mote: int, version: int,

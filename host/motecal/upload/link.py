@@ -30,6 +30,10 @@ class NoAnswer(UploadFailed):
     pass
 
 
+class PortLost(UploadFailed):
+    """The port went away (unplugged, the connection closed or taken over)."""
+
+
 class Rejected(UploadFailed):
     """The mote answered with a reason code other than NINEDOF_CAL_OK."""
 
@@ -114,9 +118,9 @@ class Link:
         try:
             frames = self.source.read()
         except S.SourceLost as e:
-            raise UploadFailed(f"lost the port {self.source.spec}: {e}") from None
+            raise PortLost(f"lost the port {self.source.spec}: {e}") from None
         except S.SourceEnded:
-            raise UploadFailed(f"{self.source.spec} ended") from None
+            raise PortLost(f"{self.source.spec} ended") from None
         for fr in frames:
             if fr.protocol == P.PROTO_ACK:
                 self._acked.add(fr.seq)
@@ -171,7 +175,7 @@ class Link:
         try:
             self.source.send(am, ack_seq=seq)
         except S.SourceLost as e:
-            raise UploadFailed(f"lost the port {self.source.spec}: {e}") from None
+            raise PortLost(f"lost the port {self.source.spec}: {e}") from None
 
     def _take(self, mote: int, am_type: int, match) -> dict | None:
         for i, (src, typ, msg) in enumerate(self._replies):

@@ -40,6 +40,7 @@ itself; then only the replies are waited for.
 """
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 
 from ..errors import QualityError, UserError
@@ -48,7 +49,7 @@ from ..line import protocol as P
 from ..line import sources as S
 from .calfile import CalFile, build_set, check_set
 from .link import (DEFAULT_RETRIES, DEFAULT_TIMEOUT, Link, LinkStats, NoAnswer, NullProgress,
-                   Rejected, UploadFailed)
+                   PortLost, Rejected, UploadFailed)
 
 VERIFY_WAIT = 2.0            # s: for the mote's sample messages after the commit
 VERIFY_MESSAGES = 3          # consecutive sample messages with the new flags
@@ -90,6 +91,18 @@ def choose_version(mote: int, in_force: int, opts: "Options") -> int:
 class NotStored(UploadFailed):
     """The set is in force, but the mote did not report it stored in its
     EEPROM: a reset or power loss brings back the set stored before."""
+
+
+class CommittedNotFinished(UploadFailed):
+    """The mote acknowledged the new set in force, then the upload could not
+    finish (the port lost, no answer, a read-back or sample check failed):
+    the set is in force as far as the host knows, neither verified nor known
+    to be stored.  Exit 1, and the message says so."""
+
+
+class InForceChanged(UploadFailed):
+    """After the commit another set turned out to be in force (the mote
+    restarted): the message names what is in force."""
 
 
 class NoTemperature(Rejected):
@@ -238,7 +251,7 @@ class Uploader:
                 r = self.query(off, what)
                 if expect_version is None or r["version"] == expect_version:
                     return r
-            raise UploadFailed(
+            raise InForceChanged(
                 f"mote {self.mote} reports version {r['version']} (CRC 0x{r['crc']:04x}) in "
                 f"force, not version {expect_version} (did it restart?); its EEPROM holds "
                 f"{stored_text(r.get('stored_version'))}")
@@ -400,7 +413,7 @@ class Uploader:
                     "its EEPROM write")
                 return chk
             if (inf.version, inf.crc) != (version, crc):
-                raise UploadFailed(
+                raise InForceChanged(
                     f"mote {self.mote} has version {inf.version} (CRC 0x{inf.crc:04x}) in force "
                     f"now, not version {version}: did it restart before version {version} was "
                     f"stored? Its EEPROM holds {stored_text(inf.stored_version)}")
@@ -440,19 +453,46 @@ class Uploader:
         except NoAnswer as e:
             ack = self._after_lost_ack(e, cs.version, crc, lambda back: back.data == calset,
                                        cs.mask)
-        back = self.read_set(expect_version=cs.version)
-        if back.data != calset:
-            n = min(len(back.data), len(calset))
-            i = next((k for k in range(n) if back.data[k] != calset[k]), n)
-            raise UploadFailed(f"mote {self.mote}: the set read back ({len(back.data)} bytes) "
-                               f"differs from the set sent ({len(calset)} bytes; first at byte "
-                               f"{i})")
-        self.progress.note(f"  read-back: {len(calset)} bytes identical, CRC 0x{back.crc:04x}")
-        chk = self.check_samples(flags_for(cs.version, cs.mask), verify_wait)
-        self._note_samples(chk)
-        stored = self.wait_stored(cs.version, crc, store_wait, since=t_commit)
+        except PortLost as e:
+            raise self._unknown(cs.version, e) from None
+        with self._in_force(cs.version, "calibration"):     # from here the set is in force
+            back = self.read_set(expect_version=cs.version)
+            if back.data != calset:
+                n = min(len(back.data), len(calset))
+                i = next((k for k in range(n) if back.data[k] != calset[k]), n)
+                raise UploadFailed(f"the set read back ({len(back.data)} bytes) differs from "
+                                   f"the set sent ({len(calset)} bytes; first at byte {i})")
+            self.progress.note(f"  read-back: {len(calset)} bytes identical, "
+                               f"CRC 0x{back.crc:04x}")
+            chk = self.check_samples(flags_for(cs.version, cs.mask), verify_wait)
+            self._note_samples(chk)
+            stored = self.wait_stored(cs.version, crc, store_wait, since=t_commit)
         return Result(self.mote, cs.version, crc, ack["sensors"], previous, True, chk,
                       self.link.clock() - t0, self.link.stats, stored)
+
+    def _unknown(self, version: int, e: Exception) -> UploadFailed:
+        """The port went away after the commit was sent, before its ack."""
+        return UploadFailed(f"mote {self.mote}: the commit of version {version} was sent, then "
+                            f"{e}: whether version {version} is in force is unknown (check with "
+                            "`motecal upload --show`)")
+
+    @contextlib.contextmanager
+    def _in_force(self, version: int, what: str):
+        """The steps after a commit the mote acknowledged: a failure there
+        says that the mote acknowledged ``version`` in force, and that it is
+        neither verified nor known to be stored (``CommittedNotFinished``),
+        unless its message already says what is in force (``NotStored``,
+        ``InForceChanged``)."""
+        try:
+            yield
+        except (NotStored, InForceChanged):
+            raise
+        except UploadFailed as e:
+            raise CommittedNotFinished(
+                f"mote {self.mote} acknowledged {what} version {version} in force, but the "
+                f"upload did not finish: {e}; version {version} is not verified and not known "
+                "to be stored (a reset may bring back the set stored before): check with "
+                "`motecal upload --show`") from None
 
     def reset(self, version: int, previous: int, verify_wait: float = VERIFY_WAIT,
               store_wait: float = STORE_WAIT) -> Result:
@@ -463,6 +503,8 @@ class Uploader:
         except NoAnswer as e:
             ack = self._after_lost_ack(e, version, 0, lambda back: back.version == version
                                        and not back.calset.sensors, 0)
+        except PortLost as e:
+            raise self._unknown(version, e) from None
         if ack["status"] != P.CAL_OK:
             raise Rejected(f"mote {self.mote} refused the reset to version {version}: "
                            f"{P.cal_reason(ack['status'])}; version {ack['version']} stays in "
@@ -471,14 +513,15 @@ class Uploader:
             raise UploadFailed(f"mote {self.mote} acknowledged the reset with version "
                                f"{ack['version']}, sensors {ack['sensors']}")
         self.progress.note(f"  reset: accepted, raw output, version {version} in force")
-        back = self.read_set(expect_version=version)
-        if back.calset.sensors:
-            raise UploadFailed(f"mote {self.mote}: the set read back still corrects "
-                               f"{', '.join(back.calset.sensors)}")
-        self.progress.note(f"  read-back: raw set, version {back.version}")
-        chk = self.check_samples(flags_for(version, 0), verify_wait)
-        self._note_samples(chk)
-        stored = self.wait_stored(version, back.crc, store_wait, since=t0)
+        with self._in_force(version, "raw output"):
+            back = self.read_set(expect_version=version)
+            if back.calset.sensors:
+                raise UploadFailed(f"the set read back still corrects "
+                                   f"{', '.join(back.calset.sensors)}")
+            self.progress.note(f"  read-back: raw set, version {back.version}")
+            chk = self.check_samples(flags_for(version, 0), verify_wait)
+            self._note_samples(chk)
+            stored = self.wait_stored(version, back.crc, store_wait, since=t0)
         return Result(self.mote, version, back.crc, 0, previous, True, chk,
                       self.link.clock() - t0, self.link.stats, stored)
 

@@ -7,11 +7,22 @@ threads: the logging thread never waits for it.  A reconnecting browser gets
 the full state in the first event.  Bound where told (loopback by default);
 on a loopback address a request naming another host (DNS rebinding) is
 refused (403).  At most ``MAX_STREAMS`` event streams at once (503 beyond).
+
+A client that misbehaves costs the logger nothing and prints nothing: each
+connection's socket times out after ``REQUEST_TIMEOUT_S`` (a request that
+never completes, a reader that stops reading), at most ``MAX_CONNECTIONS``
+are served at once (more are closed at once), and a connection dropped,
+reset or timed out mid-request ends its handler quietly (``handle_error``;
+they are counted in ``ViewServer.dropped``).  Only an error of the server's
+own code is reported, as one line, never a traceback.
 """
 from __future__ import annotations
 
 import argparse
 import ipaddress
+import select
+import socket
+import sys
 import threading
 import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -21,6 +32,8 @@ from ..errors import UserError
 
 DEFAULT_HOST = "127.0.0.1"
 MAX_STREAMS = 8
+MAX_CONNECTIONS = 32    # connections served at once (streams, page loads, half-open ones)
+REQUEST_TIMEOUT_S = 10.0    # a socket with no progress this long is dropped
 POLL_S = 0.1            # an event stream looks for a new snapshot this often
 KEEPALIVE_S = 10.0      # comment line on an idle stream (finds closed browsers)
 LOOPBACK_NAMES = {"localhost", "127.0.0.1", "::1", "[::1]"}
@@ -54,6 +67,10 @@ class _Handler(BaseHTTPRequestHandler):
     server_version = "motecal-view"
     sys_version = ""
     protocol_version = "HTTP/1.1"
+
+    def setup(self):
+        self.timeout = REQUEST_TIMEOUT_S      # StreamRequestHandler sets it on the socket
+        super().setup()
 
     def log_message(self, format, *args):        # no request log on the logger's terminal
         pass
@@ -92,6 +109,15 @@ class _Handler(BaseHTTPRequestHandler):
             return self._stream()
         return self._send(404, b"not found\n")
 
+    def _gone(self) -> bool:
+        """The client closed or reset its connection (an event stream's client
+        sends nothing after its request, so a readable socket is a closed one)."""
+        try:
+            ready, _, _ = select.select([self.connection], [], [], 0)
+            return bool(ready) and not self.connection.recv(1, socket.MSG_PEEK)
+        except (OSError, ValueError):
+            return True
+
     def _stream(self):
         srv = self.server
         with srv.lock:
@@ -121,6 +147,8 @@ class _Handler(BaseHTTPRequestHandler):
                     self.wfile.write(b": keepalive\n\n")
                     self.wfile.flush()
                     idle = time.monotonic()
+                if self._gone():
+                    return                  # the browser closed: free the slot now
                 srv.closing.wait(POLL_S)
         except (BrokenPipeError, ConnectionResetError, TimeoutError, OSError):
             return
@@ -129,15 +157,22 @@ class _Handler(BaseHTTPRequestHandler):
                 srv.streams -= 1
 
 
+# what a client's connection going away looks like: never a fault of the server
+DROPPED = (ConnectionError, TimeoutError, OSError)
+
+
 class ViewServer(ThreadingHTTPServer):
     daemon_threads = True
     allow_reuse_address = False       # a port in use is an error, not shared
+    request_queue_size = 128          # a burst of connections is accepted, not left to retry
 
     def __init__(self, address: tuple[str, int], view):
         self.view = view
         self.assets = {name: asset(name) for name, _ in PAGES.values()}
         self.lock = threading.Lock()
         self.streams = 0
+        self.connections = 0
+        self.dropped = 0              # connections dropped, reset, timed out or turned away
         self.closing = threading.Event()
         host = address[0]
         try:
@@ -145,9 +180,44 @@ class ViewServer(ThreadingHTTPServer):
         except ValueError:
             self.loopback = host.lower() == "localhost"
         if ":" in host:
-            import socket
             self.address_family = socket.AF_INET6
         super().__init__(address, _Handler)
+
+    # -- connections: bounded, and quiet when a client goes away ------------------
+    def verify_request(self, request, client_address) -> bool:
+        with self.lock:
+            if self.connections >= MAX_CONNECTIONS:
+                self.dropped += 1
+                return False          # closed at once (shutdown_request)
+            self.connections += 1
+        return True
+
+    def process_request_thread(self, request, client_address):
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            with self.lock:
+                self.connections -= 1
+
+    def process_request(self, request, client_address):
+        try:
+            super().process_request(request, client_address)
+        except BaseException:
+            with self.lock:           # no thread started: the slot is free again
+                self.connections -= 1
+            raise
+
+    def handle_error(self, request, client_address):
+        """A client that dropped, reset or timed out: counted, nothing printed
+        (socketserver would print a traceback on the logger's terminal).  An
+        error of the server's own: one line on stderr."""
+        e = sys.exc_info()[1]
+        if isinstance(e, DROPPED):
+            with self.lock:
+                self.dropped += 1
+            return
+        print(f"motecal: view: a request failed: {type(e).__name__}: "
+              f"{' '.join(str(e).split())[:200]}", file=sys.stderr, flush=True)
 
     @property
     def url(self) -> str:

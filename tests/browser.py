@@ -126,8 +126,14 @@ class Browser:
                 raise BrowserError(f"timed out waiting for {expression}")
             time.sleep(every)
 
-    def screenshot(self, path) -> None:
-        data = self.call("Page.captureScreenshot", format="png")["data"]
+    def screenshot(self, path, clip: dict | None = None) -> None:
+        """The viewport as PNG, or the page's region ``clip`` ({x, y, width,
+        height} in CSS pixels of the page, beyond the viewport too)."""
+        if clip is None:
+            data = self.call("Page.captureScreenshot", format="png")["data"]
+        else:
+            data = self.call("Page.captureScreenshot", format="png", captureBeyondViewport=True,
+                             clip=dict(clip, scale=1))["data"]
         with open(path, "wb") as f:
             f.write(base64.b64decode(data))
 

@@ -143,7 +143,23 @@ def test_index_references_every_file_and_nothing_external(sim):
     assert on_disk <= refs, f"not referenced from index.html: {on_disk - refs}"
     html = sim["index"].read_text()
     assert html.count("<img ") == len(list(out.glob("*.png")))
-    assert html.count("<table>") == 4        # Tables I-III and the calibration shown
+    # Tables I-III, the calibration shown and its choices (no temperature, no diagnosis kept)
+    assert html.count("<table>") == 5
+
+
+def test_session_without_temperature_has_no_temperature_section_and_says_why(sim):
+    """The simulated session carries no temperature: no temperature section,
+    no temperature figure or table, and the page's head says why; the other
+    sections of what the calibration did are there."""
+    out, html = sim["out"], sim["index"].read_text()
+    assert sim["data"].temp is None
+    assert 'id="temperature-mote1"' not in html and not list(out.glob("*temperature*"))
+    assert ("none in the session: the session carries no board temperature" in html)
+    for anchor in ("choices-mote1", "poses-mote1"):
+        assert f'<section id="{anchor}">' in html, anchor
+    assert "none kept with the session" in html              # no diagnosis either
+    rows = T.read_csv(out / "choices.csv")
+    assert {r["temperature"] for r in rows} == {"none (no temperature in the session)"}
 
 
 def _num(s):

@@ -62,6 +62,7 @@ FRESH = fibonacci_sphere(256)  # fresh directions the error is averaged over
 CANDIDATES = fibonacci_sphere(400)
 HEADINGS = 8                  # headings the magnetometer's gain is averaged over
 MIN_POSES = 12                # fewer poses: no prediction (9 parameters + 3 dof)
+CURVE_POINTS = 16             # poses_needed's curve: the promise at this many numbers of poses
 TARGET_ACCEL_G = 0.0005       # 0.5 mg rms on fresh directions
 TARGET_MAG_REL = 0.003        # 0.3 % of the field (shape)
 TARGET_GYRO_DPS = 0.05        # gyroscope bias, deg/s rms over axes
@@ -425,35 +426,52 @@ def poses_needed(stats: PoseStats, scales: dict, targets: Targets = Targets(), *
     its target (``in_order``), and the fewest that do in the best subset a
     greedy design finds (``best_subset``, the pose labels in ``subset``);
     None where even all the poses do not.  Only ``sensors`` are judged (the
-    magnetometer is left out when its calibration came from a sweep)."""
+    magnetometer is left out when its calibration came from a sweep).
+
+    ``curve`` keeps the promise at ``CURVE_POINTS`` numbers of poses ``k``
+    from ``MIN_POSES`` to all of them (the report draws it): per sensor the
+    promised error of the first k poses in the order taken (``in_order``)
+    and of the first k of the greedy selection (``best_subset``; the
+    selection runs to every pose, ``order`` the labels in the order it chose
+    them)."""
     K = len(stats)
     out = {"poses": K, "targets": {"accel_g": targets.accel_g, "mag_rel": targets.mag_rel,
                                    "gyro_dps": targets.gyro_dps},
            "confidence": q, "sensors": list(sensors), "in_order": None, "best_subset": None,
            "subset": [], "bounds_all": {}}
+    memo = {}
 
-    def ok(sub: PoseStats) -> tuple[bool, dict]:
-        a = assess(sub, scales, targets, q=q, suggest=False)
-        bs = {s: a.bounds.get(s) for s in sensors if s in a.bounds}
-        return all(a.met.get(s, False) for s in bs) and bool(bs), bs
+    def ok(idx) -> tuple[bool, dict]:
+        key = tuple(idx)
+        if key not in memo:
+            a = assess(stats.take(list(idx)), scales, targets, q=q, suggest=False)
+            bs = {s: a.bounds.get(s) for s in sensors if s in a.bounds}
+            memo[key] = (all(a.met.get(s, False) for s in bs) and bool(bs), bs)
+        return memo[key]
 
-    met_all, b_all = ok(stats)
+    met_all, b_all = ok(range(K))
     out["bounds_all"] = b_all
-    if K < MIN_POSES or not met_all:
+    if K < MIN_POSES:
         return out
-    # in the order taken: the bound is not monotone in k, so the first k from
-    # which it holds for good is searched from the end
-    first = K
-    for k in range(K - 1, MIN_POSES - 1, -1):
-        if ok(stats.take(range(k)))[0]:
+    ks = sorted(set(np.linspace(MIN_POSES, K, CURVE_POINTS).round().astype(int).tolist()))
+    if met_all:
+        # in the order taken: the bound is not monotone in k, so the first k
+        # from which it holds for good is searched from the end
+        first = K
+        for k in range(K - 1, MIN_POSES - 1, -1):
+            if not ok(range(k))[0]:
+                break
             first = k
-        else:
-            break
-    out["in_order"] = first
+        out["in_order"] = first
+    curve = {"k": ks, "in_order": {s: [ok(range(k))[1].get(s) for k in ks] for s in b_all},
+             "best_subset": {s: [] for s in b_all}, "order": []}
+    out["curve"] = curve
     # best subset: greedy A-optimal selection on the full session's fit
     full = {s: design_sensor(s, stats, scales[s], q=q) for s in ("accel", "mag")
             if s in sensors}
     full = {s: d for s, d in full.items() if d is not None}
+    if not full:
+        return out
     rows = {}
     for s, dsg in full.items():
         sl = slice(0, 3) if s == "accel" else slice(6, 9)
@@ -462,29 +480,31 @@ def poses_needed(stats: PoseStats, scales: dict, targets: Targets = Targets(), *
     info = {s: np.eye(dsg.model.d) * 1e-9 for s, dsg in full.items()}
     best = None
     while len(chosen) < K:
-        left = [i for i in range(K) if i not in chosen]
-        scores = []
-        for i in left:
-            sc = 0.0
-            for s, dsg in full.items():
-                var = (dsg.s_w2 / stats.n[i] + dsg.tau2) * dsg.phi
-                I = info[s] + np.outer(rows[s][i], rows[s][i]) / var
-                sc += np.trace(dsg.M @ np.linalg.pinv(I)) / targets.of(s) ** 2
-            if "gyro" in sensors:
-                sc -= 1e-12 * stats.n[i]
-            scores.append(sc)
-        i = left[int(np.argmin(scores))]
+        left = np.array([i for i in range(K) if i not in chosen])
+        scores = np.zeros(len(left))
+        for s, dsg in full.items():
+            var = (dsg.s_w2 / stats.n[left] + dsg.tau2) * dsg.phi
+            r = rows[s][left]
+            I = info[s] + r[:, :, None] * r[:, None, :] / var[:, None, None]
+            scores += np.trace(dsg.M @ np.linalg.pinv(I), axis1=1, axis2=2) / targets.of(s) ** 2
+        if "gyro" in sensors:
+            scores -= 1e-12 * stats.n[left]
+        i = int(left[int(np.argmin(scores))])
         chosen.append(i)
         for s, dsg in full.items():
             var = (dsg.s_w2 / stats.n[i] + dsg.tau2) * dsg.phi
             info[s] = info[s] + np.outer(rows[s][i], rows[s][i]) / var
-        if len(chosen) >= MIN_POSES and ok(stats.take(sorted(chosen)))[0]:
-            best = len(chosen)
-            break
+        n = len(chosen)
+        if n >= MIN_POSES and met_all and best is None and ok(sorted(chosen))[0]:
+            best = n
+            out["subset"] = [int(x) for x in sorted(chosen)]
+        if n in ks:
+            for s in b_all:
+                curve["best_subset"][s].append(ok(sorted(chosen))[1].get(s))
+    labs = stats.labels if len(stats.labels) else np.arange(1, K + 1)
+    out["subset"] = [int(labs[j]) for j in out["subset"]]
+    curve["order"] = [int(labs[j]) for j in chosen]
     out["best_subset"] = best
-    if best is not None:
-        labs = stats.labels if len(stats.labels) else np.arange(1, K + 1)
-        out["subset"] = sorted(int(labs[i]) for i in chosen)
     return out
 
 
@@ -521,13 +541,13 @@ class Planner:
 
 
 def session_poses_needed(board, data, targets: Targets = Targets(),
-                         q: float = CONFIDENCE) -> dict | None:
+                         q: float = CONFIDENCE, keep: bool = True) -> dict | None:
     """``poses_needed`` for a calibrated board (``calibrate_board``'s result)
     and its session (one mote): judged on the sensors its static poses
     calibrated (the magnetometer only when its calibration came from the
     poses, set O, not from a sweep).  Kept in ``cal.json`` under the
-    accelerometer's ``quality["poses_needed"]``; None without an
-    accelerometer calibration from poses."""
+    accelerometer's ``quality["poses_needed"]`` (``keep``: the report asks
+    without keeping); None without an accelerometer calibration from poses."""
     if board.accel is None or not (data.label >= 1).any():
         return None
     sensors = ["accel"]
@@ -537,7 +557,8 @@ def session_poses_needed(board, data, targets: Targets = Targets(),
         sensors.append("gyro")
     st = pose_stats(data.raw, data.label)
     out = poses_needed(st, data.scales, targets, sensors=tuple(sensors), q=q)
-    board.accel.quality["poses_needed"] = out
+    if keep:
+        board.accel.quality["poses_needed"] = out
     return out
 
 
@@ -549,7 +570,8 @@ def describe_poses_needed(pn: dict) -> list[str]:
     fmt = {"accel": lambda b: f"accel {b * 1e3:.3g} mg", "mag": lambda b: f"mag {b * 1e2:.3g} %",
            "gyro": lambda b: f"gyro {b:.3g} deg/s"}
     want = ", ".join(names[s] for s in pn["sensors"])
-    have = ", ".join(fmt[s](b) for s, b in pn["bounds_all"].items() if b is not None)
+    have = ", ".join(fmt[s](pn["bounds_all"][s]) for s in pn["sensors"]
+                     if pn["bounds_all"].get(s) is not None)     # one order, also from JSON
     lines = [f"  poses needed (promised error at {pn['confidence']:.0%} on fresh directions, "
              f"targets {want}):"]
     if pn["in_order"] is None:

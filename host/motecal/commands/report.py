@@ -2,6 +2,9 @@
 (``motecal.report``)."""
 from __future__ import annotations
 
+from pathlib import Path
+
+from ..errors import UserError
 from ..outputs import check_output_dir
 from ..report import write_report
 from ..sessions.store import open_store
@@ -13,13 +16,16 @@ def run(args) -> int:
     check_output_dir(args.out, inputs=[args.db, args.cal], what="--out")
     if args.cal is not None:
         load_cal(args.cal)       # a regular file, a calibration, finite numbers: one line if not
+    if args.diagnosis_report is not None and not Path(args.diagnosis_report).is_dir():
+        raise UserError(f"--diagnosis-report {args.diagnosis_report}: not a folder (a motecal "
+                        f"diagnose --report DIR)")
     store = open_store(args.db, readonly=True)
     try:
         def log(msg):
             if not args.quiet:
                 print(msg, flush=True)
         index = write_report(store, args.session, args.out, mote=args.mote, cal=args.cal,
-                             seed=args.seed, log=log)
+                             seed=args.seed, log=log, diagnosis_report=args.diagnosis_report)
     finally:
         store.close()
     print(f"report written: {index}")
@@ -42,5 +48,8 @@ def register(subparsers) -> None:
                         "else calibrate now with the full model)")
     p.add_argument("--seed", type=seed, default=0,
                    help="seed of the GA runs made for the tables (default 0)")
+    p.add_argument("--diagnosis-report", default=None, metavar="DIR",
+                   help="a motecal diagnose --report DIR folder: its evidence pictures go into "
+                        "the report's diagnosis section")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=run)

@@ -1,6 +1,7 @@
 """``motecal report``: the seed paper's tables and figures for one session.
 
     motecal report --db FILE --session NAME --out DIR [--mote ID] [--cal cal.json] [--seed N]
+                   [--diagnosis-report DIR]
 
 writes into ``DIR``:
 
@@ -11,8 +12,16 @@ writes into ``DIR``:
 * PNG figures per mote (magnitude per sample, 3D and three-plane scatter,
   residual against direction, coverage of directions, gyroscope Allan
   deviation, GA convergence);
+* what the calibration did, per mote (``choices``, ``temperature``,
+  ``poses``, ``diagnosis``, put together by ``calsections``): the model of
+  each sensor and why, the quality gate's verdict and metrics, the
+  temperature terms against the session's still data, the promised error
+  against the number of poses, the diagnosis kept with the session -- tables
+  and figures, the charts described once (``charts``) and drawn by matplotlib
+  and by view.html;
 * ``view.html``: the 3D views of ``motecal log --view`` for the stored session
-  (``motecal.view``; one self-contained file, the data embedded);
+  (``motecal.view``; one self-contained file, the data embedded) with those
+  charts;
 * ``index.html`` tying them together (relative links only; opens from disk).
 
 The report is built in a temporary directory beside ``DIR`` and renamed into
@@ -92,19 +101,22 @@ def _commit_out(tmp: Path, out: Path) -> None:
 
 
 def write_report(store, session, out_dir, mote: int | None = None, *, cal=None,
-                 seed: int = 0, log=None) -> Path:
+                 seed: int = 0, log=None, diagnosis_report=None) -> Path:
     """Write the report of ``session`` (a name in ``store``, or a SessionData
     with ``store`` None) into ``out_dir``; returns the path of index.html.
 
     ``cal`` is a calibration to show (a ``BoardCalibration``, its JSON dict or
     a cal.json path); without it the latest calibration stored for the mote is
     used, and without that the board is calibrated now (full model, ``seed``).
-    ``log`` is called with one-line progress messages.
+    ``log`` is called with one-line progress messages.  ``diagnosis_report``
+    is a ``motecal diagnose --report`` folder whose evidence pictures the
+    diagnosis section shows (copied into the report).
     """
     from .build import build_report
     out, tmp = _prepare_out(out_dir)
     try:
-        build_report(store, session, tmp, mote=mote, cal=cal, seed=seed, log=log)
+        build_report(store, session, tmp, mote=mote, cal=cal, seed=seed, log=log,
+                     diagnosis_report=diagnosis_report)
         _commit_out(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -11,7 +11,8 @@ Every number comes from the calibration engine (``motecal.calib``):
 
 A table the session has no usable data for (no accelerometer, no still
 gyroscope rows, no magnetometer set) is left out with a note; a session with
-nothing to report raises ``QualityError``.
+nothing to report raises ``QualityError``.  The sections on what the
+calibration did come from the modules named in ``calsections``.
 """
 from __future__ import annotations
 
@@ -26,6 +27,9 @@ from ..maths.stats import allan_deviation
 from ..sessions.session import SENSOR_SLICES, UNITS, SessionData
 from ..view import static_page
 from ..view.state import session_state
+from . import charts as CH
+from . import calsections as CS
+from . import choices, diagnosis, poses, temperature
 from . import figures as F
 from . import html as H
 from .tables import Column, Table, write as write_table
@@ -480,26 +484,35 @@ def _tables(reports: list[MoteReport]) -> list[Table]:
 VIEW = "view.html"
 
 
-def _view_section(store, session, data, out: Path) -> H.Section:
+def _view_section(store, session, data, out: Path, charts: dict) -> H.Section:
     """``view.html``: the 3D views of ``motecal log --view`` for the stored
-    session (one self-contained file, the data embedded)."""
+    session (one self-contained file, the data embedded), with each mote's
+    calibration charts (``charts``: mote -> [(heading, [chart])], the
+    drawings of the sections above, drawn by the page's script)."""
     stats = events = None
     if store is not None and not isinstance(session, SessionData):
         stats, events = store.link_stats(data.name), store.events(data.name)
     doc = session_state(data, stats, events)
+    for m in doc["motes"]:
+        m["calibration"] = [{"heading": h, "charts": [CH.to_view(c) for c in cs]}
+                            for h, cs in charts.get(m["id"], [])]
     (out / VIEW).write_text(static_page(doc), encoding="utf-8")
     return H.Section("view", "3D views",
                      "The views of motecal log --view, from the database: per mote the poses' "
                      "gravity directions beside the suggested ones, the board, the sweep's "
-                     "magnetometer points raw and as fitted, the coverage cells and gaps, and "
-                     "the link counters. One file with the data inside (it runs a small "
-                     "script, nothing external).", links=[(VIEW, "open the 3D views")])
+                     "magnetometer points raw and as fitted, the coverage cells and gaps, the "
+                     "link counters, and the calibration's drawings of the sections above "
+                     "(temperature, the gate, poses needed, diagnosis). One file with the data "
+                     "inside (it runs a small script, nothing external).",
+                     links=[(VIEW, "open the 3D views")])
 
 
 def build_report(store, session, out_dir, *, mote=None, cal=None, seed: int = 0,
-                 log=None) -> Path:
+                 log=None, diagnosis_report=None) -> Path:
     """Write every file of the report into ``out_dir`` (an existing, empty
-    directory); returns the index.html path."""
+    directory); returns the index.html path.  ``diagnosis_report``: a
+    ``motecal diagnose --report`` folder whose pictures the diagnosis
+    section shows."""
     log = log or (lambda msg: None)
     out = Path(out_dir)
     board_given = _load_cal(cal)
@@ -539,31 +552,31 @@ def build_report(store, session, out_dir, *, mote=None, cal=None, seed: int = 0,
                 if k in by_name],
         notes=[n for mr in reports for n in mr.notes if n.startswith("Table")]))
     if "calibration" in by_name:
-        gate_notes = []
-        for mr in reports:
-            if mr.gate:
-                state = "accepted" if mr.gate.get("accepted") else (
-                    "refused (the figures show it anyway: see the reasons)")
-                gate_notes.append(f"mote {mr.mote}: quality gate (calib.decide): {state}")
-                gate_notes += [f"mote {mr.mote}: reason: {r}" for r in mr.gate.get("reasons", [])]
-                gate_notes += [f"mote {mr.mote}: warning: {w}"
-                               for w in mr.gate.get("warnings", [])]
-        sections.append(H.Section("shown", "Calibration shown",
-                                  tables=[by_name["calibration"]], notes=gate_notes))
+        sections.append(H.Section("shown", "Calibration shown", tables=[by_name["calibration"]],
+                                  notes=["the quality gate's verdict, reasons and warnings: "
+                                         "'What the calibration chose' below"]))
+    parts, view_charts = [], {}
     for mr in reports:
+        log(f"mote {mr.mote}: the calibration's choices, temperature, poses needed")
+        aside = _fig_set_aside(mr, "accel", out) + _fig_set_aside(mr, "mag", out)
+        mine = [choices.part(mr, out, aside), temperature.part(mr, out), poses.part(mr, out)]
         log(f"mote {mr.mote}: figures")
-        figs = []
+        figs = [] if mine[0].section is not None else aside
         figs += _fig_sensor(mr, "accel", out)
         figs += _fig_sensor(mr, "mag", out)
-        figs += _fig_set_aside(mr, "accel", out) + _fig_set_aside(mr, "mag", out)
         figs += _fig_coverage(mr, out)
         figs += _fig_allan(mr, out)
         figs += _fig_trace(mr, out)
+        mine.append(diagnosis.part(mr, out, store, name, diagnosis_report, len(motes) > 1))
+        sections += [p.section for p in mine if p.section is not None]
+        view_charts[mr.mote] = [v for p in mine for v in p.view]
+        parts += mine
         other = [n for n in mr.notes if not n.startswith("Table")]
         if figs or other:
             sections.append(H.Section(f"mote{mr.mote}", f"Figures, mote {mr.mote}",
                                       mr.source, figures=figs, notes=other))
-    sections.append(_view_section(store, session, data, out))
+    CS.part_tables(parts, out)
+    sections.append(_view_section(store, session, data, out, view_charts))
     meta = [("session", name), ("kind", data.kind),
             ("motes", ", ".join(map(str, motes))), ("samples", str(len(data))),
             ("source", str(data.meta.get("source", ""))),
@@ -577,6 +590,7 @@ def build_report(store, session, out_dir, *, mote=None, cal=None, seed: int = 0,
              for mr in reports if mr.gate]
     if gates:
         meta.append(("quality gate of the calibration shown", "; ".join(gates)))
+    meta += CS.meta_rows(parts)
     index = out / "index.html"
     index.write_text(H.render(f"motecal report: session {name}", meta, sections),
                      encoding="utf-8")

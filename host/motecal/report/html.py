@@ -18,8 +18,8 @@ CSS = """
 body { font-family: sans-serif; max-width: 1200px; margin: 1em auto; padding: 0 1em;
        color: #222; line-height: 1.4; }
 h1 { font-size: 1.6em; } h2 { border-bottom: 1px solid #ccc; margin-top: 2em; }
-table { border-collapse: collapse; margin: 0.5em 0; font-size: 0.9em; }
-th, td { border: 1px solid #bbb; padding: 2px 6px; }
+table { border-collapse: collapse; margin: 0.5em 0; font-size: 0.85em; }
+th, td { border: 1px solid #bbb; padding: 2px 4px; } th { font-size: 0.92em; }
 th { background: #eee; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
 figure { margin: 1em 0; } figure img { max-width: 100%; border: 1px solid #ddd; }
 figcaption { font-size: 0.9em; color: #444; }
@@ -63,7 +63,8 @@ def render(title: str, meta: list[tuple[str, str]], sections: list[Section],
     out.append("<nav>" + "".join(f'<a href="#{escape(s.anchor)}">{escape(s.title)}</a>'
                                  for s in sections) + "</nav>")
     for s in sections:
-        out.append(f'<h2 id="{escape(s.anchor)}">{escape(s.title)}</h2>')
+        out.append(f'<section id="{escape(s.anchor)}">')
+        out.append(f'<h2>{escape(s.title)}</h2>')
         if s.intro:
             out.append(f"<p>{escape(s.intro)}</p>")
         for href, text in s.links:
@@ -85,5 +86,6 @@ def render(title: str, meta: list[tuple[str, str]], sections: list[Section],
         if s.notes:
             out.append('<ul class="notes">' + "".join(f"<li>{escape(n)}</li>" for n in s.notes)
                        + "</ul>")
+        out.append("</section>")
     out += ["</body>", "</html>"]
     return "\n".join(out) + "\n"

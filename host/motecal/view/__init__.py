@@ -6,7 +6,8 @@
 * ``server``: the small HTTP server (page, script, ``/state.json``,
   ``/events`` as Server-Sent Events; 404 for anything else);
 * ``assets/``: the page, its script (plain canvas 2D, no library, no build
-  step) and style, served by motecal itself;
+  step), the charts of the report's calibration part (``charts.js``) and
+  style, served by motecal itself;
 * ``static_page(doc)``: the same page as one self-contained HTML file with
   the data embedded (the report's ``view.html``).
 """
@@ -22,7 +23,9 @@ def static_page(doc: dict) -> str:
     data = dumps(doc).decode().replace("</", "<\\/")
     css = asset("view.css").decode()
     js = asset("view.js").decode().replace("</script", "<\\/script")
+    charts = asset("charts.js").decode().replace("</script", "<\\/script")
     page = page.replace('<link rel="stylesheet" href="view.css">', f"<style>\n{css}</style>")
     page = page.replace("<!--STATE-->", f"<script>window.MOTECAL_STATE = {data};</script>")
     page = page.replace('<script src="view.js"></script>', f"<script>\n{js}</script>")
+    page = page.replace('<script src="charts.js"></script>', f"<script>\n{charts}</script>")
     return page

@@ -242,6 +242,34 @@
     ctx.fillText("+Z band on top; azimuth -180\u00b0 \u2192 180\u00b0", 1, H - 2);
   }
 
+
+  // ---- the report's calibration part (drawn by charts.js) ------------------------
+  function calibrationPart(P, groups) {
+    var box = el("div", { "class": "calib", id: P + "calib" });
+    box.appendChild(el("h2", {}, "the calibration (as in the report's sections)"));
+    var k = 0;
+    groups.forEach(function (g) {
+      box.appendChild(el("h3", { "class": "calibhead" }, g.heading.replace(/</g, "&lt;")));
+      var r = el("div", { "class": "row" });
+      g.charts.forEach(function (ch) {
+        var bars = ch.series.filter(function (s) { return s.kind === "barh"; })[0];
+        var wide = g.charts.length === 1;
+        var c = el("div", { "class": "card" });
+        var w = wide ? 760 : 285;
+        var cv = el("canvas", { id: P + "chart" + k, "class": "chart", "data-title": ch.title,
+                                width: w, height: bars ? 36 + 20 * bars.values.length : 200 });
+        c.appendChild(cv);
+        c.appendChild(el("div", { "class": "legend", style: "max-width:" + w + "px" },
+                         window.motecalCharts.legend(ch)));
+        r.appendChild(c);
+        window.motecalCharts.draw(cv, ch);
+        k++;
+      });
+      box.appendChild(r);
+    });
+    return box;
+  }
+
   // ---- the page ----------------------------------------------------------------
   function card(title, id, w, h) {
     var c = el("div", { "class": "card" });
@@ -298,6 +326,7 @@
       '<span>fit error <b id="' + P + 'fiterror">-</b></span>' +
       '<span>radius <b id="' + P + 'radius">-</b> counts</span>'));
     d.appendChild(sw);
+    if (m.calibration && m.calibration.length) d.appendChild(calibrationPart(P, m.calibration));
     var lv = el("div", { "class": "liveonly", id: P + "liveonly" });
     lv.appendChild(card("the board now", P + "board-only", 250, 210));
     d.appendChild(lv);

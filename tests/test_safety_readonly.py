@@ -10,6 +10,7 @@ import sqlite3
 import stat
 import subprocess
 
+import numpy as np
 import pytest
 
 from clirun import digest, motecal, session as small_session
@@ -25,8 +26,21 @@ def master(tmp_path_factory):
     s.name = "board"
     with open_store(str(path), create=True) as st:
         st.save_session(s)
-        st.save_session(small_session("small"))        # a quick report
+        st.save_session(_small_sweep())                 # a quick report
     return path
+
+
+def _small_sweep():
+    """400 rows whose magnetometer turns through every direction (the rest
+    plausible counts): the least a report draws something from (random
+    counts are a hold of noise, which calibrate rightly leaves alone)."""
+    s = small_session("small")
+    rng = np.random.default_rng(1)
+    k = np.arange(len(s)) / len(s)              # a smooth spiral from pole to pole
+    th, ph = np.arccos(1 - 2 * k), 2 * np.pi * 12 * k
+    d = np.column_stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
+    s.raw[:, 6:9] = np.round(500 * d + rng.normal(0, 1.5, (len(s), 3)) + [40, -25, 10])
+    return s
 
 
 def _copy(master, folder):
